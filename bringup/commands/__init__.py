@@ -1,0 +1,1 @@
+"""One module per `constellation` subcommand (see bringup/cli.py)."""

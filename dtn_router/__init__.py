@@ -1,0 +1,1 @@
+"""dtn_router package."""

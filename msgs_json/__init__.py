@@ -1,0 +1,1 @@
+"""msgs_json package."""

@@ -1,0 +1,29 @@
+"""Shared fixtures: paths to the study's inputs and the scenario."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parents[1]
+# ../shared/paper_inputs beside the clone (CI lays shared/ beside the checkout).
+PAPER_INPUTS = Path(os.environ.get("PAPER_INPUTS", REPO.parent / "shared" / "paper_inputs"))
+
+# Every ROS process a test starts stays on loopback (see ROS2_NOTES.md: network safety).
+os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+
+
+@pytest.fixture(scope="session")
+def paper_inputs() -> Path:
+    if not (PAPER_INPUTS / "contact_plan_3p_8s.csv").exists():
+        raise FileNotFoundError(f"the study's inputs are missing: {PAPER_INPUTS} (set PAPER_INPUTS)")
+    return PAPER_INPUTS
+
+
+@pytest.fixture(scope="session")
+def paper_scenario():
+    from bringup.scenario import load_scenario
+
+    return load_scenario("paper")
