@@ -1,0 +1,85 @@
+"""The lockstep contract every node logic follows, under both engines (DESIGN.md sections 2-3).
+
+A *participant* is one node's logic (a satellite, the DTN router, the ground station, ...): a
+plain Python object with no rclpy in it. An engine drives all participants through the same
+sequence of steps ``t_0 < t_1 < ...`` (integer ns since the scenario epoch):
+
+* ``local`` engine: one process, an in-memory bus (bringup/local_engine.py);
+* ``ros`` engine: one OS process per satellite, DDS in between, the orbit_clock node running the
+  barrier (a step ends only when every participant acked it and all it sent was received).
+
+Rules, identical in both engines, which is what makes their runs equal:
+
+1. At step k every participant's ``step(t_k, inbox)`` is called once. ``inbox`` holds every
+   envelope on the participant's subscribed topics that was emitted during step k-1, sorted by
+   ``(t_ns, source, seq)``. (Order between participants inside one step does not matter: nothing
+   emitted in step k is seen before step k+1.)
+2. ``step`` returns a :class:`StepResult`: envelopes to emit (their ``t_ns`` is the exact event time
+   and must be ``<= t_k``: a satellite that executed an observation at 12.3 s emits it at the step
+   covering 12.3 s stamped 12.3 s), and the next time it needs to be woken (``None``: no need).
+3. The engine picks ``t_{k+1} = min(next wakeups of all participants, t_k + max_step_ns,
+   horizon_ns)``; it always advances by at least 1 ns. The last step is at ``horizon_ns``; then
+   ``finish(horizon_ns)`` is called once and its envelopes are emitted (delivered to no one, but
+   recorded).
+4. ``seq`` is a per-source counter starting at 0, assigned by the engine in emission order.
+
+Envelope payloads are JSON text (msgs_json schemas; carried on std_msgs/msg/String) or raw bytes
+(BPv7 bundles; carried on std_msgs/msg/UInt8MultiArray). The topic decides which.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Protocol, runtime_checkable
+
+__all__ = ["Envelope", "Emit", "StepResult", "Participant"]
+
+
+@dataclass(frozen=True, slots=True)
+class Envelope:
+    """One message on the bus: exact event time, who sent it, its per-source number, where, what."""
+
+    t_ns: int
+    source: str
+    seq: int
+    topic: str
+    data: str | bytes
+
+    def sort_key(self) -> tuple[int, str, int]:
+        return (self.t_ns, self.source, self.seq)
+
+
+@dataclass(frozen=True, slots=True)
+class Emit:
+    """An envelope a participant wants sent; the engine adds source and seq."""
+
+    topic: str
+    data: str | bytes
+    t_ns: int
+
+
+@dataclass(slots=True)
+class StepResult:
+    emits: list[Emit] = field(default_factory=list)
+    next_wakeup_ns: int | None = None
+
+
+@runtime_checkable
+class Participant(Protocol):
+    """What an engine needs from one node's logic."""
+
+    name: str
+
+    def subscriptions(self) -> list[str]:
+        """Exact topic names this participant reads (fixed for the whole run)."""
+        ...
+
+    def start(self, t0_ns: int) -> StepResult:
+        """Called once before step 0 (its emits are delivered at step 0)."""
+        ...
+
+    def step(self, t_ns: int, inbox: list[Envelope]) -> StepResult:
+        ...
+
+    def finish(self, t_ns: int) -> list[Emit]:
+        ...

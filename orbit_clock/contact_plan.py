@@ -1,0 +1,98 @@
+"""Contact plans: the directed windows during which one node can send to another.
+
+A contact is directed (``src`` -> ``dst``); a bidirectional link appears as two contacts, as in
+the study's plan (../shared/paper_inputs/contact_plan_3p_8s.csv) and in ION's ``a contact``.
+Node names are ``sat_PS`` for satellites and ``gs_<name>`` for ground stations; the ipn node
+number (RFC 9171 section 4.2.5.1.2) of ``sat_PS`` is ``10*P + S`` and of the i-th ground station
+(0-based, scenario order) is ``100 + i``.
+
+File formats (read and write; owned by the DTN work, see the functions below this header):
+the study's six-tuple CSV, ION ``a contact`` / ``a range`` lines, HDTN JSON.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+
+__all__ = ["Contact", "ContactPlan", "node_number", "node_name", "canonical_node", "GS_NODE_BASE"]
+
+GS_NODE_BASE = 100
+_SAT_RE = re.compile(r"^(?:sat_|s|Sat|SAT)(\d)(\d)$")
+
+
+@dataclass(frozen=True, order=True)
+class Contact:
+    """One directed contact window.
+
+    start_s, end_s: [s] since the scenario epoch; rate_bps [bit/s]; range_light_s: one-way light
+    time [s] (taken constant over the window, as CGR's range entries are).
+    """
+
+    start_s: float
+    end_s: float
+    src: str
+    dst: str
+    rate_bps: float
+    range_light_s: float
+
+    @property
+    def duration_s(self) -> float:
+        return self.end_s - self.start_s
+
+    @property
+    def volume_bits(self) -> float:
+        return self.duration_s * self.rate_bps
+
+
+@dataclass
+class ContactPlan:
+    """A list of contacts sorted by (start_s, src, dst), plus the node names it spans."""
+
+    contacts: list[Contact]
+
+    def __post_init__(self) -> None:
+        self.contacts = sorted(self.contacts, key=lambda c: (c.start_s, c.src, c.dst, c.end_s))
+
+    def __len__(self) -> int:
+        return len(self.contacts)
+
+    def __iter__(self):
+        return iter(self.contacts)
+
+    @property
+    def nodes(self) -> list[str]:
+        return sorted({c.src for c in self.contacts} | {c.dst for c in self.contacts})
+
+    def pairs(self) -> set[tuple[str, str]]:
+        """Unordered node pairs that have at least one contact."""
+        return {tuple(sorted((c.src, c.dst))) for c in self.contacts}
+
+    def open_at(self, t_s: float) -> list[Contact]:
+        """Contacts with start_s <= t_s < end_s."""
+        return [c for c in self.contacts if c.start_s <= t_s < c.end_s]
+
+
+def node_number(name: str, ground_stations: list[str] | None = None) -> int:
+    """ipn node number of a node name: sat_PS -> 10P+S; gs_<x> -> 100 + index in ground_stations."""
+    m = _SAT_RE.match(name)
+    if m:
+        return 10 * int(m.group(1)) + int(m.group(2))
+    if name.startswith("gs_") and ground_stations is not None and name in ground_stations:
+        return GS_NODE_BASE + ground_stations.index(name)
+    raise ValueError(f"node name {name!r}: not sat_PS, nor a known ground station")
+
+
+def node_name(number: int, ground_stations: list[str] | None = None) -> str:
+    """Inverse of node_number."""
+    if 11 <= number <= 99 and number % 10:
+        return f"sat_{number}"
+    if ground_stations is not None and 0 <= number - GS_NODE_BASE < len(ground_stations):
+        return ground_stations[number - GS_NODE_BASE]
+    raise ValueError(f"ipn node number {number}: not a satellite (11..99) nor a known ground station")
+
+
+def canonical_node(name: str) -> str:
+    """The study's spellings (s11, Sat11) -> sat_11; other names unchanged."""
+    m = _SAT_RE.match(name)
+    return f"sat_{m.group(1)}{m.group(2)}" if m else name
