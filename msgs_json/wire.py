@@ -1,0 +1,69 @@
+"""Wire form of a lockstep envelope (msgs_json/envelope.py) on a ROS 2 topic and in the bag.
+
+Every lockstep data topic carries ``std_msgs/msg/String`` whose ``data`` is one JSON object::
+
+    {"t_ns": <int>, "src": "<participant>", "seq": <int>, "body": "<payload>"}            # JSON topics
+    {"t_ns": <int>, "src": "<participant>", "seq": <int>, "b64": "<base64 of bytes>"}    # byte topics
+
+``body`` is the payload's own JSON text (validated by its msgs_json schema when decoded by the
+receiver); ``b64`` carries raw bytes (BPv7 bundles) in standard base64. The same text is what the
+MCAP bag records, with log time = ``t_ns``, so a bag can be turned back into envelopes exactly.
+
+Oracle: round trip tests (encode -> decode is identity for str and bytes payloads) and rejection
+tests (every malformed wire text raises WireError with one line saying what is wrong).
+"""
+
+from __future__ import annotations
+
+import base64
+import binascii
+
+import msgspec
+
+from msgs_json.envelope import Envelope
+
+__all__ = ["WireError", "encode_envelope", "decode_envelope"]
+
+
+class WireError(ValueError):
+    """A wire text that is not a valid envelope; the message says what is wrong."""
+
+
+class _Wire(msgspec.Struct, forbid_unknown_fields=True, omit_defaults=True):
+    t_ns: int
+    src: str
+    seq: int
+    body: str | None = None
+    b64: str | None = None
+
+
+_enc = msgspec.json.Encoder()
+_dec = msgspec.json.Decoder(_Wire)
+
+
+def encode_envelope(env: Envelope) -> str:
+    if isinstance(env.data, bytes):
+        w = _Wire(env.t_ns, env.source, env.seq, b64=base64.b64encode(env.data).decode("ascii"))
+    else:
+        w = _Wire(env.t_ns, env.source, env.seq, body=env.data)
+    return _enc.encode(w).decode("utf-8")
+
+
+def decode_envelope(text: str | bytes, topic: str) -> Envelope:
+    """Parse wire text received on ``topic``; raises WireError (one line) when malformed."""
+    try:
+        w = _dec.decode(text)
+    except msgspec.DecodeError as exc:
+        raise WireError(f"{topic}: bad envelope: {exc}") from None
+    if w.t_ns < 0 or w.seq < 0 or not w.src:
+        raise WireError(f"{topic}: bad envelope: t_ns/seq must be >= 0 and src non-empty")
+    if (w.body is None) == (w.b64 is None):
+        raise WireError(f"{topic}: bad envelope: exactly one of 'body' and 'b64' must be present")
+    if w.b64 is not None:
+        try:
+            data: str | bytes = base64.b64decode(w.b64, validate=True)
+        except (binascii.Error, ValueError):
+            raise WireError(f"{topic}: bad envelope: 'b64' is not valid base64") from None
+    else:
+        data = w.body  # type: ignore[assignment]
+    return Envelope(t_ns=w.t_ns, source=w.src, seq=w.seq, topic=topic, data=data)
