@@ -1,0 +1,305 @@
+"""One msgspec Struct per message type: the payloads of DESIGN.md section 4's topics.
+
+Every payload travels as JSON text (``body`` of the wire envelope, msgs_json/wire.py, on
+std_msgs/msg/String); BPv7 bundles (``/sat_XX/dtn/out|in``) are raw bytes and have no schema here.
+Which type goes on which topic: msgs_json/topics.py (``schema_for(topic)``). Encode/decode with
+validation: msgs_json/codec.py (``encode(msg) -> str``, ``decode(topic, text) -> Struct``).
+
+Types (all frozen, keyword-only, unknown fields rejected, ``v`` = SCHEMA_VERSION checked):
+
+=====================  ============================  =============================================
+topic                  type                          meaning
+=====================  ============================  =============================================
+/sim/step              SimStep(k, t_ns, final)       the lockstep clock opens step k at t_ns
+/sim/ack               SimAck(participant, k, t_ns,  a participant finished step k; what it sent
+                       next_wakeup_ns, sent)         (topic -> count) so receivers can wait for it
+/orbit/contacts        ContactWindow(event, kind,    a directed contact window opening or closing
+                       src, dst, start_ns, end_ns,
+                       rate_bps, range_light_s)
+/sat_XX/acs/command    AcsCommand                    slew request: point at GP ``gp`` from t_ns
+/sat_XX/acs/state      AcsState                      attitude mode / current target / slew timing
+/sat_XX/schedule       Schedule(items=[ScheduleItem  the current plan [(gp, t_ns, value)], version,
+                       ...])                         the inputs' cut-off time
+/sat_XX/observations   Observation                   an executed observation (gp, t_ns, assumed
+                                                     value, recorded value)
+/sat_XX/dtn/events     BundleCreated | BundleForwar  bundle life cycle, tagged by ``event``:
+                       ded | BundleDelivered |       created, forwarded, delivered,
+                       BundleDropped | CopyDiscarded dropped(reason), copy_discarded
+/ground/downlink       GroundDownlink                observations a satellite downlinked at a pass
+/ground/uplink         GroundUplink                  a plan uplinked to a satellite at a pass
+=====================  ============================  =============================================
+
+Oracle (tests/unit/test_msgs_json.py): one golden JSON per type (msgs_json/golden/<Type>.json)
+decodes and re-encodes to the same bytes; invariants below (e.g. a schedule's times increase, a
+contact ends after it starts) are checked on decode; hypothesis fuzzing shows the decoder raises
+nothing but MessageError on arbitrary input.
+"""
+
+from __future__ import annotations
+
+from typing import Annotated, Literal, Union
+
+import msgspec
+from msgspec import Meta
+
+__all__ = [
+    "SCHEMA_VERSION",
+    "SimStep",
+    "SimAck",
+    "ContactWindow",
+    "AcsCommand",
+    "AcsState",
+    "ScheduleItem",
+    "Schedule",
+    "Observation",
+    "GroundDownlink",
+    "GroundUplink",
+    "BundleCreated",
+    "BundleForwarded",
+    "BundleDelivered",
+    "BundleDropped",
+    "CopyDiscarded",
+    "BundleEvent",
+    "DROP_REASONS",
+    "MESSAGE_TYPES",
+]
+
+SCHEMA_VERSION = 1
+
+# --- field types (constraints are checked by msgspec on decode) ------------------------------------
+NsTime = Annotated[int, Meta(ge=0, le=2**63 - 1, description="integer ns since the scenario epoch")]
+SatName = Annotated[str, Meta(pattern=r"^sat_[1-9][0-9]$", description="sat_PS, plane P, slot S")]
+StationName = Annotated[str, Meta(pattern=r"^gs_[A-Za-z0-9_]{1,32}$")]
+NodeName = Annotated[str, Meta(pattern=r"^(sat_[1-9][0-9]|gs_[A-Za-z0-9_]{1,32})$")]
+ParticipantName = Annotated[str, Meta(pattern=r"^[A-Za-z0-9_]{1,64}$")]
+TopicName = Annotated[str, Meta(pattern=r"^(/[A-Za-z0-9_]+)+$", max_length=256)]
+GpIndex = Annotated[int, Meta(ge=0, le=2**31 - 1, description="global ground-point index")]
+Count = Annotated[int, Meta(ge=0, le=2**63 - 1)]
+NonNeg = Annotated[float, Meta(ge=0.0)]
+Priority = Annotated[int, Meta(ge=1, le=15, description="1 = next satellite to reach the region")]
+BundleId = Annotated[str, Meta(min_length=1, max_length=128)]
+Deg = Annotated[float, Meta(ge=0.0, le=180.0)]
+
+DROP_REASONS = ("ttl", "integrity", "no_route", "malformed", "other")
+DropReason = Literal["ttl", "integrity", "no_route", "malformed", "other"]
+Mode = Literal["distributed", "centralized", "nonagile"]
+
+
+class _Msg(msgspec.Struct, kw_only=True, frozen=True, forbid_unknown_fields=True):
+    """Base: schema version first; subclasses add their fields after it."""
+
+    v: int = SCHEMA_VERSION
+
+    def __post_init__(self) -> None:
+        if self.v != SCHEMA_VERSION:
+            raise ValueError(f"schema version {self.v} is not supported (expected {SCHEMA_VERSION})")
+        self._check()
+
+    def _check(self) -> None:  # cross-field invariants; override
+        return None
+
+
+# --- lockstep barrier (part B's clock node and hosts) --------------------------------------------
+class SimStep(_Msg, kw_only=True, frozen=True):
+    """Step ``k`` starts at ``t_ns``; ``final`` marks the last step (at the horizon)."""
+
+    k: Count
+    t_ns: NsTime
+    final: bool = False
+
+
+class SimAck(_Msg, kw_only=True, frozen=True):
+    """``participant`` finished step ``k``; ``sent`` = messages it emitted in it, per topic."""
+
+    participant: ParticipantName
+    k: Count
+    t_ns: NsTime
+    next_wakeup_ns: NsTime | None = None
+    sent: dict[TopicName, Count] = {}
+
+
+# --- orbit clock -----------------------------------------------------------------------------------
+class ContactWindow(_Msg, kw_only=True, frozen=True):
+    """A directed contact (src -> dst) opening or closing; rate [bit/s], one-way light time [s]."""
+
+    event: Literal["open", "close"]
+    kind: Literal["isl", "ground"]
+    src: NodeName
+    dst: NodeName
+    start_ns: NsTime
+    end_ns: NsTime
+    rate_bps: Annotated[float, Meta(gt=0.0)]
+    range_light_s: NonNeg
+
+    def _check(self) -> None:
+        if self.end_ns <= self.start_ns:
+            raise ValueError("end_ns must be after start_ns")
+        if self.src == self.dst:
+            raise ValueError("src and dst must differ")
+
+
+# --- attitude control --------------------------------------------------------------------------------
+class AcsCommand(_Msg, kw_only=True, frozen=True):
+    """Slew request: point the boresight at ground point ``gp`` starting at ``t_ns``."""
+
+    sat: SatName
+    request_id: Count
+    t_ns: NsTime
+    gp: GpIndex
+    target_ecef_km: tuple[float, float, float]
+
+
+class AcsState(_Msg, kw_only=True, frozen=True):
+    """Attitude state: mode, current target, slew angle [deg] and when the slew ends."""
+
+    sat: SatName
+    t_ns: NsTime
+    mode: Literal["idle", "slewing", "settled"]
+    target_gp: GpIndex | None = None
+    request_id: Count | None = None
+    slew_angle_deg: Deg = 0.0
+    slew_end_ns: NsTime | None = None
+
+    def _check(self) -> None:
+        if self.mode == "slewing" and self.slew_end_ns is None:
+            raise ValueError("a slewing state needs slew_end_ns")
+
+
+# --- scheduling and observations ----------------------------------------------------------------------
+class ScheduleItem(msgspec.Struct, kw_only=True, frozen=True, forbid_unknown_fields=True):
+    """One planned observation: ground point, time, the value the planner assumed."""
+
+    gp: GpIndex
+    t_ns: NsTime
+    value: NonNeg
+
+
+class Schedule(_Msg, kw_only=True, frozen=True):
+    """A satellite's current plan (items in strictly increasing time), its version and inputs' cut-off."""
+
+    sat: SatName
+    version: Count
+    mode: Mode
+    planned_ns: NsTime
+    cutoff_ns: NsTime
+    items: list[ScheduleItem] = []
+
+    def _check(self) -> None:
+        if self.cutoff_ns > self.planned_ns:
+            raise ValueError("cutoff_ns must not be after planned_ns")
+        for a, b in zip(self.items, self.items[1:]):
+            if b.t_ns <= a.t_ns:
+                raise ValueError("items must be in strictly increasing t_ns")
+
+
+class Observation(_Msg, kw_only=True, frozen=True):
+    """An executed observation: what the satellite assumed it was worth and what it recorded."""
+
+    sat: SatName
+    gp: GpIndex
+    t_ns: NsTime
+    assumed_value: NonNeg
+    recorded_value: NonNeg
+    schedule_version: Count = 0
+
+
+class GroundDownlink(_Msg, kw_only=True, frozen=True):
+    """Observations ``sat`` downlinked to ``station`` during the pass at ``t_ns`` (centralized mode)."""
+
+    station: StationName
+    sat: SatName
+    t_ns: NsTime
+    observations: list[Observation] = []
+
+    def _check(self) -> None:
+        if any(o.sat != self.sat for o in self.observations):
+            raise ValueError("every downlinked observation must belong to sat")
+
+
+class GroundUplink(_Msg, kw_only=True, frozen=True):
+    """A plan ``station`` uplinks to ``sat`` at ``t_ns`` (centralized mode)."""
+
+    station: StationName
+    sat: SatName
+    t_ns: NsTime
+    schedule: Schedule
+
+    def _check(self) -> None:
+        if self.schedule.sat != self.sat:
+            raise ValueError("schedule.sat must equal sat")
+
+
+# --- DTN bundle life cycle (/sat_XX/dtn/events), tagged by "event" ----------------------------------
+class _BundleEvt(_Msg, kw_only=True, frozen=True, tag_field="event"):
+    """Common part: reporting satellite, event time, bundle identity (source, creation time)."""
+
+    sat: SatName
+    t_ns: NsTime
+    bundle_id: BundleId
+    src: NodeName
+    dst: NodeName
+    priority: Priority
+    creation_ns: NsTime
+
+    def _check(self) -> None:
+        if self.t_ns < self.creation_ns:
+            raise ValueError("t_ns must not be before creation_ns")
+
+
+class BundleCreated(_BundleEvt, kw_only=True, frozen=True, tag="created"):
+    """A bundle created for observation (gp, obs_t_ns); lifetime from priority (TTL)."""
+
+    gp: GpIndex
+    obs_t_ns: NsTime
+    lifetime_ns: Annotated[int, Meta(gt=0)]
+    size_bits: Annotated[int, Meta(gt=0)]
+
+
+class BundleForwarded(_BundleEvt, kw_only=True, frozen=True, tag="forwarded"):
+    """``sat`` handed the bundle to the router for ``next_hop``."""
+
+    next_hop: NodeName
+
+
+class BundleDelivered(_BundleEvt, kw_only=True, frozen=True, tag="delivered"):
+    """The bundle reached its destination ``sat`` (== dst) after ``hop_count`` hops."""
+
+    hop_count: Count
+
+    def _check(self) -> None:
+        super()._check()
+        if self.sat != self.dst:
+            raise ValueError("a delivered bundle's sat must be its dst")
+
+
+class BundleDropped(_BundleEvt, kw_only=True, frozen=True, tag="dropped"):
+    """The bundle was dropped at ``sat`` for ``reason`` (ttl, integrity, no_route, malformed, other)."""
+
+    reason: DropReason
+    detail: Annotated[str, Meta(max_length=256)] = ""
+
+
+class CopyDiscarded(_BundleEvt, kw_only=True, frozen=True, tag="copy_discarded"):
+    """A broadcast copy received by ``sat`` that was not its intended next hop, discarded."""
+
+    intended_next_hop: NodeName
+
+
+BundleEvent = Union[BundleCreated, BundleForwarded, BundleDelivered, BundleDropped, CopyDiscarded]
+
+MESSAGE_TYPES: tuple[type[msgspec.Struct], ...] = (
+    SimStep,
+    SimAck,
+    ContactWindow,
+    AcsCommand,
+    AcsState,
+    Schedule,
+    Observation,
+    GroundDownlink,
+    GroundUplink,
+    BundleCreated,
+    BundleForwarded,
+    BundleDelivered,
+    BundleDropped,
+    CopyDiscarded,
+)

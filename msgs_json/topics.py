@@ -1,0 +1,139 @@
+"""Topic names (DESIGN.md section 4) and which payload each carries.
+
+Names are contracts: build them only with these functions. A satellite's topics live under
+``/<sat>/`` (``sat_PS``). Every lockstep data topic carries a wire envelope (msgs_json/wire.py) on
+std_msgs/msg/String; its payload is JSON of the schema ``schema_for(topic)`` names, or raw bytes
+(BPv7 bundles) when ``is_bytes_topic(topic)``. Visualisation topics (``fix_topic(sat)``,
+``VIZ_MARKERS``) and ``/clock`` are recorded as their own ROS types, not envelopes.
+
+Oracle: tests/unit/test_msgs_json.py checks every builder's name maps back to the right schema and
+that unknown names map to nothing.
+"""
+
+from __future__ import annotations
+
+import re
+
+from msgs_json import schemas as S
+from msgs_json.schemas import SCHEMA_VERSION
+
+__all__ = [
+    "SCHEMA_VERSION",
+    "CLOCK",
+    "SIM_STEP",
+    "SIM_ACK",
+    "CONTACTS",
+    "GROUND_UPLINK",
+    "GROUND_DOWNLINK",
+    "VIZ_MARKERS",
+    "acs_command_topic",
+    "acs_state_topic",
+    "schedule_topic",
+    "observations_topic",
+    "dtn_events_topic",
+    "dtn_out_topic",
+    "dtn_in_topic",
+    "fix_topic",
+    "sat_of_topic",
+    "schema_for",
+    "is_bytes_topic",
+    "is_known_topic",
+]
+
+CLOCK = "/clock"
+SIM_STEP = "/sim/step"
+SIM_ACK = "/sim/ack"
+CONTACTS = "/orbit/contacts"
+GROUND_UPLINK = "/ground/uplink"
+GROUND_DOWNLINK = "/ground/downlink"
+VIZ_MARKERS = "/viz/constellation"
+
+_SAT_RE = re.compile(r"^sat_[1-9][0-9]$")
+
+
+def _sat(sat: str, leaf: str) -> str:
+    if not isinstance(sat, str) or not _SAT_RE.match(sat):
+        raise ValueError(f"topic for {sat!r}: satellite names are sat_PS (e.g. sat_11)")
+    return f"/{sat}/{leaf}"
+
+
+def acs_command_topic(sat: str) -> str:
+    return _sat(sat, "acs/command")
+
+
+def acs_state_topic(sat: str) -> str:
+    return _sat(sat, "acs/state")
+
+
+def schedule_topic(sat: str) -> str:
+    return _sat(sat, "schedule")
+
+
+def observations_topic(sat: str) -> str:
+    return _sat(sat, "observations")
+
+
+def dtn_events_topic(sat: str) -> str:
+    return _sat(sat, "dtn/events")
+
+
+def dtn_out_topic(sat: str) -> str:
+    return _sat(sat, "dtn/out")
+
+
+def dtn_in_topic(sat: str) -> str:
+    return _sat(sat, "dtn/in")
+
+
+def fix_topic(sat: str) -> str:
+    """sensor_msgs/NavSatFix of the sub-satellite point (visualisation, not an envelope)."""
+    return _sat(sat, "fix")
+
+
+_GLOBAL: dict[str, object] = {
+    SIM_STEP: S.SimStep,
+    SIM_ACK: S.SimAck,
+    CONTACTS: S.ContactWindow,
+    GROUND_UPLINK: S.GroundUplink,
+    GROUND_DOWNLINK: S.GroundDownlink,
+}
+_PER_SAT: dict[str, object] = {
+    "acs/command": S.AcsCommand,
+    "acs/state": S.AcsState,
+    "schedule": S.Schedule,
+    "observations": S.Observation,
+    "dtn/events": S.BundleEvent,
+    "dtn/out": bytes,
+    "dtn/in": bytes,
+}
+_SAT_TOPIC_RE = re.compile(r"^/(sat_[1-9][0-9])/(.+)$")
+
+
+def sat_of_topic(topic: str) -> str | None:
+    """The satellite a per-satellite topic belongs to, else None."""
+    m = _SAT_TOPIC_RE.match(topic)
+    return m.group(1) if m and m.group(2) in _PER_SAT else None
+
+
+def _lookup(topic: str) -> object | None:
+    t = _GLOBAL.get(topic)
+    if t is not None:
+        return t
+    m = _SAT_TOPIC_RE.match(topic)
+    return _PER_SAT.get(m.group(2)) if m else None
+
+
+def schema_for(topic: str):
+    """The msgspec type (or the BundleEvent union) of a JSON topic's payload; None for byte or
+    unknown topics."""
+    t = _lookup(topic)
+    return None if t is bytes else t
+
+
+def is_bytes_topic(topic: str) -> bool:
+    """True for topics whose envelope payload is raw bytes (BPv7 bundles)."""
+    return _lookup(topic) is bytes
+
+
+def is_known_topic(topic: str) -> bool:
+    return _lookup(topic) is not None
