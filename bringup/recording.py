@@ -1,0 +1,290 @@
+"""rosbag2-compatible MCAP bags without rclpy: write and read back (DESIGN.md section 6).
+
+A bag is a directory holding ``metadata.yaml`` and ``<name>.mcap`` (rosbag2 format version 9,
+storage ``mcap``, ROS 2 CDR messages, ``ros2msg`` schemas, an ``offered_qos_profiles`` entry per
+channel, zstd chunk compression), written with ``rosbags`` (StoragePlugin.MCAP) so that
+``ros2 bag info/play``, Foxglove, ``mcap`` and ``rosbags`` open it.
+
+Writer API (used by both engines)::
+
+    with BagWriter(path, custom={"scenario": "paper"}) as bag:     # path must not exist yet
+        bag.write_envelope(env)                                   # std_msgs/msg/String, log time = env.t_ns
+        bag.write_raw("/clock", "rosgraph_msgs/msg/Clock", cdr_bytes, log_time_ns)   # raw CDR as is
+        bag.write_msg("/viz/constellation", "visualization_msgs/msg/MarkerArray", msg, log_time_ns)
+        bag.write_clock(t_ns)                                     # rosgraph_msgs/Clock at t_ns
+    # .counts -> {topic: n}; close() is idempotent; an exception inside ``with`` still closes the
+    # bag so it stays readable (Ctrl-C).
+
+Envelopes are recorded as their wire text (msgs_json/wire.py) in std_msgs/msg/String, so
+``BagReader.envelopes()`` gives back the exact envelopes. ``write_msg`` takes a message built
+with rosbags' typestore (``TYPESTORE.types[msgtype](...)``; bringup/viz.py builds them).
+QoS offered per topic: reliable/volatile/keep_last(100) by default; ``/clock`` best effort depth 1
+(what rclpy's TimeSource subscribes with); ``/sim/step`` and ``/sim/ack`` reliable, transient local,
+keep all (ROS2_NOTES.md lockstep traps 3-4). Override with ``qos=`` on a topic's first write.
+
+Reader API::
+
+    with BagReader(path) as bag:               # UserError (one line) if missing/truncated/not a bag
+        bag.topics() -> list[TopicStats(topic, msgtype, count)]; bag.start_ns, bag.end_ns, bag.count
+        bag.messages(topics=None) -> iter of RawMessage(topic, msgtype, log_time_ns, cdr)
+        bag.envelopes(topics=None) -> iter of Envelope (String topics carrying wire envelopes)
+        bag.typed(topics=None) -> iter of (topic, log_time_ns, rosbags message object)
+
+Oracle: tests/unit/test_recording.py writes a bag in tmp_path and reads it back with BOTH the
+``mcap`` reader (+ mcap-ros2-support decoding, an independent implementation) and ``rosbags``;
+the hand-written std_msgs/String CDR is checked byte for byte against rosbags' serializer.
+"""
+
+from __future__ import annotations
+
+import struct
+from collections.abc import Iterable, Iterator
+from pathlib import Path
+from typing import Any, NamedTuple
+
+from rosbags.interfaces import Qos, QosDurability, QosHistory, QosLiveliness, QosReliability, QosTime
+from rosbags.rosbag2 import Reader, Writer
+from rosbags.rosbag2.enums import CompressionFormat, CompressionMode, StoragePlugin
+from rosbags.typesys import Stores, get_typestore
+
+from bringup.errors import UserError
+from msgs_json.envelope import Envelope
+from msgs_json.wire import WireError, decode_envelope, encode_envelope
+
+__all__ = [
+    "BagWriter",
+    "BagReader",
+    "RawMessage",
+    "TopicStats",
+    "TYPESTORE",
+    "STRING",
+    "CLOCK_TYPE",
+    "string_cdr",
+    "string_from_cdr",
+    "clock_cdr",
+    "make_qos",
+]
+
+TYPESTORE = get_typestore(Stores.ROS2_JAZZY)
+STRING = "std_msgs/msg/String"
+CLOCK_TYPE = "rosgraph_msgs/msg/Clock"
+_CDR_LE = b"\x00\x01\x00\x00"  # CDR little-endian encapsulation header
+_U32 = struct.Struct("<I")
+_CLOCK = struct.Struct("<4siI")
+
+
+def make_qos(*, reliable: bool = True, transient_local: bool = False, keep_all: bool = False,
+             depth: int = 100) -> Qos:
+    """A rosbags Qos record for ``offered_qos_profiles``."""
+    zero = QosTime(0, 0)
+    return Qos(
+        QosHistory.KEEP_ALL if keep_all else QosHistory.KEEP_LAST,
+        0 if keep_all else depth,
+        QosReliability.RELIABLE if reliable else QosReliability.BEST_EFFORT,
+        QosDurability.TRANSIENT_LOCAL if transient_local else QosDurability.VOLATILE,
+        zero,
+        zero,
+        QosLiveliness.AUTOMATIC,
+        zero,
+        False,
+    )
+
+
+_DEFAULT_QOS = make_qos()
+_TOPIC_QOS = {
+    "/clock": make_qos(reliable=False, depth=1),
+    "/sim/step": make_qos(transient_local=True, keep_all=True),
+    "/sim/ack": make_qos(transient_local=True, keep_all=True),
+}
+
+
+def string_cdr(text: str) -> bytes:
+    """CDR (little endian) of std_msgs/msg/String(data=text), as rclpy serializes it."""
+    b = text.encode("utf-8")
+    return _CDR_LE + _U32.pack(len(b) + 1) + b + b"\x00"
+
+
+def string_from_cdr(cdr: bytes | memoryview) -> str:
+    """Inverse of :func:`string_cdr` (little- or big-endian encapsulation)."""
+    cdr = bytes(cdr)
+    if len(cdr) < 9 or cdr[0] != 0 or cdr[1] not in (0, 1):
+        raise ValueError("not a CDR std_msgs/String")
+    n = struct.unpack("<I" if cdr[1] == 1 else ">I", cdr[4:8])[0]
+    if n < 1 or 8 + n > len(cdr) or cdr[8 + n - 1] != 0:
+        raise ValueError("CDR std_msgs/String length out of range")
+    return cdr[8:8 + n - 1].decode("utf-8")
+
+
+def clock_cdr(t_ns: int) -> bytes:
+    """CDR of rosgraph_msgs/msg/Clock at ``t_ns`` (builtin_interfaces/Time sec, nanosec)."""
+    sec, nsec = divmod(int(t_ns), 1_000_000_000)
+    return _CLOCK.pack(_CDR_LE, sec, nsec)
+
+
+class RawMessage(NamedTuple):
+    topic: str
+    msgtype: str
+    log_time_ns: int
+    cdr: bytes
+
+
+class TopicStats(NamedTuple):
+    topic: str
+    msgtype: str
+    count: int
+
+
+class BagWriter:
+    """Write a rosbag2 MCAP bag (see the module docstring)."""
+
+    def __init__(self, path: str | Path, *, compress: bool = True, custom: dict[str, str] | None = None):
+        self.path = Path(path)
+        if self.path.exists():
+            raise UserError(f"bag {self.path}: already exists, not overwriting")
+        self._w = Writer(self.path, version=9, storage_plugin=StoragePlugin.MCAP)
+        if compress:
+            self._w.set_compression(CompressionMode.STORAGE, CompressionFormat.ZSTD)
+        for k, v in (custom or {}).items():
+            self._w.set_custom_data(str(k), str(v))
+        self._w.open()
+        self._conns: dict[tuple[str, str], Any] = {}
+        self.counts: dict[str, int] = {}
+        self._closed = False
+
+    # -- connections ---------------------------------------------------------------------------------
+    def _conn(self, topic: str, msgtype: str, qos: Qos | None):
+        key = (topic, msgtype)
+        c = self._conns.get(key)
+        if c is None:
+            if msgtype not in TYPESTORE.types:
+                raise ValueError(f"bag {self.path}: unknown message type {msgtype!r} for {topic}")
+            q = qos or _TOPIC_QOS.get(topic, _DEFAULT_QOS)
+            c = self._w.add_connection(topic, msgtype, typestore=TYPESTORE, offered_qos_profiles=[q])
+            self._conns[key] = c
+            self.counts.setdefault(topic, 0)
+        return c
+
+    # -- writing -------------------------------------------------------------------------------------
+    def write_raw(self, topic: str, msgtype: str, cdr: bytes | memoryview, log_time_ns: int,
+                  *, qos: Qos | None = None) -> None:
+        """Record already-serialized CDR bytes of ``msgtype`` on ``topic`` at ``log_time_ns``."""
+        if self._closed:
+            raise ValueError(f"bag {self.path}: closed")
+        if log_time_ns < 0:
+            raise ValueError(f"bag {self.path}: {topic}: log time must be >= 0, got {log_time_ns}")
+        self._w.write(self._conn(topic, msgtype, qos), int(log_time_ns), cdr)
+        self.counts[topic] += 1
+
+    def write_msg(self, topic: str, msgtype: str, msg: Any, log_time_ns: int, *, qos: Qos | None = None) -> None:
+        """Serialize a rosbags typestore message and record it."""
+        self.write_raw(topic, msgtype, TYPESTORE.serialize_cdr(msg, msgtype), log_time_ns, qos=qos)
+
+    def write_envelope(self, env: Envelope) -> None:
+        """Record an envelope's wire text as std_msgs/String on its topic at log time ``env.t_ns``."""
+        self.write_raw(env.topic, STRING, string_cdr(encode_envelope(env)), env.t_ns)
+
+    def write_envelopes(self, envs: Iterable[Envelope]) -> None:
+        for e in envs:
+            self.write_envelope(e)
+
+    def write_clock(self, t_ns: int) -> None:
+        self.write_raw("/clock", CLOCK_TYPE, clock_cdr(t_ns), t_ns)
+
+    def close(self) -> None:
+        if not self._closed:
+            self._closed = True
+            self._w.close()
+
+    def __enter__(self) -> BagWriter:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+
+def _bag_dir(path: Path) -> Path:
+    if path.is_file() and path.suffix == ".mcap" and (path.parent / "metadata.yaml").exists():
+        return path.parent
+    return path
+
+
+class BagReader:
+    """Read a rosbag2 bag (MCAP or sqlite3) back; every failure is a one-line UserError."""
+
+    def __init__(self, path: str | Path):
+        self.path = _bag_dir(Path(path))
+        if not self.path.exists():
+            raise UserError(f"bag {self.path}: not found")
+        if not (self.path / "metadata.yaml").is_file():
+            raise UserError(f"bag {self.path}: not a rosbag2 bag (no metadata.yaml)")
+        try:
+            self._r = Reader(self.path)
+            self._r.open()
+        except Exception as exc:  # rosbags raises ReaderError, YAML errors, struct errors...
+            raise UserError(f"bag {self.path}: cannot open: {_line(exc)}") from None
+
+    def close(self) -> None:
+        self._r.close()
+
+    def __enter__(self) -> BagReader:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    @property
+    def start_ns(self) -> int:
+        return int(self._r.start_time) if self.count else 0
+
+    @property
+    def end_ns(self) -> int:
+        return max(int(self._r.end_time) - 1, self.start_ns) if self.count else 0  # rosbags end is +1
+
+    @property
+    def count(self) -> int:
+        return int(self._r.message_count)
+
+    def topics(self) -> list[TopicStats]:
+        out: dict[tuple[str, str], int] = {}
+        for c in self._r.connections:
+            out[(c.topic, c.msgtype)] = out.get((c.topic, c.msgtype), 0) + int(c.msgcount)
+        return [TopicStats(t, m, n) for (t, m), n in sorted(out.items())]
+
+    def messages(self, topics: Iterable[str] | None = None) -> Iterator[RawMessage]:
+        """Raw CDR in log-time order."""
+        conns = self._r.connections
+        if topics is not None:
+            want = set(topics)
+            conns = [c for c in conns if c.topic in want]
+            if not conns:
+                return
+        try:
+            for c, t, raw in self._r.messages(connections=conns):
+                yield RawMessage(c.topic, c.msgtype, int(t), bytes(raw))
+        except UserError:
+            raise
+        except Exception as exc:
+            raise UserError(f"bag {self.path}: unreadable: {_line(exc)}") from None
+
+    def envelopes(self, topics: Iterable[str] | None = None) -> Iterator[Envelope]:
+        """Wire envelopes recorded on std_msgs/String topics (other String topics are an error)."""
+        for m in self.messages(topics):
+            if m.msgtype != STRING:
+                continue
+            try:
+                yield decode_envelope(string_from_cdr(m.cdr), m.topic)
+            except (WireError, ValueError) as exc:
+                raise UserError(f"bag {self.path}: {m.topic} at {m.log_time_ns} ns: {_line(exc)}") from None
+
+    def typed(self, topics: Iterable[str] | None = None) -> Iterator[tuple[str, int, Any]]:
+        """(topic, log_time_ns, rosbags message object) in log-time order."""
+        for m in self.messages(topics):
+            try:
+                yield m.topic, m.log_time_ns, TYPESTORE.deserialize_cdr(m.cdr, m.msgtype)
+            except Exception as exc:
+                raise UserError(f"bag {self.path}: {m.topic}: cannot decode {m.msgtype}: {_line(exc)}") from None
+
+
+def _line(exc: BaseException) -> str:
+    s = " ".join(str(exc).split()) or type(exc).__name__
+    return s[:300]
