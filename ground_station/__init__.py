@@ -1,1 +1,34 @@
-"""ground_station package."""
+"""Ground segment: OSSE value forecast (synthetic or from a file); centralized mode lives beside it.
+
+Front door (no rclpy): ``osse_from_scenario(scenario, gps) -> OsseField``.
+"""
+
+from ground_station.osse import (
+    OSSE_SOURCES,
+    VALUE_MAX,
+    VALUE_MIN,
+    GroundPointArrays,
+    OsseError,
+    OsseField,
+    SyntheticParams,
+    as_ground_point_arrays,
+    osse_from_scenario,
+    synthetic_field,
+)
+from ground_station.osse_io import load_value_grid, read_grid, write_value_grid
+
+__all__ = [
+    "OSSE_SOURCES",
+    "VALUE_MAX",
+    "VALUE_MIN",
+    "GroundPointArrays",
+    "OsseError",
+    "OsseField",
+    "SyntheticParams",
+    "as_ground_point_arrays",
+    "osse_from_scenario",
+    "synthetic_field",
+    "load_value_grid",
+    "read_grid",
+    "write_value_grid",
+]
