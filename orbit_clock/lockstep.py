@@ -1,0 +1,159 @@
+"""Lockstep barrier of the ROS engine: the step/ack messages and the bookkeeping both ends share.
+
+Pure module (no rclpy): the clock node (orbit_clock/clock_node.py) and the participant host
+(bringup/ros_host.py) are thin adapters around it. It implements the rules of
+msgs_json/envelope.py for participants spread over several OS processes, with one message out
+(/sim/step) and one message back per process (/sim/ack) per step (ROS2_NOTES.md, lockstep traps
+3-6):
+
+* wire index ``k``: ``k = 0`` is the *start phase* (every participant's ``start(t0)``), ``k >= 1``
+  is engine step ``k - 1`` at ``t_ns``; ``final`` marks the step at the horizon (then ``finish``);
+  ``stop`` (sent after the final ack, or on abort) tells every host to exit.
+* count-based delivery (trap 5): each ack reports how many envelopes its process emitted per topic
+  (``sent``) and every source's cumulative seq counter (``seq_end``); the next step message carries
+  those (as deltas), so a receiver knows how many envelopes of the previous steps it must hold on
+  each topic before it runs the step, and which early arrivals (``seq >= seq_end[src]``) belong to a
+  later step (trap 6).
+* rule 3: :func:`next_step_ns`.
+
+Oracle: tests/ros/test_lockstep.py runs toy participants under this protocol over DDS and checks the
+envelopes equal those of the in-process local engine (bringup/local_engine.py) for the same
+participants; :class:`TopicInbox` and :func:`next_step_ns` are exercised by the same runs.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import msgspec
+
+from msgs_json.envelope import Envelope
+from msgs_json.schemas import SimAck, SimStep
+
+__all__ = [
+    "STEP_TOPIC",
+    "ACK_TOPIC",
+    "LockstepError",
+    "StepMsg",
+    "AckMsg",
+    "encode_msg",
+    "decode_step",
+    "decode_ack",
+    "next_step_ns",
+    "TopicInbox",
+]
+
+STEP_TOPIC = "/sim/step"
+ACK_TOPIC = "/sim/ack"
+
+
+class LockstepError(ValueError):
+    """A protocol violation or a malformed step/ack text; the message says what and where."""
+
+
+class StepMsg(SimStep, kw_only=True, frozen=True):
+    """/sim/step: msgs_json SimStep plus what the hosts need to run it.
+
+    ``sent``: envelopes emitted per topic in the previous wire step (k-1); ``seq_end``: per source,
+    its seq counter after step k-1 (only sources that emitted); ``subs`` (k = 0 only): per topic,
+    how many subscriptions must be matched before anything is published on it; ``subs_default``:
+    the same for topics not listed (the recorder's own subscription); ``start``/``stop``: phases.
+    """
+
+    start: bool = False
+    stop: bool = False
+    reason: str = ""
+    sent: dict[str, int] = {}
+    seq_end: dict[str, int] = {}
+    subs: dict[str, int] = {}
+    subs_default: int = 0
+
+
+class AckMsg(SimAck, kw_only=True, frozen=True):
+    """/sim/ack: one per host process per step. ``participant`` is the host (role) name.
+
+    ``hello`` (before the start phase): ``participants`` hosted and ``subscriptions`` (topic ->
+    number of subscriptions this host holds). Otherwise ``next_wakeup_ns`` is the earliest wakeup of
+    the host's participants, ``sent`` its emits per topic and ``seq_end`` its sources' seq counters.
+    ``error`` (non-empty): the host failed this step and says why.
+    """
+
+    hello: bool = False
+    participants: list[str] = []
+    subscriptions: dict[str, int] = {}
+    seq_end: dict[str, int] = {}
+    error: str = ""
+
+
+_enc = msgspec.json.Encoder()
+_step_dec = msgspec.json.Decoder(StepMsg)
+_ack_dec = msgspec.json.Decoder(AckMsg)
+
+
+def encode_msg(msg: StepMsg | AckMsg) -> str:
+    return _enc.encode(msg).decode("utf-8")
+
+
+def decode_step(text: str) -> StepMsg:
+    try:
+        return _step_dec.decode(text)
+    except (msgspec.DecodeError, msgspec.ValidationError, ValueError) as exc:
+        raise LockstepError(f"{STEP_TOPIC}: bad step message: {exc}") from None
+
+
+def decode_ack(text: str) -> AckMsg:
+    try:
+        return _ack_dec.decode(text)
+    except (msgspec.DecodeError, msgspec.ValidationError, ValueError) as exc:
+        raise LockstepError(f"{ACK_TOPIC}: bad ack message: {exc}") from None
+
+
+def next_step_ns(t_ns: int, wakeups: list[int | None], max_step_ns: int, horizon_ns: int) -> int:
+    """Rule 3 of envelope.py: ``min(wakeups, t + max_step, horizon)``, at least ``t + 1``."""
+    nxt = min(t_ns + max_step_ns, horizon_ns)
+    for w in wakeups:
+        if w is not None and w < nxt:
+            nxt = w
+    return max(nxt, t_ns + 1)
+
+
+@dataclass
+class TopicInbox:
+    """What one subscription has received, split by step using the sources' seq counters.
+
+    ``expected`` = envelopes on this topic emitted in all steps before the current one (sum of the
+    step messages' ``sent``); ``seq_end`` (shared by all inboxes of a host) = per source, the seq
+    counter at the end of the previous step. The inbox is *ready* when it holds every one of them
+    (received count of envelopes with ``seq < seq_end[src]`` equals ``expected``); :meth:`take`
+    then hands out those not yet delivered, in (t_ns, source, seq) order, and keeps later ones.
+    """
+
+    topic: str
+    expected: int = 0
+    delivered: int = 0
+    pending: list[Envelope] = field(default_factory=list)
+    decode_errors: int = 0
+
+    def add(self, env: Envelope) -> None:
+        self.pending.append(env)
+
+    def ready(self, seq_end: dict[str, int]) -> bool:
+        have = self.delivered + sum(1 for e in self.pending if e.seq < seq_end.get(e.source, 0))
+        if have > self.expected:
+            raise LockstepError(
+                f"{self.topic}: received {have} envelopes of past steps but only {self.expected} were sent"
+            )
+        return have == self.expected
+
+    def missing(self, seq_end: dict[str, int]) -> int:
+        have = self.delivered + sum(1 for e in self.pending if e.seq < seq_end.get(e.source, 0))
+        return self.expected - have
+
+    def take(self, seq_end: dict[str, int]) -> list[Envelope]:
+        now, later = [], []
+        for e in self.pending:
+            (now if e.seq < seq_end.get(e.source, 0) else later).append(e)
+        self.pending = later
+        self.delivered += len(now)
+        now.sort(key=Envelope.sort_key)
+        return now
