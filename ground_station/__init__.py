@@ -26,9 +26,9 @@ __all__ = [
     "OsseField",
     "SyntheticParams",
     "as_ground_point_arrays",
-    "osse_from_scenario",
-    "synthetic_field",
     "load_value_grid",
+    "osse_from_scenario",
     "read_grid",
+    "synthetic_field",
     "write_value_grid",
 ]

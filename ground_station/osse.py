@@ -41,24 +41,25 @@ from __future__ import annotations
 
 import math
 import zlib
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable, Mapping, Sequence
+from typing import Any
 
 import numpy as np
 
 __all__ = [
+    "OSSE_SOURCES",
+    "VALUE_MAX",
+    "VALUE_MIN",
+    "GroundPointArrays",
     "OsseError",
     "OsseField",
-    "GroundPointArrays",
-    "as_ground_point_arrays",
-    "synthetic_field",
     "SyntheticParams",
-    "OSSE_SOURCES",
-    "osse_from_scenario",
+    "as_ground_point_arrays",
     "local_km",
-    "VALUE_MIN",
-    "VALUE_MAX",
+    "osse_from_scenario",
+    "synthetic_field",
 ]
 
 VALUE_MIN = 1

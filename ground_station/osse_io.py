@@ -30,14 +30,15 @@ from __future__ import annotations
 
 import csv
 import math
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any
 
 import numpy as np
 
 from ground_station.osse import VALUE_MAX, VALUE_MIN, OsseError, OsseField, as_ground_point_arrays
 
-__all__ = ["load_value_grid", "read_grid", "write_value_grid", "ValueGrid", "GRID_SUFFIXES"]
+__all__ = ["GRID_SUFFIXES", "ValueGrid", "load_value_grid", "read_grid", "write_value_grid"]
 
 GRID_SUFFIXES = (".npz", ".csv", ".nc")
 _ALIASES = {
