@@ -1,0 +1,8 @@
+"""The DTN stack of a satellite: BPv7 bundles (RFC 9171), BPSec BIB (RFC 9172/9173), contact graph
+routing (CCSDS 734.3-B-1 SABR), a persistent bundle store and the bundle agent. Pure Python (no rclpy)."""
+
+from .bpsec import IntegrityError, add_bib, verify_bib
+from .bpv7 import Bundle, BundleError, CanonicalBlock, decode_bundle, encode_bundle, ipn
+
+__all__ = ["Bundle", "BundleError", "CanonicalBlock", "decode_bundle", "encode_bundle", "ipn",
+           "IntegrityError", "add_bib", "verify_bib"]
