@@ -35,6 +35,7 @@ COMMANDS: dict[str, str] = {
     "compare": "compare",
     "sweep": "sweep",
     "node": "node",
+    "compose": "compose",
 }
 
 
