@@ -44,14 +44,14 @@ from bringup.errors import UserError
 from bringup.run_spec import CLOCK_ROLE, RunSpec
 
 __all__ = [
+    "GROUND_ROLE",
     "IMAGE",
     "ROUTER_ROLE",
-    "GROUND_ROLE",
     "SPEC_IN_CONTAINER",
     "ComposeProject",
     "compose_project",
-    "write_project",
     "repo_root",
+    "write_project",
 ]
 
 IMAGE = "agile-dtn-constellation:0.1.0"
@@ -85,7 +85,7 @@ def repo_root() -> Path:
 def _default_factory() -> str:
     """The ROS engine's participant factory for real runs, from the launcher when it is there."""
     try:
-        from bringup import launcher  # noqa: PLC0415 (optional until the ROS engine lands)
+        from bringup import launcher
     except ImportError:
         launcher = None
     for attr in ("PARTICIPANT_FACTORY", "DEFAULT_FACTORY"):

@@ -9,8 +9,8 @@ import argparse
 import os
 from pathlib import Path
 
-from bringup.compose import compose_project, repo_root, write_project
 from bringup.commands._common import add_scenario_args
+from bringup.compose import compose_project, repo_root, write_project
 
 HELP = "write docker-compose.yml (+ run_spec.json beside it): one container per process of a run"
 
