@@ -95,6 +95,26 @@ class AccessWindows:
     t0_s: float = 0.0
     t1_s: float = 0.0
     meta: dict = field(default_factory=dict)
+    gp_region: np.ndarray | None = None  # (n_gp,) region index of every GP id (GroundPoints.region_index)
+    region_names: list[str] | None = None
+
+    def region_id(self, region) -> int:
+        """Region index from a name or an index (needs region_names)."""
+        names = self.region_names or []
+        if isinstance(region, (int, np.integer)):
+            if not 0 <= region < len(names):
+                raise ValueError(f"region index {region}: out of range 0..{len(names) - 1}")
+            return int(region)
+        if region not in names:
+            raise ValueError(f"region {region!r}: not one of {names}")
+        return names.index(region)
+
+    @property
+    def region(self) -> np.ndarray:
+        """Region index of each window."""
+        if self.gp_region is None:
+            raise ValueError("these access windows carry no GP -> region table")
+        return self.gp_region[self.gp]
 
     def __post_init__(self) -> None:
         order = np.lexsort((self.start_s, self.gp, self.sat))
@@ -109,7 +129,8 @@ class AccessWindows:
 
     def select(self, mask) -> "AccessWindows":
         return AccessWindows(self.sat_names, self.sat[mask], self.gp[mask], self.start_s[mask], self.end_s[mask],
-                             self.min_off_nadir_deg[mask], self.max_off_nadir_deg, self.t0_s, self.t1_s, self.meta)
+                             self.min_off_nadir_deg[mask], self.max_off_nadir_deg, self.t0_s, self.t1_s, self.meta,
+                             self.gp_region, self.region_names)
 
     def rows(self, gps: GroundPoints):
         """Yield dicts with the CLI columns: sat, region, gp, lat_deg, lon_deg, start_s, end_s, min_off_nadir_deg."""
@@ -207,7 +228,8 @@ def access_windows(constellation: Constellation, gps: GroundPoints, t0_s: float,
     return AccessWindows(list(constellation.names), cat("sat", np.int64), cat("gp", np.int64), cat("start", float),
                          cat("end", float), cat("min", float), max_off_nadir_deg, float(t0_s), float(t1_s),
                          {"coarse_step_s": coarse_step_s, "fine_step_s": fine_step_s,
-                          "fine_samples": n_fine, "coarse_samples": int(tc.size * sat_list.size)})
+                          "fine_samples": n_fine, "coarse_samples": int(tc.size * sat_list.size)},
+                         gps.region_index, list(gps.region_names))
 
 
 def access_windows_bruteforce(constellation: Constellation, gps: GroundPoints, t0_s: float, t1_s: float,
@@ -231,7 +253,7 @@ def access_windows_bruteforce(constellation: Constellation, gps: GroundPoints, t
     cat = (lambda k, dt: np.concatenate(out[k]).astype(dt) if out[k] else np.empty(0, dt))
     return AccessWindows(list(constellation.names), cat("sat", np.int64), cat("gp", np.int64), cat("start", float),
                          cat("end", float), cat("min", float), max_off_nadir_deg, float(t0_s), float(t1_s),
-                         {"step_s": step_s})
+                         {"step_s": step_s}, gps.region_index, list(gps.region_names))
 
 
 def off_nadir_profile(constellation: Constellation, gps: GroundPoints, windows: AccessWindows, k: int,
