@@ -1,0 +1,130 @@
+"""bringup.plots: every figure writes a non-empty PNG and carries the data it was given."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from matplotlib.collections import PolyCollection
+
+from bringup import plots
+from bringup.plots import PlotError
+from orbit_clock.contact_plan import Contact, ContactPlan
+
+PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
+
+
+def _is_png(p):
+    data = p.read_bytes()
+    return data[:8] == PNG_MAGIC and len(data) > 5000
+
+
+def _by_gid(fig, prefix):
+    return [a for ax in fig.axes for a in ax.findobj() if (a.get_gid() or "").startswith(prefix)]
+
+
+REGIONS = [dict(name="Dhaka", lat_deg=23.8, lon_deg=90.4, size_km=80.0),
+           dict(name="London", lat_deg=51.5, lon_deg=-0.13, size_km=80.0)]
+
+
+def _tracks():
+    t = np.linspace(0, 6000, 300)
+    out = {}
+    for p in (1, 2):
+        for s in (1, 2):
+            ph = 2 * np.pi * (t / 5928 + s / 8)
+            out[f"sat_{p}{s}"] = (80 * np.sin(ph), (60 * p + np.degrees(ph) - t / 240) % 360 - 180)
+    return out
+
+
+def test_ground_tracks(tmp_path):
+    tr = _tracks()
+    fig = plots.figure_ground_tracks(tr, REGIONS, [dict(name="svalbard", lat_deg=78.2, lon_deg=15.4)])
+    lines = {a.get_gid(): a for a in _by_gid(fig, "track:")}
+    assert set(lines) == {f"track:{n}" for n in tr}
+    y = lines["track:sat_11"].get_ydata()
+    assert np.array_equal(y[np.isfinite(y)], tr["sat_11"][0])      # same points, NaN only at dateline breaks
+    assert np.isnan(y).sum() >= 1
+    assert len(_by_gid(fig, "region:")) == 2 and len(_by_gid(fig, "station:")) == 1
+    p = plots.plot_ground_tracks(tmp_path / "gt.png", tr, REGIONS)
+    assert p == tmp_path / "gt.png" and _is_png(p)
+    with pytest.raises(PlotError, match="no satellite tracks"):
+        plots.figure_ground_tracks({})
+
+
+def test_value_snapshot_from_osse(tmp_path, paper_scenario):
+    from ground_station import osse_from_scenario
+    from orbit_clock import ground_points
+
+    gps = ground_points(paper_scenario)
+    field = osse_from_scenario(paper_scenario, gps)
+    p = plots.plot_osse_snapshot(tmp_path / "osse.png", field, slot=8)
+    assert _is_png(p)
+    fig = plots.figure_value_snapshot(field.lat_deg, field.lon_deg, field.region_index, field.snapshot(8),
+                                      field.region_names)
+    colls = [c for c in _by_gid(fig, "snapshot:") if isinstance(c, PolyCollection)]
+    assert len(colls) == 5
+    london = [c for c in colls if c.get_gid() == "snapshot:London"][0]
+    assert np.array_equal(np.asarray(london.get_array()), field.snapshot(8)[field.region_gps("London")])
+    with pytest.raises(PlotError, match="slot 99"):
+        plots.plot_osse_snapshot(tmp_path / "x.png", field, slot=99)
+
+
+def test_observation_gantt(tmp_path):
+    rng = np.random.default_rng(3)
+    obs = [dict(sat=f"sat_{1 + i % 2}{1 + i % 3}", t_ns=int(rng.uniform(0, 6 * 3600) * 1e9),
+                region=["Dhaka", "London", "Rio"][i % 3]) for i in range(60)]
+    fig = plots.figure_observation_gantt(obs)
+    marks = {a.get_gid(): a for a in _by_gid(fig, "gantt:")}
+    assert set(marks) == {"gantt:Dhaka", "gantt:London", "gantt:Rio"}
+    assert sum(len(m.get_offsets()) for m in marks.values()) == 60
+    assert _is_png(plots.plot_observation_gantt(tmp_path / "g.png", obs))
+    with pytest.raises(PlotError, match="region 'Rio' is not in region_names"):
+        plots.figure_observation_gantt(obs, region_names=["Dhaka", "London"])
+
+
+def test_contact_timeline_paper_plan(tmp_path, paper_inputs):
+    from orbit_clock.contact_plan import read_contact_plan
+
+    plan = read_contact_plan(paper_inputs / "contact_plan_3p_8s.csv", rate_bps=1000.0)
+    fig = plots.figure_contact_timeline(plan)
+    bars = _by_gid(fig, "pair:")
+    assert len(bars) == len(plan.pairs())
+    assert _is_png(plots.plot_contact_timeline(tmp_path / "cp.png", plan))
+
+
+def test_contact_timeline_merges_directions():
+    plan = ContactPlan([Contact(0, 600, "sat_11", "sat_12", 1e3, 0.01), Contact(0, 600, "sat_12", "sat_11", 1e3, 0.01),
+                        Contact(500, 900, "sat_11", "sat_12", 1e3, 0.01),
+                        Contact(3600, 4200, "sat_11", "gs_svalbard", 1e6, 0.005)])
+    fig = plots.figure_contact_timeline(plan)
+    bars = {a.get_gid(): a for a in _by_gid(fig, "pair:")}
+    assert set(bars) == {"pair:sat_11-sat_12", "pair:gs_svalbard-sat_11"}
+    assert len(bars["pair:sat_11-sat_12"].get_paths()) == 1           # [0, 900] s merged into one bar
+    with pytest.raises(PlotError, match="no contacts"):
+        plots.figure_contact_timeline(ContactPlan([]))
+
+
+def test_value_over_time(tmp_path):
+    rng = np.random.default_rng(1)
+    series = {m: (rng.uniform(0, 21600, n), rng.integers(1, 256, n)) for m, n in
+              (("distributed", 400), ("centralized", 300), ("nonagile", 30))}
+    fig = plots.figure_value_over_time(series, horizon_s=21600)
+    lines = {a.get_gid(): a for a in _by_gid(fig, "mode:")}
+    assert set(lines) == {"mode:distributed", "mode:centralized", "mode:nonagile"}
+    y = lines["mode:centralized"].get_ydata()
+    assert y[-1] == pytest.approx(series["centralized"][1].sum()) and np.all(np.diff(y) >= 0)
+    assert _is_png(plots.plot_value_over_time(tmp_path / "v.png", series, horizon_s=21600))
+    with pytest.raises(PlotError, match="'x' has 2 times but 3 values"):
+        plots.figure_value_over_time({"x": ([0, 1], [1, 2, 3])})
+
+
+def test_latency_vs_gaps(tmp_path):
+    rng = np.random.default_rng(2)
+    lat = {p: list(rng.lognormal(np.log(10 if p <= 6 else 120), 0.6, 40)) for p in range(1, 12)}
+    gap = {p: list(rng.lognormal(np.log(300 * p), 0.4, 25)) for p in range(1, 14)}
+    fig = plots.figure_latency_vs_gaps(lat, gap, before_fraction_by_priority={p: 0.9 for p in range(1, 12)})
+    assert fig._box_counts == {"latency": 11, "gap": 13}
+    assert len(_by_gid(fig, "box:latency")) == 11 and len(_by_gid(fig, "box:gap")) == 13
+    assert _is_png(plots.plot_latency_vs_gaps(tmp_path / "l.png", lat, gap))
+    with pytest.raises(PlotError, match="every priority is empty"):
+        plots.figure_latency_vs_gaps({1: []}, {})
