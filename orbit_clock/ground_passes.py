@@ -73,6 +73,7 @@ def ground_contact_plan(scenario, constellation: Constellation | None = None, *,
         if b <= a:
             continue
         lt = float(r) / C_KM_S
+        a, b = round(float(a), 3), round(float(b), 3)
         out.append(Contact(float(a), float(b), c.names[s], names[k], float(g.rate_bps), lt))
         out.append(Contact(float(a), float(b), names[k], c.names[s], float(g.rate_bps), lt))
     return ContactPlan(out)

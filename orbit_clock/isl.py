@@ -154,6 +154,7 @@ def isl_contact_plan(scenario, constellation: Constellation | None = None, *, st
     contacts = []
     for a, b, s0, s1, lt in zip(i, j, st, en, light_s):
         na, nb = c.names[a], c.names[b]
-        contacts.append(Contact(float(s0), float(s1), na, nb, float(isl.rate_bps), float(lt)))
-        contacts.append(Contact(float(s0), float(s1), nb, na, float(isl.rate_bps), float(lt)))
+        s0, s1 = round(float(s0), 3), round(float(s1), 3)
+        contacts.append(Contact(s0, s1, na, nb, float(isl.rate_bps), float(lt)))
+        contacts.append(Contact(s0, s1, nb, na, float(isl.rate_bps), float(lt)))
     return ContactPlan(contacts)
