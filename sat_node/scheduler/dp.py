@@ -1,0 +1,159 @@
+"""Dynamic-programming scheduler for one agile satellite (wrapper around dp_kernels).
+
+After Nag et al., ICAPS SPARK 2019, Table 1: the graph's nodes are (time step, GP in the field of
+regard); an edge joins two nodes when the slew between their pointing vectors (real positions at both
+times, :mod:`sat_node.acs`) fits in the time between them; each node keeps the best accumulated value
+of a path reaching it and a back-pointer; the value of a node given a predecessor is Eq. 1 *along
+that predecessor's path* (a GP already on the path within 15 min is worth 0; older repeats divide by
+one more) on top of the known observations (:func:`sat_node.value.prior_state`), which is how other
+satellites' executed and planned observations enter (implicit consensus: whoever observes first, at
+equal times the lower satellite name, keeps the value; two satellites with the same knowledge of
+each other's plans therefore never both keep a GP within 15 min).
+
+Exactness (the oracle statements the tests check):
+* the value is path-dependent only through repeats of a GP on a path. When no feasible path can see a
+  GP twice (every GP is worth something for less than the minimum slew time, ~5.05 s), the DP is a
+  longest path in a DAG and **equals the brute-force optimum** (tests/unit/test_dp.py, tiny
+  instances). Otherwise it is a heuristic that keeps one path per node: its plan is always feasible
+  and its value is exactly what :func:`evaluate_plan` gives, so it is **<= the optimum**;
+* against the MILP optimum (pairwise slew conflicts, tests/unit/test_milp.py) on single-satellite
+  instances from the paper scenario the DP must reach >= 90 % (the study's figure);
+* the same results with numba compiled and with ``NUMBA_DISABLE_JIT=1`` (subprocess test).
+
+Anytime: steps are processed in chunks; when ``budget_s`` runs out the best node reached so far gives
+a valid plan covering the steps done (``Plan.complete`` is False and ``Plan.steps_done`` says how far).
+
+Cost control: predecessors older than ``w_steps`` (the largest possible slew: twice the largest
+off-nadir angle plus the nadir's own rotation over the gap, by the triangle inequality) are always
+reachable, so they are folded into one running best; within the window each step's nodes are scanned
+in decreasing value and the scan stops when no remaining node can win.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from sat_node.acs import angle_between_deg, nadir_unit
+from sat_node.scheduler import dp_kernels
+from sat_node.scheduler.problem import SchedulingProblem, evaluate_plan, plan_violations
+
+__all__ = ["Plan", "solve_dp", "ScheduleInvariantError", "slew_window_steps"]
+
+
+class ScheduleInvariantError(RuntimeError):
+    """A solver returned a plan that breaks the rules (a bug, never bad input)."""
+
+
+@dataclass(frozen=True)
+class Plan:
+    """A schedule: observations in time order (global GP ids, times [s]) and its Eq. 1 value."""
+
+    gp_ids: np.ndarray
+    t_s: np.ndarray
+    steps: np.ndarray
+    cols: np.ndarray
+    values: np.ndarray
+    value: float
+    complete: bool = True
+    steps_done: int = 0
+    solve_s: float = 0.0
+
+    def as_list(self) -> list[tuple[int, float]]:
+        """[(gp_id, t_s)] in time order."""
+        return [(int(g), float(t)) for g, t in zip(self.gp_ids, self.t_s)]
+
+    def __len__(self) -> int:
+        return len(self.steps)
+
+
+def make_plan(p: SchedulingProblem, steps, cols, *, complete=True, steps_done=None, solve_s=0.0) -> Plan:
+    steps = np.asarray(steps, dtype=np.int64)
+    cols = np.asarray(cols, dtype=np.int64)
+    total, vals = evaluate_plan(p, steps, cols)
+    return Plan(gp_ids=p.gp_ids[cols], t_s=p.t0_s + p.step_s * steps, steps=steps, cols=cols, values=vals,
+                value=total, complete=complete, steps_done=p.n_steps if steps_done is None else steps_done,
+                solve_s=solve_s)
+
+
+def slew_window_steps(p: SchedulingProblem, max_off_nadir_deg: float) -> int:
+    """Smallest gap (steps) after which any slew between FOR targets fits (triangle inequality)."""
+    nad = nadir_unit(p.sat_pos_km)
+    if p.n_steps > 1:
+        rate = float(np.max(angle_between_deg(nad[:-1], nad[1:]))) / p.step_s
+    else:
+        rate = 0.0
+    w = max(1, int(math.ceil(p.slew.min_time_s / p.step_s)))
+    while True:
+        ang = min(180.0, 2.0 * max_off_nadir_deg + rate * w * p.step_s)
+        if p.slew.time_s(ang) <= w * p.step_s:
+            return w
+        w += 1
+
+
+def _states(p: SchedulingProblem):
+    vf = p.v_first
+    ks, gs = np.nonzero(vf > 0.0)  # row-major: sorted by step then GP column
+    T = p.n_steps
+    t_off = np.zeros(T + 1, dtype=np.int64)
+    np.cumsum(np.bincount(ks, minlength=T), out=t_off[1:])
+    u = p.pointing(ks, gs) if len(ks) else np.zeros((0, 3))
+    return ks.astype(np.int64), gs.astype(np.int64), np.ascontiguousarray(u), vf[ks, gs], t_off
+
+
+def solve_dp(p: SchedulingProblem, *, budget_s: float | None = None, chunk_steps: int = 64,
+             check: bool = True) -> Plan:
+    """Best plan the DP finds; anytime with budget_s [s of wall time]; check: verify invariants."""
+    t_start = time.perf_counter()
+    st_k, st_g, st_u, st_vf, t_off = _states(p)
+    S = len(st_k)
+    if S == 0:
+        return make_plan(p, [], [], solve_s=time.perf_counter() - t_start)
+    st_n1 = (p.prior_count[st_k, st_g] + 1.0).astype(np.float64)
+    t_s = p.t0_s + p.step_s * st_k
+    a0 = angle_between_deg(p.init_unit[None, :], st_u)
+    root_ok = p.slew.time_s(a0) <= (t_s - p.ready_t_s) + 1e-9
+    nad = nadir_unit(p.sat_pos_km[st_k])
+    max_off = float(np.max(np.degrees(np.arccos(np.clip(np.sum(nad * st_u, axis=1), -1, 1)))))
+    w_steps = slew_window_steps(p, max_off)
+    amax = p.slew.max_angle_deg(p.step_s * np.arange(w_steps + 1))
+    # tiny safety margin so the compiled test never accepts what time_s would refuse
+    cos_thr = np.where(amax < 0, 2.0, np.cos(np.radians(np.maximum(amax - 1e-9, 0.0))))
+    revisit_steps = p.revisit_zero_s / p.step_s
+    V = np.full(S, -np.inf)
+    bp = np.full(S, -2, dtype=np.int64)
+    order = np.arange(S, dtype=np.int64)
+    pref = np.array([-1, 0], dtype=np.int64)
+    T = p.n_steps
+    k = 0
+    while k < T:
+        k_hi = min(T, k + chunk_steps)
+        dp_kernels.dp_forward(k, k_hi, t_off, st_k, st_g, st_u, st_vf, st_n1, root_ok, cos_thr,
+                              w_steps, revisit_steps, V, bp, order, pref)
+        k = k_hi
+        if budget_s is not None and time.perf_counter() - t_start > budget_s:
+            break
+    done = int(t_off[k])
+    steps, cols = [], []
+    if done > 0 and np.isfinite(V[:done]).any():
+        s = int(np.argmax(V[:done]))
+        best_v = float(V[s])
+        while s >= 0:
+            steps.append(int(st_k[s]))
+            cols.append(int(st_g[s]))
+            s = int(bp[s])
+        steps.reverse()
+        cols.reverse()
+    else:
+        best_v = 0.0
+    plan = make_plan(p, steps, cols, complete=k >= T, steps_done=k, solve_s=time.perf_counter() - t_start)
+    if check:
+        bad = plan_violations(p, plan.steps, plan.cols, rule="sequential")
+        if bad:
+            raise ScheduleInvariantError(f"DP plan breaks the rules: {bad[:3]}")
+        if not math.isclose(plan.value, best_v, rel_tol=1e-9, abs_tol=1e-9):
+            raise ScheduleInvariantError(f"DP value {best_v} != evaluated plan value {plan.value}")
+    return plan

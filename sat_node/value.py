@@ -1,0 +1,156 @@
+"""Observation value (the study's Eq. 1) and each satellite's noisy belief of it.
+
+Nag et al., ICAPS SPARK 2019, section 4 / DESIGN.md section 1: the value of observing GP ``g`` at
+time ``t`` is
+
+* 0 if ``g`` was seen less than ``revisit_zero_s`` (15 min) before ``t``;
+* else ``absval(g, t) / (n + 1)`` where ``n`` is how many times ``g`` was seen before ``t`` and
+  ``absval`` is the OSSE value (integer 1..256 per GP per 15-min slot).
+
+"Seen before t" uses every observation the caller knows of (executed by anyone, or planned by
+another satellite, see :func:`prior_state`): an observation at exactly ``t`` by another satellite
+counts as before ours when its source name sorts before ours, so two satellites with the same
+knowledge resolve the same claim the same way (implicit consensus, deterministic tie-breaking).
+
+Belief: satellite ``s`` does not know ``absval`` exactly; it believes ``absval * (1 + sigma_s z)``
+with ``z ~ N(0, 1)`` i.i.d. per (GP, slot), clipped at 0, and ``sigma_s ~ U(sigma_min, sigma_max)``
+(2 %..8 %). Both are drawn from ``numpy.random.default_rng(SeedSequence([seed, crc32(name)]))`` -
+first sigma, then the (n_gp, n_slots) matrix of z - so the local and the ROS engine, and a restarted
+process, draw the same numbers. (Python's ``hash`` is salted per process and is not used.)
+
+How we know it is right (tests/unit/test_value.py): Eq. 1 against a hand-written scalar loop over
+random histories; the 15-min zero at the boundary (899.999 s -> 0, 900 s -> absval/2); belief noise
+reproducible across calls and processes, different across satellites, and its sample standard
+deviation of (belief/absval - 1) within 3 standard errors of sigma_s.
+
+Not done: the optional spatial-diversity term of the issue.
+"""
+
+from __future__ import annotations
+
+import zlib
+from dataclasses import dataclass, field
+from typing import Iterable
+
+import numpy as np
+
+__all__ = [
+    "true_value",
+    "belief_sigma",
+    "Belief",
+    "KnownObservation",
+    "prior_state",
+    "name_key",
+]
+
+
+def name_key(name: str) -> int:
+    """Stable 32-bit key of a satellite name (CRC-32 of its UTF-8 bytes)."""
+    return zlib.crc32(name.encode("utf-8"))
+
+
+def true_value(absval, t_s, last_seen_t_s, times_seen, revisit_zero_s: float) -> np.ndarray:
+    """Eq. 1, vectorized: 0 if seen within revisit_zero_s before t_s, else absval / (times_seen + 1).
+
+    ``last_seen_t_s`` is -inf (or NaN) for a GP never seen; all arguments broadcast.
+    """
+    absval = np.asarray(absval, dtype=np.float64)
+    last = np.asarray(last_seen_t_s, dtype=np.float64)
+    n = np.asarray(times_seen, dtype=np.float64)
+    if np.any(n < 0):
+        raise ValueError("true_value: times_seen must be >= 0")
+    recent = np.isfinite(last) & ((np.asarray(t_s, np.float64) - last) < revisit_zero_s)
+    return np.where(recent, 0.0, absval / (n + 1.0))
+
+
+def belief_sigma(seed: int, sat_name: str, sigma_min: float, sigma_max: float) -> float:
+    """The satellite's belief noise sigma [-] ~ U(sigma_min, sigma_max), seeded by (seed, name)."""
+    return Belief(seed=seed, sat_name=sat_name, n_gp=0, n_slots=0,
+                  sigma_min=sigma_min, sigma_max=sigma_max).sigma
+
+
+@dataclass
+class Belief:
+    """One satellite's noisy view of the OSSE absolute value.
+
+    n_gp, n_slots: size of the whole scenario's value grid (all GPs, all 15-min slots), so that the
+    same noise matrix is drawn whoever asks.
+    """
+
+    seed: int
+    sat_name: str
+    n_gp: int
+    n_slots: int
+    sigma_min: float = 0.02
+    sigma_max: float = 0.08
+    sigma: float = field(init=False)
+    z: np.ndarray = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        if not (0.0 <= self.sigma_min <= self.sigma_max):
+            raise ValueError(f"Belief: need 0 <= sigma_min <= sigma_max, got {self.sigma_min}, {self.sigma_max}")
+        if self.n_gp < 0 or self.n_slots < 0:
+            raise ValueError(f"Belief: n_gp and n_slots must be >= 0, got {self.n_gp}, {self.n_slots}")
+        rng = np.random.default_rng(np.random.SeedSequence([int(self.seed), name_key(self.sat_name)]))
+        self.sigma = float(rng.uniform(self.sigma_min, self.sigma_max))
+        self.z = rng.standard_normal((self.n_gp, self.n_slots))
+
+    @classmethod
+    def from_scenario(cls, sc, sat_name: str, n_gp: int, n_slots: int) -> "Belief":
+        return cls(seed=sc.scenario.seed, sat_name=sat_name, n_gp=n_gp, n_slots=n_slots,
+                   sigma_min=sc.value.belief_sigma_min, sigma_max=sc.value.belief_sigma_max)
+
+    def factor(self, gp, slot) -> np.ndarray:
+        """Multiplicative belief factor ``max(0, 1 + sigma z)`` for GP index/indices and slot(s)."""
+        gp = np.asarray(gp)
+        slot = np.asarray(slot)
+        if gp.size and (gp.min() < 0 or gp.max() >= self.n_gp):
+            raise IndexError(f"Belief({self.sat_name}): GP index out of 0..{self.n_gp - 1}")
+        if slot.size and (slot.min() < 0 or slot.max() >= self.n_slots):
+            raise IndexError(f"Belief({self.sat_name}): slot out of 0..{self.n_slots - 1}")
+        return np.maximum(0.0, 1.0 + self.sigma * self.z[gp, slot])
+
+    def absval(self, true_absval, gp, slot) -> np.ndarray:
+        """Believed absolute value for true value(s) at (gp, slot), broadcasting."""
+        return np.asarray(true_absval, np.float64) * self.factor(gp, slot)
+
+
+@dataclass(frozen=True, order=True)
+class KnownObservation:
+    """An observation a satellite knows of: executed by anyone, or planned by another satellite."""
+
+    t_s: float
+    gp: int
+    source: str
+
+
+def prior_state(known: Iterable[KnownObservation], gp_ids: np.ndarray, times_s: np.ndarray,
+                me: str, revisit_zero_s: float) -> tuple[np.ndarray, np.ndarray]:
+    """Per (time, GP): how many known observations come before, and whether one is recent.
+
+    Returns ``(count, recent)``, both shape (len(times_s), len(gp_ids)): ``count`` = number of known
+    observations of that GP before the time (same-time ones count when their source sorts before
+    ``me``); ``recent`` = True when one of those is less than ``revisit_zero_s`` before. Own
+    observations (source == me) at the same time count as before.
+    """
+    gp_ids = np.asarray(gp_ids, dtype=np.int64)
+    times_s = np.asarray(times_s, dtype=np.float64)
+    T, G = len(times_s), len(gp_ids)
+    count = np.zeros((T, G), dtype=np.int64)
+    recent = np.zeros((T, G), dtype=bool)
+    col = {int(g): j for j, g in enumerate(gp_ids)}
+    by_col: dict[int, list[tuple[float, bool]]] = {}
+    for ob in known:
+        j = col.get(int(ob.gp))
+        if j is None:
+            continue
+        by_col.setdefault(j, []).append((float(ob.t_s), ob.source <= me))
+    for j, obs in by_col.items():
+        ts = np.array([o[0] for o in obs])
+        wins = np.array([o[1] for o in obs])  # counts at equal time
+        # before[t, k]: observation k precedes time t
+        before = (ts[None, :] < times_s[:, None]) | ((ts[None, :] == times_s[:, None]) & wins[None, :])
+        count[:, j] = before.sum(axis=1)
+        rec = before & ((times_s[:, None] - ts[None, :]) < revisit_zero_s)
+        recent[:, j] = rec.any(axis=1)
+    return count, recent
