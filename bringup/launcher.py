@@ -1,0 +1,242 @@
+"""Launcher of the ROS engine: the clock process plus one process per participant group (issue 5).
+
+``launch(spec, out_dir)`` writes the run spec to ``out_dir/run_spec.json`` and starts, each as
+``python -m bringup.cli node --run-spec ... --role R``: the clock (lockstep coordinator and MCAP
+recorder into ``spec.bag_dir``) and one process per role (N satellites, router, ground station;
+what a role hosts comes from the spec's participant factory). Every child gets
+``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST`` (no packet leaves loopback), a run-unique
+``ROS_DOMAIN_ID`` (1..101, held by an fcntl lock file for the whole run so parallel runs on one
+host never share one) and ``FASTRTPS_DEFAULT_PROFILES_FILE`` = bringup/dds/fastdds_profile.xml.
+Progress (sim time, real-time factor, steps/s) goes to a callback. Ctrl-C / SIGTERM: the clock is
+asked to stop first (it tells the hosts and closes the bag, which stays readable), then the
+hosts; a child that fails is named in the result's message and the result is non-zero.
+Each child's stderr goes to ``out_dir/logs/<role>.log``.
+
+Oracle: tests/ros/test_launcher.py (a toy run completes and its bag equals the local engine's
+envelopes; a killed host is named; SIGINT leaves a readable bag; two leases never share an id).
+"""
+
+from __future__ import annotations
+
+import fcntl
+import json
+import os
+import random
+import signal
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+from bringup.errors import UserError
+from bringup.run_spec import CLOCK_ROLE, RunSpec
+
+__all__ = ["DomainLease", "lease_domain_id", "LaunchProgress", "LaunchResult", "launch", "child_env",
+           "FASTDDS_PROFILE"]
+
+REPO = Path(__file__).resolve().parents[1]
+FASTDDS_PROFILE = Path(__file__).resolve().parent / "dds" / "fastdds_profile.xml"
+_LOCK_DIR = Path(tempfile.gettempdir()) / "agile_dtn_ros_domains"
+
+
+class DomainLease:
+    """A ROS_DOMAIN_ID held by an exclusive fcntl lock until :meth:`release` (or process exit)."""
+
+    def __init__(self, domain_id: int, fd: int):
+        self.domain_id = domain_id
+        self._fd: int | None = fd
+
+    def release(self) -> None:
+        if self._fd is not None:
+            fcntl.flock(self._fd, fcntl.LOCK_UN)
+            os.close(self._fd)
+            self._fd = None
+
+    def __enter__(self) -> "DomainLease":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.release()
+
+
+def lease_domain_id(lo: int = 1, hi: int = 101) -> DomainLease:
+    """Lock a free domain id in ``[lo, hi]`` (random start, so parallel runs spread)."""
+    _LOCK_DIR.mkdir(parents=True, exist_ok=True)
+    ids = list(range(lo, hi + 1))
+    start = random.randrange(len(ids))
+    for d in ids[start:] + ids[:start]:
+        fd = os.open(_LOCK_DIR / f"domain_{d}.lock", os.O_CREAT | os.O_RDWR, 0o666)
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            os.close(fd)
+            continue
+        return DomainLease(d, fd)
+    raise UserError(f"no free ROS_DOMAIN_ID in {lo}..{hi} (all locked under {_LOCK_DIR})")
+
+
+def child_env(domain_id: int) -> dict[str, str]:
+    """Environment of every process of a run: loopback discovery, the run's domain, the profile."""
+    env = dict(os.environ)
+    env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+    env["ROS_DOMAIN_ID"] = str(domain_id)
+    env["FASTRTPS_DEFAULT_PROFILES_FILE"] = str(FASTDDS_PROFILE)
+    env["PYTHONPATH"] = os.pathsep.join(p for p in (str(REPO), env.get("PYTHONPATH", "")) if p)
+    env["PYTHONUNBUFFERED"] = "1"
+    return env
+
+
+@dataclass(frozen=True)
+class LaunchProgress:
+    t_ns: int
+    horizon_ns: int
+    steps: int
+    wall_s: float
+
+    @property
+    def real_time_factor(self) -> float:
+        return self.t_ns / 1e9 / self.wall_s if self.wall_s > 0 else 0.0
+
+    @property
+    def steps_per_s(self) -> float:
+        return self.steps / self.wall_s if self.wall_s > 0 else 0.0
+
+
+@dataclass
+class LaunchResult:
+    returncode: int
+    message: str
+    domain_id: int
+    out_dir: Path
+    last: LaunchProgress | None
+    failed_roles: list[str]
+
+    @property
+    def ok(self) -> bool:
+        return self.returncode == 0
+
+
+class _Child:
+    def __init__(self, role: str, proc: subprocess.Popen, log: Path):
+        self.role, self.proc, self.log = role, proc, log
+
+    def last_error(self) -> str:
+        try:
+            lines = [ln for ln in self.log.read_text(errors="replace").splitlines() if ln.strip()]
+        except OSError:
+            return ""
+        errs = [ln for ln in lines if "error" in ln.lower() or "Error" in ln]
+        return (errs or lines or [""])[-1].strip()
+
+
+def _terminate(children: list[_Child], timeout_s: float) -> None:
+    for c in children:
+        if c.proc.poll() is None:
+            c.proc.send_signal(signal.SIGTERM)
+    deadline = time.monotonic() + timeout_s
+    for c in children:
+        try:
+            c.proc.wait(timeout=max(0.0, deadline - time.monotonic()))
+        except subprocess.TimeoutExpired:
+            c.proc.kill()
+            c.proc.wait()
+
+
+def launch(spec: RunSpec, out_dir: Path, *, progress: Callable[[LaunchProgress], None] | None = None,
+           domain_id: int | None = None, python: str = sys.executable) -> LaunchResult:
+    """Run the whole ROS-engine run described by ``spec``; returns when every child has exited."""
+    spec.check()
+    out_dir = Path(out_dir)
+    (out_dir / "logs").mkdir(parents=True, exist_ok=True)
+    spec_path = out_dir / "run_spec.json"
+    spec.to_file(spec_path)
+    lease = lease_domain_id() if domain_id is None else None
+    dom = lease.domain_id if lease else int(domain_id)  # type: ignore[arg-type]
+    env = child_env(dom)
+    last: list[LaunchProgress | None] = [None]
+    children: list[_Child] = []
+
+    def start(role: str, **kw) -> _Child:
+        log = out_dir / "logs" / f"{role}.log"
+        fh = open(log, "wb")
+        proc = subprocess.Popen(
+            [python, "-m", "bringup.cli", "node", "--run-spec", str(spec_path), "--role", role],
+            env=env, cwd=str(REPO), stderr=fh, stdin=subprocess.DEVNULL, **kw)
+        fh.close()
+        return _Child(role, proc, log)
+
+    def read_progress(stream) -> None:
+        for line in stream:
+            try:
+                rec = json.loads(line)
+            except ValueError:
+                continue
+            body = rec.get("progress") or rec.get("done")
+            if not isinstance(body, dict):
+                continue
+            p = LaunchProgress(int(body["t_ns"]), int(body["horizon_ns"]), int(body["steps"]), float(body["wall_s"]))
+            last[0] = p
+            if progress is not None:
+                progress(p)
+
+    old_term = None
+    if threading.current_thread() is threading.main_thread():
+        def _on_term(*_a):
+            raise KeyboardInterrupt
+        old_term = signal.signal(signal.SIGTERM, _on_term)
+    try:
+        clock = start(CLOCK_ROLE, stdout=subprocess.PIPE, text=True)
+        reader = threading.Thread(target=read_progress, args=(clock.proc.stdout,), daemon=True)
+        reader.start()
+        hosts = [start(r, stdout=subprocess.DEVNULL) for r in spec.roles]
+        children = [clock, *hosts]
+        failed: list[str] = []
+        message = ""
+        rc = 0
+        try:
+            while True:
+                crc = clock.proc.poll()
+                dead = [h for h in hosts if h.proc.poll() not in (None, 0)]
+                if dead and crc is None:
+                    failed = [h.role for h in dead]
+                    message = "; ".join(
+                        f"process '{h.role}' failed (exit code {h.proc.returncode}): {h.last_error() or 'no message'}"
+                        for h in dead)
+                    rc = 1
+                    _terminate([clock], 10.0)
+                    _terminate(hosts, 5.0)
+                    break
+                if crc is not None:
+                    if crc != 0:
+                        rc = crc
+                        failed = [CLOCK_ROLE] + [h.role for h in hosts if h.proc.poll() not in (None, 0)]
+                        message = clock.last_error() or f"clock exited with code {crc}"
+                    # hosts leave on the clock's stop message; give them a moment, then insist
+                    deadline = time.monotonic() + 10.0
+                    while time.monotonic() < deadline and any(h.proc.poll() is None for h in hosts):
+                        time.sleep(0.05)
+                    _terminate(hosts, 5.0)
+                    bad = [h for h in hosts if h.proc.returncode not in (0, -signal.SIGTERM, 130)]
+                    if crc == 0 and bad:
+                        rc = 1
+                        failed = [h.role for h in bad]
+                        message = "; ".join(f"process '{h.role}' failed (exit code {h.proc.returncode}): "
+                                            f"{h.last_error() or 'no message'}" for h in bad)
+                    break
+                time.sleep(0.05)
+        except KeyboardInterrupt:
+            _terminate([clock], 15.0)
+            _terminate(hosts, 5.0)
+            rc, message, failed = 130, "interrupted: every process stopped, bag closed", []
+        reader.join(timeout=2.0)
+        return LaunchResult(rc, message, dom, out_dir, last[0], failed)
+    finally:
+        _terminate(children, 5.0)
+        if old_term is not None:
+            signal.signal(signal.SIGTERM, old_term)
+        if lease is not None:
+            lease.release()

@@ -1,0 +1,300 @@
+"""One OS process of the ROS engine hosting one or more lockstep participants (issue 5).
+
+Each participant (msgs_json/envelope.py) gets its own rclpy node with ``use_sim_time`` whose
+/clock subscription is remapped away: the host sets every node's clock from the step it runs
+(``set_ros_time_override``; ROS2_NOTES trap 2), so all nodes of a process see the same time.
+Data topics are std_msgs/String carrying wire envelopes (msgs_json/wire.py), RELIABLE + KEEP_ALL;
+/sim/step and /sim/ack are RELIABLE + TRANSIENT_LOCAL (traps 3-4). Subscription callbacks only
+buffer envelopes; the step itself runs in one loop, participants in list order, each inbox sorted
+by (t_ns, source, seq) (traps 1 and 6). Before running step k the host waits until every inbox holds
+all envelopes of the previous steps, counted from the step message (orbit_clock/lockstep.py, trap
+5). A publisher is used only once it has matched every subscription the run declared for its
+topic (plus the recorder's), so nothing is lost to discovery. A message that does not decode is
+counted per topic and logged, never fatal.
+
+Oracle: tests/ros/test_lockstep.py: toy participants hosted here, driven by the clock node over
+DDS, emit exactly the envelopes the local engine (bringup/local_engine.py) emits for them.
+"""
+
+from __future__ import annotations
+
+import signal
+import sys
+import time
+from collections import deque
+from collections.abc import Sequence
+
+import rclpy
+from rclpy.context import Context
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.signals import SignalHandlerOptions
+from rclpy.time import Time
+from std_msgs.msg import String
+
+from msgs_json.envelope import Emit, Envelope, Participant, StepResult
+from msgs_json.wire import WireError, decode_envelope, encode_envelope
+from orbit_clock.lockstep import (
+    ACK_TOPIC,
+    STEP_TOPIC,
+    AckMsg,
+    LockstepError,
+    StepMsg,
+    TopicInbox,
+    decode_step,
+    encode_msg,
+)
+
+__all__ = ["QOS_DATA", "QOS_SYNC_PUB", "QOS_SYNC_SUB", "HostError", "ParticipantHost", "run_host"]
+
+QOS_DATA = QoSProfile(history=HistoryPolicy.KEEP_ALL, reliability=ReliabilityPolicy.RELIABLE,
+                      durability=DurabilityPolicy.VOLATILE)
+# Writers keep the last few step/ack messages for late joiners (only one is ever outstanding);
+# readers keep all, so simultaneous acks of several hosts are never overwritten (trap 3).
+QOS_SYNC_PUB = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=16, reliability=ReliabilityPolicy.RELIABLE,
+                          durability=DurabilityPolicy.TRANSIENT_LOCAL)
+QOS_SYNC_SUB = QoSProfile(history=HistoryPolicy.KEEP_ALL, reliability=ReliabilityPolicy.RELIABLE,
+                          durability=DurabilityPolicy.TRANSIENT_LOCAL)
+_CLOCK_REMAP = ["--ros-args", "-r", "/clock:=/_lockstep/unused_clock"]
+
+
+class HostError(RuntimeError):
+    """The host cannot go on (protocol broken, participant failed, clock silent); one line."""
+
+
+class _Slot:
+    """One participant with its node, inboxes, publishers and seq counter."""
+
+    def __init__(self, p: Participant, node: Node):
+        self.p = p
+        self.name = p.name
+        self.node = node
+        self.inboxes: list[TopicInbox] = []
+        self.pubs: dict[str, object] = {}
+        self.seq = 0
+
+
+class ParticipantHost:
+    """Hosts ``participants`` in one rclpy context; :meth:`run` follows the clock to the end."""
+
+    def __init__(self, role: str, participants: Sequence[Participant], *, ack_timeout_s: float = 10.0,
+                 startup_timeout_s: float = 60.0, idle_timeout_s: float = 300.0):
+        names = [p.name for p in participants]
+        if not names or len(set(names)) != len(names):
+            raise HostError(f"host {role}: participant names must be unique and non-empty: {names}")
+        self.role = role
+        self.ack_timeout_s = ack_timeout_s
+        self.startup_timeout_s = startup_timeout_s
+        self.idle_timeout_s = idle_timeout_s
+        self._stop_requested = False
+        self.ctx = Context()
+        rclpy.init(context=self.ctx, signal_handler_options=SignalHandlerOptions.NO)
+        self.executor = SingleThreadedExecutor(context=self.ctx)
+        self.host_node = rclpy.create_node(f"host_{role}", context=self.ctx, cli_args=_CLOCK_REMAP)
+        self._steps: deque[StepMsg] = deque()
+        self.host_node.create_subscription(String, STEP_TOPIC, self._on_step, QOS_SYNC_SUB)
+        self.ack_pub = self.host_node.create_publisher(String, ACK_TOPIC, QOS_SYNC_PUB)
+        self.executor.add_node(self.host_node)
+        self.slots: list[_Slot] = []
+        self.inboxes_by_topic: dict[str, list[TopicInbox]] = {}
+        for p in participants:
+            node = rclpy.create_node(
+                p.name, context=self.ctx, cli_args=_CLOCK_REMAP,
+                parameter_overrides=[Parameter("use_sim_time", Parameter.Type.BOOL, True)],
+            )
+            slot = _Slot(p, node)
+            for topic in dict.fromkeys(p.subscriptions()):
+                box = TopicInbox(topic)
+                node.create_subscription(String, topic, self._make_cb(box), QOS_DATA)
+                slot.inboxes.append(box)
+                self.inboxes_by_topic.setdefault(topic, []).append(box)
+            self.executor.add_node(node)
+            self.slots.append(slot)
+        self.seq_end: dict[str, int] = {}
+        self.subs: dict[str, int] = {}
+        self.subs_default = 0
+        self.decode_errors: dict[str, int] = {}
+
+    # -- callbacks: buffer only ---------------------------------------------------------------------
+    def _make_cb(self, box: TopicInbox):
+        def cb(msg: String) -> None:
+            try:
+                box.add(decode_envelope(msg.data, box.topic))
+            except WireError as exc:
+                box.decode_errors += 1
+                n = self.decode_errors[box.topic] = self.decode_errors.get(box.topic, 0) + 1
+                if n == 1 or n % 100 == 0:
+                    self.host_node.get_logger().warning(f"{exc} (rejected, {n} so far on {box.topic})")
+        return cb
+
+    def _on_step(self, msg: String) -> None:
+        try:
+            self._steps.append(decode_step(msg.data))
+        except LockstepError as exc:
+            self.decode_errors[STEP_TOPIC] = self.decode_errors.get(STEP_TOPIC, 0) + 1
+            self.host_node.get_logger().warning(str(exc))
+
+    def request_stop(self, *_args) -> None:
+        self._stop_requested = True
+
+    # -- helpers ------------------------------------------------------------------------------------
+    def _spin_until(self, cond, timeout_s: float, what: str) -> None:
+        deadline = time.monotonic() + timeout_s
+        spin = self.executor.spin_once
+        while not cond():
+            if self._stop_requested:
+                raise KeyboardInterrupt
+            if time.monotonic() > deadline:
+                raise HostError(f"host {self.role}: {what} (waited {timeout_s:g} s)")
+            spin(timeout_sec=0.05)
+
+    def _publisher(self, slot: _Slot, topic: str):
+        pub = slot.pubs.get(topic)
+        if pub is None:
+            pub = slot.node.create_publisher(String, topic, QOS_DATA)
+            need = self.subs.get(topic, self.subs_default)
+            self._spin_until(lambda: pub.get_subscription_count() >= need, self.startup_timeout_s,
+                             f"{slot.name}: {topic} matched {pub.get_subscription_count()} of {need} subscriptions")
+            slot.pubs[topic] = pub
+        return pub
+
+    def _emit(self, slot: _Slot, emits, t_max_ns: int, where: str, sent: dict[str, int]) -> None:
+        for e in emits or ():
+            if not isinstance(e, Emit):
+                raise HostError(f"{slot.name} {where}: emitted {type(e).__name__}, expected Emit")
+            if type(e.t_ns) is not int or not 0 <= e.t_ns <= t_max_ns:
+                raise HostError(f"{slot.name} {where}: emit on {e.topic} at t_ns={e.t_ns!r} outside [0, {t_max_ns}]")
+            if not isinstance(e.data, (str, bytes)):
+                raise HostError(f"{slot.name} {where}: emit on {e.topic} has {type(e.data).__name__} data")
+            env = Envelope(e.t_ns, slot.name, slot.seq, e.topic, e.data)
+            self._publisher(slot, e.topic).publish(String(data=encode_envelope(env)))
+            slot.seq += 1
+            sent[e.topic] = sent.get(e.topic, 0) + 1
+
+    def _ack(self, **kw) -> None:
+        self.ack_pub.publish(String(data=encode_msg(AckMsg(participant=self.role, **kw))))
+
+    # -- one wire step ------------------------------------------------------------------------------
+    def _run_step(self, m: StepMsg) -> None:
+        for topic, n in m.sent.items():
+            for box in self.inboxes_by_topic.get(topic, ()):
+                box.expected += n
+        self.seq_end.update(m.seq_end)
+        sent: dict[str, int] = {}
+        wakes: list[int] = []
+        t = m.t_ns
+        if m.start:
+            self.subs, self.subs_default = dict(m.subs), m.subs_default
+            for slot in self.slots:
+                r = self._call(slot, slot.p.start, t, "start")
+                self._emit(slot, r.emits, t, "start", sent)
+                if r.next_wakeup_ns is not None:
+                    wakes.append(r.next_wakeup_ns)
+        else:
+            boxes = [b for s in self.slots for b in s.inboxes]
+            seq_end = self.seq_end
+
+            def all_ready() -> bool:
+                return all(b.ready(seq_end) for b in boxes)
+
+            if not all_ready():
+                try:
+                    self._spin_until(all_ready, self.ack_timeout_s, f"step {m.k} at t_ns={t}: envelopes missing")
+                except HostError as exc:
+                    short = {b.topic: b.missing(seq_end) for b in boxes if b.missing(seq_end)}
+                    raise HostError(f"{exc}: {short}") from None
+            tm = Time(nanoseconds=t)
+            for slot in self.slots:
+                slot.node.get_clock().set_ros_time_override(tm)
+            for slot in self.slots:
+                if len(slot.inboxes) == 1:
+                    inbox = slot.inboxes[0].take(seq_end)
+                else:
+                    inbox = [e for b in slot.inboxes for e in b.take(seq_end)]
+                    inbox.sort(key=Envelope.sort_key)
+                r = self._call(slot, slot.p.step, t, f"step at {t}", inbox)
+                self._emit(slot, r.emits, t, f"step at {t}", sent)
+                if r.next_wakeup_ns is not None:
+                    wakes.append(r.next_wakeup_ns)
+            if m.final:
+                for slot in self.slots:
+                    try:
+                        emits = slot.p.finish(t)
+                    except Exception as exc:
+                        raise HostError(f"{slot.name} failed in finish({t}): {type(exc).__name__}: {exc}") from exc
+                    self._emit(slot, emits, t, "finish", sent)
+        self._ack(k=m.k, t_ns=t, next_wakeup_ns=min(wakes) if wakes else None, sent=sent,
+                  seq_end={s.name: s.seq for s in self.slots if s.seq})
+
+    @staticmethod
+    def _call(slot: _Slot, fn, t: int, where: str, *args) -> StepResult:
+        try:
+            r = fn(t, *args)
+        except Exception as exc:
+            raise HostError(f"{slot.name} failed in {where}: {type(exc).__name__}: {exc}") from exc
+        if not isinstance(r, StepResult):
+            raise HostError(f"{slot.name} {where}: returned {type(r).__name__}, expected StepResult")
+        w = r.next_wakeup_ns
+        if w is not None and (type(w) is not int or w < 0):
+            raise HostError(f"{slot.name} {where}: next_wakeup_ns must be a non-negative int or None, got {w!r}")
+        return r
+
+    # -- main loop ----------------------------------------------------------------------------------
+    def run(self) -> int:
+        """Say hello, run every step the clock sends until ``stop``; 0 on a clean end."""
+        subs_count: dict[str, int] = {}
+        for topic, boxes in self.inboxes_by_topic.items():
+            subs_count[topic] = len(boxes)
+        self._ack(k=0, t_ns=0, hello=True, participants=[s.name for s in self.slots], subscriptions=subs_count)
+        while True:
+            if not self._steps:
+                self._spin_until(lambda: bool(self._steps), self.idle_timeout_s, "no step message from the clock")
+            m = self._steps.popleft()
+            if m.stop:
+                if m.reason:
+                    print(f"host {self.role}: stopped by the clock: {m.reason}", file=sys.stderr)
+                return 0
+            try:
+                self._run_step(m)
+            except HostError as exc:
+                # Tell the clock why before leaving, so the run's error names us and the cause.
+                self._ack(k=m.k, t_ns=m.t_ns, error=str(exc))
+                self._flush_acks()
+                raise
+
+    def _flush_acks(self) -> None:
+        from rclpy.duration import Duration
+
+        try:
+            self.ack_pub.wait_for_all_acked(Duration(seconds=2.0))
+        except Exception:  # noqa: BLE001 - best effort on the way out
+            pass
+
+    def close(self) -> None:
+        try:
+            self.executor.shutdown(timeout_sec=1.0)
+            for s in self.slots:
+                s.node.destroy_node()
+            self.host_node.destroy_node()
+        finally:
+            rclpy.try_shutdown(context=self.ctx)
+
+
+def run_host(role: str, participants: Sequence[Participant], **kw) -> int:
+    """Process entry: host ``participants`` until the clock stops the run. Exit code: 0 ok,
+    1 the host failed (message on stderr naming the participant), 130 interrupted."""
+    host = ParticipantHost(role, participants, **kw)
+    signal.signal(signal.SIGTERM, host.request_stop)
+    signal.signal(signal.SIGINT, host.request_stop)
+    try:
+        return host.run()
+    except KeyboardInterrupt:
+        print(f"host {role}: interrupted", file=sys.stderr)
+        return 130
+    except (HostError, LockstepError) as exc:
+        print(f"host {role}: error: {exc}", file=sys.stderr)
+        return 1
+    finally:
+        host.close()

@@ -1,0 +1,283 @@
+"""The lockstep coordinator of the ROS engine: owns simulated time (DESIGN.md section 3, issue 5).
+
+Publishes /clock (rosgraph_msgs/Clock) and /sim/step, collects one /sim/ack per host process and
+picks the next step with rule 3 of msgs_json/envelope.py (orbit_clock/lockstep.py has the
+protocol). A step ends when every registered host acked it; what was sent in it is counted in the
+acks and the next step message carries the counts, so receivers run the next step only once they
+hold all of it (ROS2_NOTES trap 5). Pacing: as fast as possible, or ``real_time_factor`` sim
+seconds per wall second. A host that does not ack within ``ack_timeout_s`` wall seconds is
+reported by name (with its participants) and the run stops; so does a host that acks an error.
+
+The same process records every topic into a rosbag2 MCAP bag (bringup/recording.py BagWriter):
+/clock and /sim/step as written, /sim/ack and every data topic from raw (CDR) subscriptions, log
+time = the step's / the envelope's t_ns. Data topics are those the hosts subscribe to plus any
+String topic that appears on the graph (polled while waiting); hosts publish on a topic only once
+the recorder's subscription has matched, so the bag holds every envelope. SIGINT/SIGTERM: the
+clock tells the hosts to stop and closes the bag (readable).
+
+Oracle: tests/ros/test_lockstep.py (toy participants over DDS give exactly the local engine's
+envelopes, read back from the bag; a killed host is named within the bounded wait; Ctrl-C leaves
+a readable bag).
+"""
+
+from __future__ import annotations
+
+import json
+import signal
+import sys
+import time
+
+import rclpy
+from rclpy.context import Context
+from rclpy.duration import Duration
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.qos import QoSProfile, ReliabilityPolicy
+from rclpy.serialization import serialize_message
+from rclpy.signals import SignalHandlerOptions
+from rosgraph_msgs.msg import Clock
+from std_msgs.msg import String
+
+from bringup.ros_host import QOS_DATA, QOS_SYNC_PUB, QOS_SYNC_SUB
+from bringup.run_spec import RunSpec
+from msgs_json.wire import WireError, decode_envelope
+from orbit_clock.lockstep import (
+    ACK_TOPIC,
+    STEP_TOPIC,
+    AckMsg,
+    LockstepError,
+    StepMsg,
+    decode_ack,
+    encode_msg,
+    next_step_ns,
+)
+
+__all__ = ["ClockError", "LockstepClock", "run_clock"]
+
+_STRING = "std_msgs/msg/String"
+_CLOCK = "rosgraph_msgs/msg/Clock"
+_QOS_CLOCK = QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT)
+
+
+class ClockError(RuntimeError):
+    """The run cannot go on; the message names the host/participants and the step."""
+
+
+class LockstepClock:
+    def __init__(self, spec: RunSpec):
+        self.spec = spec
+        self.roles = list(spec.roles)
+        self.horizon_ns, self.max_step_ns = spec.bounds_ns()
+        self.t0_ns = spec.t0_ns
+        self._stop_requested = False
+        self.ctx = Context()
+        rclpy.init(context=self.ctx, signal_handler_options=SignalHandlerOptions.NO)
+        self.node = rclpy.create_node("orbit_clock", context=self.ctx)
+        self.executor = SingleThreadedExecutor(context=self.ctx)
+        self.executor.add_node(self.node)
+        self.clock_pub = self.node.create_publisher(Clock, "/clock", _QOS_CLOCK)
+        self.step_pub = self.node.create_publisher(String, STEP_TOPIC, QOS_SYNC_PUB)
+        self.acks: dict[str, AckMsg] = {}
+        self.hellos: dict[str, AckMsg] = {}
+        self.node.create_subscription(String, ACK_TOPIC, self._on_ack, QOS_SYNC_SUB, raw=True)
+        self.bag = None
+        if spec.bag_dir:
+            from bringup.recording import BagWriter
+
+            self.bag = BagWriter(spec.bag_dir, custom={"engine": "ros", "roles": ",".join(self.roles)})
+        self.rec_topics: dict[str, object] = {}
+        self.rec_counts: dict[str, int] = {}
+        self.bad_recorded = 0
+        self.totals: dict[str, int] = {}
+        self._next_graph_poll = 0.0
+        self.steps = 0
+
+    # -- callbacks ----------------------------------------------------------------------------------
+    def _on_ack(self, raw: bytes) -> None:
+        from rclpy.serialization import deserialize_message
+
+        try:
+            ack = decode_ack(deserialize_message(raw, String).data)
+        except LockstepError as exc:
+            self.node.get_logger().warning(str(exc))
+            return
+        if ack.participant not in self.roles:
+            self.node.get_logger().warning(f"{ACK_TOPIC}: ack from unknown host {ack.participant!r} ignored")
+            return
+        if ack.hello:
+            self.hellos[ack.participant] = ack
+        else:
+            self.acks[ack.participant] = ack
+            if self.bag is not None:
+                self.bag.write_raw(ACK_TOPIC, _STRING, raw, ack.t_ns)
+
+    def _make_rec_cb(self, topic: str):
+        def cb(raw: bytes) -> None:
+            from rclpy.serialization import deserialize_message
+
+            try:
+                env = decode_envelope(deserialize_message(raw, String).data, topic)
+            except WireError:
+                self.bad_recorded += 1
+                return
+            self.rec_counts[topic] = self.rec_counts.get(topic, 0) + 1
+            if self.bag is not None:
+                self.bag.write_raw(topic, _STRING, raw, env.t_ns)
+        return cb
+
+    def _record(self, topic: str) -> None:
+        if topic in self.rec_topics or topic in (STEP_TOPIC, ACK_TOPIC, "/clock", "/rosout", "/parameter_events"):
+            return
+        self.rec_topics[topic] = self.node.create_subscription(
+            String, topic, self._make_rec_cb(topic), QOS_DATA, raw=True)
+
+    def _poll_graph(self) -> None:
+        now = time.monotonic()
+        if now < self._next_graph_poll:
+            return
+        self._next_graph_poll = now + 0.1
+        for topic, types in self.node.get_topic_names_and_types():
+            if _STRING in types and not topic.startswith("/_lockstep"):
+                self._record(topic)
+
+    def request_stop(self, *_args) -> None:
+        self._stop_requested = True
+
+    # -- waiting ------------------------------------------------------------------------------------
+    def _spin_until(self, cond, timeout_s: float, on_timeout) -> None:
+        deadline = time.monotonic() + timeout_s
+        spin = self.executor.spin_once
+        while not cond():
+            if self._stop_requested:
+                raise KeyboardInterrupt
+            if time.monotonic() > deadline:
+                raise ClockError(on_timeout())
+            if self.bag is not None:
+                self._poll_graph()
+            spin(timeout_sec=0.02)
+
+    def _who(self, roles) -> str:
+        parts = []
+        for r in roles:
+            h = self.hellos.get(r)
+            ps = ",".join(h.participants) if h else "?"
+            parts.append(f"{r} (participants {ps})")
+        return "; ".join(parts)
+
+    def _publish_step(self, msg: StepMsg) -> None:
+        if not msg.start and not msg.stop:
+            c = Clock()
+            c.clock.sec, c.clock.nanosec = divmod(msg.t_ns, 1_000_000_000)
+            self.clock_pub.publish(c)
+            if self.bag is not None:
+                self.bag.write_raw("/clock", _CLOCK, serialize_message(c), msg.t_ns)
+        s = String(data=encode_msg(msg))
+        self.step_pub.publish(s)
+        if self.bag is not None:
+            self.bag.write_raw(STEP_TOPIC, _STRING, serialize_message(s), msg.t_ns)
+
+    def _progress(self, t_ns: int, wall_s: float, done: bool = False) -> None:
+        rec = {"t_ns": t_ns, "horizon_ns": self.horizon_ns, "steps": self.steps, "wall_s": round(wall_s, 4)}
+        print(json.dumps({"done" if done else "progress": rec}), flush=True)
+
+    # -- the run ------------------------------------------------------------------------------------
+    def run(self) -> int:
+        spec = self.spec
+        self._spin_until(lambda: len(self.hellos) == len(self.roles), spec.startup_timeout_s,
+                         lambda: "hosts not up: " + self._who(r for r in self.roles if r not in self.hellos))
+        rec = 1 if self.bag is not None else 0
+        subs: dict[str, int] = {}
+        for h in self.hellos.values():
+            for topic, n in h.subscriptions.items():
+                subs[topic] = subs.get(topic, 0) + n
+        if rec:
+            for topic in subs:
+                self._record(topic)
+                subs[topic] += 1
+        wall0 = time.monotonic()
+        next_progress = wall0 + spec.progress_period_s
+        k, t = 0, self.t0_ns
+        msg = StepMsg(k=0, t_ns=t, start=True, subs=subs, subs_default=rec)
+        while True:
+            self.acks.clear()
+            if spec.real_time_factor and not msg.start:
+                due = wall0 + (t - self.t0_ns) / 1e9 / spec.real_time_factor
+                self._spin_until(lambda: time.monotonic() >= due, float("inf"), lambda: "")
+            self._publish_step(msg)
+            self._spin_until(
+                lambda: len(self.acks) == len(self.roles), spec.ack_timeout_s,
+                lambda: (f"no ack for step {k} (t = {t / 1e9:.3f} s) within {spec.ack_timeout_s:g} s from "
+                         + self._who(r for r in self.roles if r not in self.acks)),
+            )
+            failed = [a for a in self.acks.values() if a.error]
+            if failed:
+                raise ClockError("; ".join(f"host {a.participant} failed at step {k}: {a.error}" for a in failed))
+            if not msg.start:
+                self.steps += 1
+            sent: dict[str, int] = {}
+            seq_end: dict[str, int] = {}
+            wakes = []
+            for a in self.acks.values():
+                for topic, n in a.sent.items():
+                    sent[topic] = sent.get(topic, 0) + n
+                    self.totals[topic] = self.totals.get(topic, 0) + n
+                seq_end.update(a.seq_end)
+                wakes.append(a.next_wakeup_ns)
+            now = time.monotonic()
+            if now >= next_progress:
+                next_progress = now + spec.progress_period_s
+                self._progress(t, now - wall0)
+            if msg.final:
+                break
+            if msg.start:
+                nt = t
+            else:
+                nt = next_step_ns(t, wakes, self.max_step_ns, self.horizon_ns)
+            k, t = k + 1, nt
+            msg = StepMsg(k=k, t_ns=t, final=t >= self.horizon_ns, sent=sent, seq_end=seq_end)
+        # the recorder must hold everything before the bag closes
+        if self.bag is not None:
+            def recorded() -> bool:
+                return all(self.rec_counts.get(tp, 0) >= n for tp, n in self.totals.items())
+
+            self._spin_until(recorded, spec.ack_timeout_s, lambda: "recorder is missing envelopes: " + str(
+                {tp: n - self.rec_counts.get(tp, 0) for tp, n in self.totals.items() if self.rec_counts.get(tp, 0) < n}))
+        self._progress(t, time.monotonic() - wall0, done=True)
+        return 0
+
+    def stop_hosts(self, reason: str = "") -> None:
+        try:
+            self.step_pub.publish(String(data=encode_msg(StepMsg(k=0, t_ns=0, stop=True, reason=reason))))
+            self.step_pub.wait_for_all_acked(Duration(seconds=2.0))
+        except Exception:  # noqa: BLE001 - best effort on the way out
+            pass
+
+    def close(self) -> None:
+        try:
+            if self.bag is not None:
+                self.bag.close()
+            self.executor.shutdown(timeout_sec=1.0)
+            self.node.destroy_node()
+        finally:
+            rclpy.try_shutdown(context=self.ctx)
+
+
+def run_clock(spec: RunSpec) -> int:
+    """Process entry of the clock role. Exit code 0 ok, 3 a host failed or went silent (named on
+    stderr), 130 interrupted (hosts told to stop, bag closed)."""
+    clock = LockstepClock(spec)
+    signal.signal(signal.SIGTERM, clock.request_stop)
+    signal.signal(signal.SIGINT, clock.request_stop)
+    try:
+        rc = clock.run()
+        clock.stop_hosts()
+        return rc
+    except KeyboardInterrupt:
+        clock.stop_hosts("interrupted")
+        print("clock: interrupted; hosts told to stop, bag closed", file=sys.stderr)
+        return 130
+    except ClockError as exc:
+        clock.stop_hosts(str(exc))
+        print(f"clock: error: {exc}", file=sys.stderr)
+        return 3
+    finally:
+        clock.close()

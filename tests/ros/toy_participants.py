@@ -1,0 +1,141 @@
+"""Toy lockstep participants for the ROS-engine tests and bench (no rclpy).
+
+Their output depends on exactly what they received, in which order and at which step (a CRC of
+their inbox goes into every message they emit), so any lost, duplicated, late or reordered
+envelope changes the trace. Emit stamps lie before the step time on purpose, so the engine cannot
+split steps by stamp alone.
+
+* :class:`Ping` / :class:`Pong`: ping wakes every 7.3 s and emits on /toy/ping (JSON text); pong
+  answers each ping on /toy/pong one step later; ping counts the answers.
+* :class:`Counter` ``c<i>``: wakes at its own irregular period, emits on /toy/count/c<i> (text)
+  and every third time a blob on /toy/blob (bytes); reads its ring neighbour's count topic and the
+  blobs; greets on /toy/hello in start() and reports in finish().
+* :class:`Staller`: a counter that stops answering (sleeps) once sim time passes ``stall_at_ns``.
+
+``make(spec, role)`` is the run-spec factory: role ``pingpong`` hosts ping and pong in one process,
+role ``c<i>`` hosts counter i (``spec.extra["n_counters"]`` counters in the ring;
+``spec.extra["stall"] = {"role": ..., "at_ns": ...}`` makes one a Staller). ``all_participants``
+returns fresh instances of every role's participants, for the local engine reference run.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+import zlib
+
+from msgs_json.envelope import Emit, Envelope, StepResult
+
+S = 1_000_000_000
+
+
+def _crc(inbox: list[Envelope]) -> int:
+    text = "|".join(f"{e.t_ns},{e.source},{e.seq},{e.topic},{e.data!r}" for e in inbox)
+    return zlib.crc32(text.encode())
+
+
+class Ping:
+    name = "ping"
+
+    def __init__(self, period_ns: int = 7_300_000_000):
+        self.period_ns = period_ns
+        self.n = 0
+        self.answers = 0
+
+    def subscriptions(self) -> list[str]:
+        return ["/toy/pong"]
+
+    def start(self, t0_ns: int) -> StepResult:
+        return StepResult([Emit("/toy/hello", json.dumps({"from": self.name}), t0_ns)], t0_ns + self.period_ns)
+
+    def step(self, t_ns: int, inbox: list[Envelope]) -> StepResult:
+        self.answers += len(inbox)
+        emits = []
+        if t_ns % self.period_ns == 0 or inbox:
+            self.n += 1
+            emits.append(Emit("/toy/ping", json.dumps({"n": self.n, "crc": _crc(inbox)}), max(0, t_ns - 5)))
+        return StepResult(emits, (t_ns // self.period_ns + 1) * self.period_ns)
+
+    def finish(self, t_ns: int) -> list[Emit]:
+        return [Emit("/toy/summary", json.dumps({"ping": self.n, "answers": self.answers}), t_ns)]
+
+
+class Pong:
+    name = "pong"
+
+    def subscriptions(self) -> list[str]:
+        return ["/toy/ping", "/toy/hello"]
+
+    def start(self, t0_ns: int) -> StepResult:
+        return StepResult()
+
+    def step(self, t_ns: int, inbox: list[Envelope]) -> StepResult:
+        emits = [Emit("/toy/pong", json.dumps({"re": e.seq, "crc": _crc(inbox)}), e.t_ns)
+                 for e in inbox if e.topic == "/toy/ping"]
+        return StepResult(emits, None)
+
+    def finish(self, t_ns: int) -> list[Emit]:
+        return []
+
+
+class Counter:
+    def __init__(self, i: int, n: int, blob_every: int = 3):
+        self.i, self.n_ring = i, n
+        self.name = f"c{i}"
+        self.period_ns = (3 + 1.37 * (i % 5)) * S
+        self.count = 0
+        self.blob_every = blob_every
+        self.seen = 0
+
+    def subscriptions(self) -> list[str]:
+        return [f"/toy/count/c{(self.i + 1) % self.n_ring}", "/toy/blob", "/toy/hello"]
+
+    def start(self, t0_ns: int) -> StepResult:
+        return StepResult([Emit("/toy/hello", json.dumps({"from": self.name}), t0_ns)], t0_ns + int(self.period_ns))
+
+    def step(self, t_ns: int, inbox: list[Envelope]) -> StepResult:
+        self.seen += len(inbox)
+        emits = []
+        if inbox or t_ns % int(self.period_ns) == 0:
+            self.count += 1
+            stamp = max(0, t_ns - 1000 * self.i)
+            emits.append(Emit(f"/toy/count/{self.name}", json.dumps({"c": self.count, "crc": _crc(inbox)}), stamp))
+            if self.count % self.blob_every == 0:
+                emits.append(Emit("/toy/blob", bytes([self.i % 256]) + _crc(inbox).to_bytes(4, "big"), stamp))
+        nxt = (t_ns // int(self.period_ns) + 1) * int(self.period_ns)
+        return StepResult(emits, nxt)
+
+    def finish(self, t_ns: int) -> list[Emit]:
+        return [Emit("/toy/summary", json.dumps({self.name: self.count, "seen": self.seen}), t_ns)]
+
+
+class Staller(Counter):
+    def __init__(self, i: int, n: int, at_ns: int):
+        super().__init__(i, n)
+        self.at_ns = at_ns
+
+    def step(self, t_ns: int, inbox: list[Envelope]) -> StepResult:
+        if t_ns >= self.at_ns:
+            time.sleep(3600)
+        return super().step(t_ns, inbox)
+
+
+def roles(n_counters: int, pingpong: bool = True) -> list[str]:
+    return (["pingpong"] if pingpong else []) + [f"c{i}" for i in range(n_counters)]
+
+
+def make(spec, role: str) -> list:
+    n = int(spec.extra.get("n_counters", 2))
+    if role == "pingpong":
+        return [Ping(), Pong()]
+    if role.startswith("c") and role[1:].isdigit():
+        i = int(role[1:])
+        stall = spec.extra.get("stall")
+        if stall and stall.get("role") == role:
+            return [Staller(i, n, int(stall["at_ns"]))]
+        return [Counter(i, n)]
+    raise ValueError(f"toy factory: unknown role {role!r}")
+
+
+def all_participants(spec) -> list:
+    return [p for r in spec.roles for p in make(spec, r)]
