@@ -1,0 +1,163 @@
+"""MCAP bags: write in tmp_path, read back with BOTH `mcap` (+ mcap-ros2-support) and `rosbags`."""
+
+from __future__ import annotations
+
+import shutil
+
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from bringup.errors import UserError
+from bringup.recording import (
+    CLOCK_TYPE, STRING, TYPESTORE, BagReader, BagWriter, clock_cdr, string_cdr, string_from_cdr,
+)
+from msgs_json.envelope import Envelope
+
+S = 1_000_000_000
+
+
+def _envelopes():
+    return [
+        Envelope(0, "orbit_clock", 0, "/orbit/contacts", '{"a": 1}'),
+        Envelope(2 * S, "sat_11", 0, "/sat_11/observations", '{"gp": 3, "note": "héllo"}'),
+        Envelope(2 * S, "sat_11", 1, "/sat_11/dtn/out", b"\x9f\x89\x07\x00bundle\xff"),
+        Envelope(5 * S + 7, "sat_12", 0, "/sat_11/dtn/in", b""),
+        Envelope(9 * S, "sat_12", 1, "/sat_12/observations", "{}"),
+    ]
+
+
+def _write(path, envs):
+    fix = TYPESTORE.types["sensor_msgs/msg/NavSatFix"]
+    with BagWriter(path, custom={"scenario": "paper", "seed": "1"}) as bag:
+        for t in (0, 3 * S, 6 * S, 9 * S):
+            bag.write_clock(t)
+        for e in envs:
+            bag.write_envelope(e)
+        raw = TYPESTORE.serialize_cdr(
+            TYPESTORE.deserialize_cdr(TYPESTORE.serialize_cdr(_fix(fix), "sensor_msgs/msg/NavSatFix"),
+                                      "sensor_msgs/msg/NavSatFix"), "sensor_msgs/msg/NavSatFix")
+        bag.write_raw("/sat_11/fix", "sensor_msgs/msg/NavSatFix", bytes(raw), 4 * S)
+    return bag
+
+
+def _fix(fix):
+    import numpy as np
+
+    T = TYPESTORE.types
+    return fix(header=T["std_msgs/msg/Header"](stamp=T["builtin_interfaces/msg/Time"](sec=4, nanosec=0), frame_id="earth"),
+               status=T["sensor_msgs/msg/NavSatStatus"](status=0, service=0), latitude=12.5, longitude=-45.0,
+               altitude=710000.0, position_covariance=np.zeros(9), position_covariance_type=0)
+
+
+def test_round_trip_with_rosbags(tmp_path):
+    envs = _envelopes()
+    bag = _write(tmp_path / "bag", envs)
+    assert bag.counts["/clock"] == 4 and bag.counts["/sat_11/dtn/out"] == 1
+    with BagReader(tmp_path / "bag") as r:
+        assert list(r.envelopes()) == envs  # exact, bytes and text, in log-time order
+        assert r.start_ns == 0 and r.end_ns == 9 * S and r.count == 10
+        stats = {t.topic: (t.msgtype, t.count) for t in r.topics()}
+        assert stats["/clock"] == (CLOCK_TYPE, 4) and stats["/sat_11/observations"] == (STRING, 1)
+        times = [m.log_time_ns for m in r.messages()]
+        assert times == sorted(times)
+        typed = {topic: msg for topic, _, msg in r.typed(["/clock", "/sat_11/fix"])}
+        assert typed["/sat_11/fix"].latitude == 12.5
+        assert (typed["/clock"].clock.sec, typed["/clock"].clock.nanosec) == (9, 0)
+    # the metadata.yaml a rosbag2 user expects
+    meta = (tmp_path / "bag" / "metadata.yaml").read_text()
+    for key in ("storage_identifier: mcap", "version: 9", "offered_qos_profiles", "scenario: paper"):
+        assert key in meta
+
+
+def test_round_trip_with_mcap_reader(tmp_path):
+    from mcap.reader import make_reader
+    from mcap_ros2.decoder import DecoderFactory
+
+    envs = _envelopes()
+    _write(tmp_path / "bag", envs)
+    path = next((tmp_path / "bag").glob("*.mcap"))
+    with open(path, "rb") as f:
+        reader = make_reader(f, decoder_factories=[DecoderFactory()])
+        header = reader.get_header()
+        summary = reader.get_summary()
+        assert header.profile == "ros2"
+        assert {ch.message_encoding for ch in summary.channels.values()} == {"cdr"}
+        assert {s.encoding for s in summary.schemas.values()} == {"ros2msg"}
+        assert all("offered_qos_profiles" in ch.metadata for ch in summary.channels.values())
+        assert {ci.compression for ci in summary.chunk_indexes} == {"zstd"}
+        got = [(ch.topic, m.log_time, dec) for _, ch, m, dec in reader.iter_decoded_messages(log_time_order=True)]
+    from msgs_json.wire import decode_envelope
+
+    strings = [(t, lt, decode_envelope(d.data, t)) for t, lt, d in got if t not in ("/clock", "/sat_11/fix")]
+    assert [e for _, _, e in strings] == envs
+    assert all(lt == e.t_ns for _, lt, e in strings)
+    clocks = [(d.clock.sec, d.clock.nanosec) for t, _, d in got if t == "/clock"]
+    assert clocks == [(0, 0), (3, 0), (6, 0), (9, 0)]
+    assert [d.altitude for t, _, d in got if t == "/sat_11/fix"] == [710000.0]
+
+
+@settings(max_examples=100, deadline=None)
+@given(st.text(max_size=300))
+def test_string_cdr_matches_rosbags_serializer(text):
+    ref = bytes(TYPESTORE.serialize_cdr(TYPESTORE.types[STRING](data=text), STRING))
+    assert string_cdr(text) == ref
+    assert string_from_cdr(ref) == text
+
+
+def test_clock_cdr_matches_rosbags_serializer():
+    T = TYPESTORE.types
+    msg = T[CLOCK_TYPE](clock=T["builtin_interfaces/msg/Time"](sec=21599, nanosec=999_999_999))
+    assert clock_cdr(21599 * S + 999_999_999) == bytes(TYPESTORE.serialize_cdr(msg, CLOCK_TYPE))
+
+
+def test_bag_closed_on_exception_stays_readable(tmp_path):
+    with pytest.raises(KeyboardInterrupt):
+        with BagWriter(tmp_path / "bag") as bag:
+            bag.write_envelope(_envelopes()[1])
+            raise KeyboardInterrupt
+    assert len(list(BagReader(tmp_path / "bag").envelopes())) == 1
+
+
+def test_writer_refuses_existing_path_and_bad_input(tmp_path):
+    (tmp_path / "bag").mkdir()
+    with pytest.raises(UserError, match="already exists"):
+        BagWriter(tmp_path / "bag")
+    with BagWriter(tmp_path / "b2") as bag:
+        with pytest.raises(ValueError, match="unknown message type"):
+            bag.write_raw("/x", "nope_msgs/msg/Nope", b"", 0)
+        with pytest.raises(ValueError, match="log time"):
+            bag.write_clock(-1)
+
+
+def _one_line_user_error(path, match):
+    with pytest.raises(UserError, match=match) as ei:
+        with BagReader(path) as r:
+            list(r.messages())
+    assert "\n" not in str(ei.value)
+
+
+def test_missing_truncated_or_not_a_bag(tmp_path):
+    _one_line_user_error(tmp_path / "nowhere", "not found")
+    (tmp_path / "empty").mkdir()
+    _one_line_user_error(tmp_path / "empty", "no metadata.yaml")
+    junk = tmp_path / "junk"
+    junk.mkdir()
+    (junk / "metadata.yaml").write_text("{{{ not yaml")
+    _one_line_user_error(junk, "cannot open")
+    # truncated mcap: keep metadata.yaml, cut the file in half
+    _write(tmp_path / "bag", _envelopes())
+    shutil.copytree(tmp_path / "bag", tmp_path / "cut")
+    mcap = next((tmp_path / "cut").glob("*.mcap"))
+    data = mcap.read_bytes()
+    mcap.write_bytes(data[: len(data) // 2])
+    _one_line_user_error(tmp_path / "cut", "bag .*cut")
+    # not an mcap at all
+    shutil.copytree(tmp_path / "bag", tmp_path / "garbage")
+    next((tmp_path / "garbage").glob("*.mcap")).write_bytes(b"hello world" * 100)
+    _one_line_user_error(tmp_path / "garbage", "bag .*garbage")
+
+
+def test_mcap_file_path_is_accepted(tmp_path):
+    _write(tmp_path / "bag", _envelopes())
+    assert BagReader(next((tmp_path / "bag").glob("*.mcap"))).count == 10
