@@ -161,3 +161,22 @@ def test_missing_truncated_or_not_a_bag(tmp_path):
 def test_mcap_file_path_is_accepted(tmp_path):
     _write(tmp_path / "bag", _envelopes())
     assert BagReader(next((tmp_path / "bag").glob("*.mcap"))).count == 10
+
+
+def test_bag_info_command(tmp_path, capsys):
+    import json
+
+    from bringup.cli import main
+
+    _write(tmp_path / "bag", _envelopes())
+    assert main(["bag-info", str(tmp_path / "bag")]) == 0
+    out = capsys.readouterr().out
+    assert "messages:  10" in out and "duration:  9.000 s" in out
+    assert any(line.split() == ["/clock", CLOCK_TYPE, "4"] for line in out.splitlines())
+    assert main(["bag-info", "--json", str(tmp_path / "bag")]) == 0
+    s = json.loads(capsys.readouterr().out)
+    assert (s["messages"], s["start_ns"], s["end_ns"]) == (10, 0, 9 * S)
+    assert {t["topic"]: t["count"] for t in s["topics"]}["/sat_11/dtn/in"] == 1
+    assert main(["bag-info", str(tmp_path / "missing")]) == 2
+    err = capsys.readouterr().err
+    assert err.strip().count("\n") == 0 and "not found" in err
