@@ -1,0 +1,93 @@
+"""Eq. 1 value, belief noise and known-observation prior state (sat_node.value)."""
+
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from sat_node.value import Belief, KnownObservation, belief_sigma, prior_state, true_value
+
+
+def _scalar_eq1(absval, t, last, n, rz):
+    if last is not None and t - last < rz:
+        return 0.0
+    return absval / (n + 1)
+
+
+def test_eq1_against_scalar_loop():
+    rng = np.random.default_rng(5)
+    absval = rng.integers(1, 257, 400).astype(float)
+    t = rng.uniform(0, 21600, 400)
+    seen = rng.random(400) < 0.6
+    last = np.where(seen, t - rng.uniform(0, 3000, 400), -np.inf)
+    n = np.where(seen, rng.integers(1, 5, 400), 0)
+    got = true_value(absval, t, last, n, 900.0)
+    ref = [_scalar_eq1(a, tt, (la if s else None), nn, 900.0) for a, tt, la, s, nn in zip(absval, t, last, seen, n)]
+    np.testing.assert_allclose(got, ref)
+
+
+def test_revisit_boundary():
+    assert true_value(100, 899.999, 0.0, 1, 900.0) == 0.0
+    assert true_value(100, 900.0, 0.0, 1, 900.0) == 50.0
+    assert true_value(100, 5.0, -np.inf, 0, 900.0) == 100.0
+
+
+def test_negative_count_refused():
+    with pytest.raises(ValueError, match="times_seen"):
+        true_value(1.0, 0.0, -np.inf, -1, 900.0)
+
+
+def test_belief_reproducible_and_distinct():
+    a = Belief(seed=1, sat_name="sat_11", n_gp=50, n_slots=24)
+    b = Belief(seed=1, sat_name="sat_11", n_gp=50, n_slots=24)
+    c = Belief(seed=1, sat_name="sat_12", n_gp=50, n_slots=24)
+    d = Belief(seed=2, sat_name="sat_11", n_gp=50, n_slots=24)
+    assert a.sigma == b.sigma and np.array_equal(a.z, b.z)
+    assert a.sigma != c.sigma and not np.array_equal(a.z, c.z)
+    assert a.sigma != d.sigma
+    assert 0.02 <= a.sigma <= 0.08 and 0.02 <= c.sigma <= 0.08
+    assert belief_sigma(1, "sat_11", 0.02, 0.08) == a.sigma
+
+
+def test_belief_same_in_another_process():
+    code = ("from sat_node.value import Belief; b = Belief(seed=7, sat_name='sat_23', n_gp=4, n_slots=3);"
+            "print(repr(b.sigma), repr(float(b.z.sum())))")
+    out = [subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+           for _ in range(2)]
+    b = Belief(seed=7, sat_name="sat_23", n_gp=4, n_slots=3)
+    assert out[0] == out[1] == f"{b.sigma!r} {float(b.z.sum())!r}\n"
+
+
+def test_belief_noise_statistics():
+    b = Belief(seed=3, sat_name="sat_31", n_gp=500, n_slots=24, sigma_min=0.02, sigma_max=0.08)
+    true = np.full((500, 24), 100.0)
+    gp, slot = np.meshgrid(np.arange(500), np.arange(24), indexing="ij")
+    rel = b.absval(true, gp, slot) / 100.0 - 1.0
+    n = rel.size
+    assert abs(rel.std() - b.sigma) < 3 * b.sigma / np.sqrt(2 * n)
+    assert abs(rel.mean()) < 3 * b.sigma / np.sqrt(n)
+
+
+def test_belief_index_errors():
+    b = Belief(seed=1, sat_name="x", n_gp=3, n_slots=2)
+    with pytest.raises(IndexError, match="GP index"):
+        b.factor(3, 0)
+    with pytest.raises(IndexError, match="slot"):
+        b.factor(0, 2)
+    with pytest.raises(ValueError, match="sigma_min"):
+        Belief(seed=1, sat_name="x", n_gp=1, n_slots=1, sigma_min=0.1, sigma_max=0.05)
+
+
+def test_prior_state_counts_and_tie_break():
+    known = [KnownObservation(100.0, 7, "sat_12"), KnownObservation(1200.0, 7, "sat_31"),
+             KnownObservation(50.0, 9, "sat_22")]
+    times = np.array([0.0, 100.0, 101.0, 999.0, 1000.0, 1200.0, 1201.0])
+    # me = sat_21: sat_12 at the same time wins (sorts first); sat_31 at the same time does not
+    count, recent = prior_state(known, np.array([7, 8]), times, "sat_21", 900.0)
+    assert count[:, 0].tolist() == [0, 1, 1, 1, 1, 1, 2]
+    assert recent[:, 0].tolist() == [False, True, True, True, False, False, True]
+    assert not count[:, 1].any() and not recent[:, 1].any()
+    # me = sat_11 sorts before sat_12: the same-time claim is not before mine
+    count2, _ = prior_state(known, np.array([7]), times, "sat_11", 900.0)
+    assert count2[1, 0] == 0 and count2[2, 0] == 1
