@@ -12,7 +12,7 @@ Times: ``t_s`` float seconds since the scenario epoch (the wire uses integer t_n
 
 How we know it is right: tests/unit/test_orbit_propagation.py runs the same SGP4 path
 (``Satrec`` -> ``SatrecArray``) on the Vallado verification TLEs shipped in the sgp4 wheel
-(SGP4-VER.TLE) and matches tcppver.out to 1e-6 km... (their published vectors), and checks a
+(SGP4-VER.TLE) and matches their published tcppver.out vectors to 1 m and 1 mm/s, and checks a
 Walker satellite's radius/inclination and ECEF positions against skyfield.
 """
 

@@ -99,9 +99,9 @@ def test_access_against_skyfield_find_events(setup):
 def test_coarse_refine_matches_bruteforce_grid(setup):
     sc, c, g = setup
     sats = [0, 5, 12, 20]
-    fast = access_windows(c, g, 0.0, 7200.0, LIMIT, sats=sats)
-    ref = access_windows_bruteforce(c, g, 0.0, 7200.0, LIMIT, sats=sats)
-    assert len(ref) > 100
+    fast = access_windows(c, g, 0.0, 3600.0, LIMIT, sats=sats)
+    ref = access_windows_bruteforce(c, g, 0.0, 3600.0, LIMIT, sats=sats)
+    assert len(ref) > 30
     assert len(fast) == len(ref)
     np.testing.assert_array_equal(fast.sat, ref.sat)
     np.testing.assert_array_equal(fast.gp, ref.gp)
