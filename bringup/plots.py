@@ -178,7 +178,7 @@ def figure_value_snapshot(lat_deg: Sequence[float], lon_deg: Sequence[float], re
     if not present:
         raise PlotError("value snapshot: no GP belongs to any of the named regions")
     n = len(present)
-    ncol = min(n, 5 if n <= 5 else 4)
+    ncol = min(n, 3)
     nrow = math.ceil(n / ncol)
     fig = Figure(figsize=(3.1 * ncol + 0.9, 3.2 * nrow + 0.5), layout="constrained")
     axes = fig.subplots(nrow, ncol, squeeze=False)
@@ -189,10 +189,10 @@ def figure_value_snapshot(lat_deg: Sequence[float], lon_deg: Sequence[float], re
         lat0, lon0 = lat[idx].mean(), lon[idx].mean()
         x = ((lon[idx] - lon0 + 180) % 360 - 180) * _KM_PER_DEG * math.cos(math.radians(lat0))
         y = (lat[idx] - lat0) * _KM_PER_DEG
-        h = 0.5 * _spacing_km(x, y)
+        h = 0.51 * _spacing_km(x, y)            # a hair over half: no hairline gaps between squares
         sq = np.stack([np.column_stack([x - h, y - h]), np.column_stack([x + h, y - h]),
                        np.column_stack([x + h, y + h]), np.column_stack([x - h, y + h])], axis=1)
-        coll = PolyCollection(sq, array=val[idx], cmap="viridis", clim=(vmin, vmax), edgecolors="none",
+        coll = PolyCollection(sq, array=val[idx], cmap="viridis", clim=(vmin, vmax), edgecolors="face", linewidths=0.3,
                               gid=f"snapshot:{region_names[r]}")
         ax.add_collection(coll)
         ax.set_xlim(x.min() - 2 * h, x.max() + 2 * h)
@@ -337,8 +337,9 @@ def figure_contact_timeline(plan: Any, title: str = "Contact plan", max_rows: in
     ax.grid(True, axis="x", lw=0.4, alpha=0.5)
     n_win = sum(len(merged[k]) for k in pairs)
     ax.set_title(f"{title}: {len(pairs)} node pairs, {n_win} windows")
-    ax.legend(handles=[Patch(fc="tab:blue", label="inter-satellite"), Patch(fc="tab:orange", label="ground")],
-              loc="upper left", bbox_to_anchor=(1.0, 1.0), fontsize=8)
+    kinds = [Patch(fc="tab:blue", label="inter-satellite")] if not all(map(is_ground, pairs)) else []
+    kinds += [Patch(fc="tab:orange", label="ground")] if any(map(is_ground, pairs)) else []
+    ax.legend(handles=kinds, loc="upper left", bbox_to_anchor=(1.0, 1.0), fontsize=8)
     return fig
 
 
@@ -421,18 +422,17 @@ def figure_latency_vs_gaps(latency_s_by_priority: Mapping[int, Sequence[float]],
                 b.set(facecolor=color, alpha=0.6, gid=f"box:{kind}")
             boxes[kind] = len(vals)
     if before_fraction_by_priority:
-        for i, p in enumerate(prios):
-            if p in before_fraction_by_priority:
-                ax.annotate(f"{100 * before_fraction_by_priority[p]:.0f}%", (i, 1.0), xycoords=("data", "axes fraction"),
-                            xytext=(0, 3), textcoords="offset points", ha="center", fontsize=7, annotation_clip=False)
+        top = ax.secondary_xaxis("top")
+        ticks = [i for i, p in enumerate(prios) if p in before_fraction_by_priority]
+        top.set_xticks(ticks, [f"{100 * before_fraction_by_priority[prios[i]]:.0f}%" for i in ticks], fontsize=8)
+        top.set_xlabel("bundles arrived before the destination reached the region", fontsize=9)
     ax.set_yscale("log")
     ax.set_xticks(range(len(prios)), [str(p) for p in prios])
     ax.set_xlim(-0.6, len(prios) - 0.4)
     ax.set_xlabel("bundle priority (1 = next satellite to reach the region)")
     ax.set_ylabel("seconds (log)")
     ax.grid(True, axis="y", which="both", lw=0.3, alpha=0.5)
-    ax.set_title(title + ("\n(% = arrived before the destination reached the region)"
-                          if before_fraction_by_priority else ""))
+    ax.set_title(title)
     ax.legend(handles=[Patch(fc="tab:blue", alpha=0.6, label=f"bundle latency ({boxes['latency']} priorities)"),
                        Patch(fc="tab:orange", alpha=0.6, label=f"access gap ({boxes['gap']} priorities)")],
               loc="upper left")
