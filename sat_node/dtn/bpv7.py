@@ -30,7 +30,7 @@ from datetime import datetime, timezone
 import cbor2
 
 __all__ = [
-    "Bundle", "CanonicalBlock", "encode_primary", "BundleError", "decode_bundle", "encode_bundle", "crc16_x25", "crc32c",
+    "Bundle", "CanonicalBlock", "encode_primary", "peek_next_hop", "BundleError", "decode_bundle", "encode_bundle", "crc16_x25", "crc32c",
     "PAYLOAD_BLOCK", "PREVIOUS_NODE_BLOCK", "BUNDLE_AGE_BLOCK", "HOP_COUNT_BLOCK", "NEXT_HOP_BLOCK",
     "BIB_BLOCK", "CRC_NONE", "CRC_16", "CRC_32C", "dtn_time_ms", "PAPER_EPOCH_DTN_MS", "ipn",
 ]
@@ -287,13 +287,20 @@ def _uint(x, what: str) -> int:
     return x
 
 
-def decode_bundle(data: bytes) -> Bundle:
-    """Parse and check bundle bytes; any defect raises :class:`BundleError` with the reason."""
-    if not isinstance(data, (bytes, bytearray, memoryview)):
-        raise BundleError(f"bundle is {type(data).__name__}, not bytes")
-    data = bytes(data)
-    if len(data) < 3 or data[0] != 0x9F or data[-1] != 0xFF:
-        raise BundleError("not a CBOR indefinite-length array (0x9f ... 0xff)")
+def _split_blocks(data: bytes) -> list[tuple[object, bytes]]:
+    """(item, raw bytes) per block. Fast path: one C-level decode, then re-encode and compare (true
+    for every shortest-form encoder, ours included); otherwise walk the items one by one."""
+    try:
+        items = cbor2.loads(data)
+    except Exception as exc:  # cbor2 raises several types on garbage
+        raise BundleError(f"bad CBOR: {exc}") from None
+    if isinstance(items, list):
+        try:
+            pieces = [cbor2.dumps(x) for x in items]
+        except Exception:
+            pieces = None
+        if pieces is not None and len(data) == 2 + sum(map(len, pieces)) and b"".join(pieces) == data[1:-1]:
+            return list(zip(items, pieces))
     fp = io.BytesIO(data)
     fp.read(1)
     dec = cbor2.CBORDecoder(fp)
@@ -307,6 +314,32 @@ def decode_bundle(data: bytes) -> Bundle:
         raws.append((item, data[start:fp.tell()]))
     if fp.tell() != len(data) - 1:
         raise BundleError("trailing bytes after the last block")
+    return raws
+
+
+def peek_next_hop(data: bytes) -> int | None:
+    """The next-hop block's node number without checking the rest (for copies on a broadcast medium).
+    Raises BundleError if the bytes are not a bundle-shaped CBOR array."""
+    try:
+        items = cbor2.loads(data)
+    except Exception as exc:
+        raise BundleError(f"bad CBOR: {exc}") from None
+    if not isinstance(items, list) or not items:
+        raise BundleError("not a CBOR array of blocks")
+    for blk in items[1:]:
+        if isinstance(blk, list) and len(blk) >= 5 and blk[0] == NEXT_HOP_BLOCK and isinstance(blk[4], bytes):
+            return _eid_from(_loads(blk[4], "next-hop block"), "next-hop block")[0]
+    return None
+
+
+def decode_bundle(data: bytes) -> Bundle:
+    """Parse and check bundle bytes; any defect raises :class:`BundleError` with the reason."""
+    if not isinstance(data, (bytes, bytearray, memoryview)):
+        raise BundleError(f"bundle is {type(data).__name__}, not bytes")
+    data = bytes(data)
+    if len(data) < 3 or data[0] != 0x9F or data[-1] != 0xFF:
+        raise BundleError("not a CBOR indefinite-length array (0x9f ... 0xff)")
+    raws = _split_blocks(data)
     if len(raws) < 2:
         raise BundleError("a bundle needs a primary and a payload block")
     prim, raw = raws[0]

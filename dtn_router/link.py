@@ -1,0 +1,94 @@
+"""The ISL medium model: the truth about which transmissions get through, to whom, and when.
+
+Given one transmission (sender, intended next hop, start [ns], bits), :meth:`LinkModel.transmit`
+looks up the *truth* contact plan (which may differ from what the agents believe: cut contacts,
+extra light time) and returns:
+
+* ``ok`` - a truth contact sender -> next hop is open at the start and stays open until the last bit
+  has left (duration = bits / that contact's rate); otherwise a failure with the reason
+  (``no_contact``: none open at the start; ``contact_ended``: it closes mid-transmission);
+* ``copies`` - broadcast medium: every node with a truth contact from the sender covering the whole
+  transmission gets a copy, at end + that contact's one-way light time (receivers that are not the
+  intended next hop discard it, which the agents count). The intended next hop gets a copy only if
+  ``ok``.
+
+One transmission at a time per sender: a transmission that starts before the sender's previous one
+ended fails with ``radio_busy``. Receiver-side collisions (two senders heard at once) are not
+modelled (the study's link budget does not either).
+
+How we know it is right: tests/unit/test_link.py on drawn plans (copies to every node in view,
+arrival = end + light time, a contact ending mid-transmission fails, a cut contact fails).
+"""
+
+from __future__ import annotations
+
+import bisect
+from dataclasses import dataclass, field
+
+from orbit_clock.contact_plan import Contact, ContactPlan
+
+__all__ = ["LinkModel", "LinkOutcome", "Copy"]
+
+_NS = 1_000_000_000
+
+
+@dataclass(frozen=True)
+class Copy:
+    node: str
+    arrival_ns: int
+
+
+@dataclass(frozen=True)
+class LinkOutcome:
+    ok: bool
+    end_ns: int
+    copies: list[Copy] = field(default_factory=list)
+    reason: str = ""
+
+
+class LinkModel:
+    def __init__(self, truth: ContactPlan):
+        self.truth = truth
+        self._by_src: dict[str, list[Contact]] = {}
+        for c in truth.contacts:
+            self._by_src.setdefault(c.src, []).append(c)
+        self._starts = {s: [c.start_s for c in cs] for s, cs in self._by_src.items()}
+        self._busy_until_ns: dict[str, int] = {}
+        self.counters = {"tx": 0, "ok": 0, "no_contact": 0, "contact_ended": 0, "radio_busy": 0, "copies": 0}
+
+    def open_contacts(self, sender: str, t_s: float) -> list[Contact]:
+        cs = self._by_src.get(sender, [])
+        k = bisect.bisect_right(self._starts.get(sender, []), t_s)
+        return [c for c in cs[:k] if c.end_s > t_s]
+
+    def transmit(self, sender: str, next_hop: str, start_ns: int, bits: int) -> LinkOutcome:
+        self.counters["tx"] += 1
+        if start_ns < self._busy_until_ns.get(sender, -1):
+            self.counters["radio_busy"] += 1
+            return LinkOutcome(False, start_ns, [], "radio_busy")
+        t_s = start_ns / _NS
+        open_now = self.open_contacts(sender, t_s)
+        mine = [c for c in open_now if c.dst == next_hop]
+        if not mine:
+            self.counters["no_contact"] += 1
+            return LinkOutcome(False, start_ns, [], "no_contact")
+        link = max(mine, key=lambda c: c.end_s)
+        end_ns = start_ns + int(-(-bits * _NS // int(link.rate_bps))) if float(link.rate_bps).is_integer() \
+            else start_ns + int(bits / link.rate_bps * _NS + 0.999999)
+        self._busy_until_ns[sender] = end_ns
+        ok = end_ns <= link.end_s * _NS
+        copies = []
+        seen = set()
+        for c in open_now:
+            if c.dst in seen or c.end_s * _NS < end_ns:
+                continue
+            seen.add(c.dst)
+            copies.append(Copy(c.dst, end_ns + int(round(c.range_light_s * _NS))))
+        copies.sort(key=lambda x: (x.arrival_ns, x.node))
+        self.counters["copies"] += len(copies)
+        if not ok:
+            self.counters["contact_ended"] += 1
+            copies = [x for x in copies if x.node != next_hop]
+            return LinkOutcome(False, end_ns, copies, "contact_ended")
+        self.counters["ok"] += 1
+        return LinkOutcome(True, end_ns, copies, "")

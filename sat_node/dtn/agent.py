@@ -1,0 +1,405 @@
+"""The bundle agent of one node: accepts, stores, routes, queues and transmits BPv7 bundles.
+
+RFC 9171 section 5 (bundle processing) with contact graph routing (cgr.py, CCSDS 734.3-B-1) for the
+forwarding decision, driven in explicit time steps (no clock, no threads, no global state), so N
+agents live in one process:
+
+* :meth:`BundleAgent.originate` - a new bundle from this node (creation, TTL by priority, BIB);
+* :meth:`BundleAgent.receive` - bytes from the medium: copies whose next-hop block names another
+  node are discarded and counted (broadcast medium), malformed or failing the BIB are dropped
+  (``integrity``), duplicates discarded and counted, expired dropped (``ttl``), ours delivered,
+  others routed and queued;
+* :meth:`BundleAgent.transmissions_until` - what the one radio sends up to ``t_ns``: at each start
+  time, of the queues whose contact is open, the highest-priority bundle (1 first, then FIFO); one
+  transmission at a time; nothing starts that cannot end inside its contact (the bundle is
+  re-routed with that contact excluded: a missed contact); expired bundles are dropped;
+* :meth:`BundleAgent.transmission_failed` - the medium reports a failure: the bundle goes back and
+  is re-routed without that contact; :meth:`expire`, :meth:`next_event_ns`, ``counters``, ``events``.
+
+Priority travels in the bundle in an experimental extension block (type 193, CBOR uint 1..15),
+beside the next-hop block (type 192); TTL comes from priority (the study: P1 900 s, P2-3 1800 s,
+P4-15 3000 s). The forwarding node writes its own EID in the previous-node block and increments the
+hop count (limit 32). Queued backlog for CGR's first hop is the bits of equal-or-higher priority
+already queued at this node (the radio is shared by all its contacts). A contact's residual volume
+is decremented when a bundle is queued on it.
+
+Conservation (tested): created = delivered + dropped (by reason) + held (queued or in flight).
+
+Bundles are 'forwarded' when their transmission starts; the sender forgets them when the
+transmission has ended without a failure report (BPv7 without custody transfer).
+"""
+
+from __future__ import annotations
+
+import heapq
+import itertools
+from collections import Counter
+from dataclasses import dataclass, field
+from typing import Callable
+
+import cbor2
+import numpy as np
+
+from orbit_clock.contact_plan import ContactPlan, node_name, node_number
+
+from .bpsec import IntegrityError, add_bib, verify_bib
+from .bpv7 import (PAPER_EPOCH_DTN_MS, Bundle, BundleError, decode_bundle, encode_bundle, ipn, peek_next_hop)
+from .cgr import ContactGraph
+from .store import BundleStore, StoredBundle
+
+__all__ = ["BundleAgent", "AgentConfig", "Transmission", "BundleEvent", "PRIORITY_BLOCK", "ttl_s_for_priority",
+           "DROP_REASONS"]
+
+PRIORITY_BLOCK = 193  # experimental (RFC 9171 9.1): CBOR uint, 1 (highest) .. 15
+DROP_REASONS = ("ttl", "integrity", "no_route", "hop_limit", "other")
+_NS = 1_000_000_000
+
+
+def ttl_s_for_priority(priority: int, ttl_s_by_priority: dict[int, float]) -> float:
+    for p in sorted(ttl_s_by_priority):
+        if priority <= p:
+            return ttl_s_by_priority[p]
+    return ttl_s_by_priority[max(ttl_s_by_priority)]
+
+
+@dataclass(frozen=True)
+class AgentConfig:
+    """key: the constellation's BIB key; ttl_s_by_priority: {max priority: TTL [s]} (the study's:
+    P1 900 s, P2-3 1800 s, P4-15 3000 s); bundle_bits: the size used for link timing (None: the
+    encoded size); epoch_dtn_ms: the scenario epoch in DTN time [ms]; hop_limit: hop-count block."""
+
+    key: bytes = b"constellation-shared-key-0000000"
+    ttl_s_by_priority: dict = field(default_factory=lambda: {1: 900.0, 3: 1800.0, 15: 3000.0})
+    bundle_bits: int | None = 2000
+    epoch_dtn_ms: int = PAPER_EPOCH_DTN_MS
+    hop_limit: int = 32
+    verify_integrity: bool = True
+
+
+@dataclass(frozen=True)
+class Transmission:
+    """One radio transmission: encoded bundle (its next-hop block set), intended next hop,
+    [start_ns, end_ns] of the sender's radio, the bits it takes, the contact index (in the agent's plan)."""
+
+    bundle_bytes: bytes
+    next_hop: str
+    start_ns: int
+    end_ns: int
+    bits: int
+    sender: str
+    bundle_id: str
+    contact: int
+
+
+@dataclass(frozen=True)
+class BundleEvent:
+    """For the report: kind in created|forwarded|delivered|dropped|discarded; reason for dropped /
+    discarded; created_ns of the bundle, priority, destination."""
+
+    t_ns: int
+    kind: str
+    node: str
+    bundle_id: str
+    priority: int
+    dest: str
+    created_ns: int
+    reason: str = ""
+
+
+@dataclass
+class _Held:
+    bundle: Bundle
+    priority: int
+    dest: str
+    expiry_ns: int
+    created_ns: int
+    ready_ns: int
+    contact: int = -1
+    excluded: set = field(default_factory=set)
+    excluded_node: str | None = None  # the node it came from (no ping-pong)
+
+
+class BundleAgent:
+    def __init__(self, node: str, plan: ContactPlan | ContactGraph, config: AgentConfig | None = None, *,
+                 store: BundleStore | None = None, on_event: Callable[[BundleEvent], None] | None = None,
+                 keep_events: bool = True):
+        self.node = node
+        self.number = node_number(node)
+        self.graph = plan if isinstance(plan, ContactGraph) else ContactGraph(plan)
+        self.config = config or AgentConfig()
+        self.store = store
+        self.on_event = on_event
+        self.events: list[BundleEvent] = [] if keep_events else None
+        self.counters: Counter = Counter()
+        self._held: dict[str, _Held] = {}
+        self._queues: dict[int, list] = {}  # contact index -> heap of (priority, order, bundle id)
+        self._order = itertools.count()
+        self._seen: set[str] = set()
+        self._in_flight: dict[str, tuple[Transmission, _Held]] = {}
+        self._backlog_bits = np.zeros(17)
+        self._residual = self.graph.volume_bits.copy()
+        self._expiry_heap: list = []
+        self.radio_free_ns = 0
+        self._seq = 0 if store is None else store.get_meta("seq")
+        if store is not None:
+            self._resume()
+
+    # ---------------------------------------------------------------- helpers
+    def _emit(self, t_ns, kind, h: _Held | None, bundle_id, reason="", priority=0, dest="", created_ns=0):
+        if h is not None:
+            priority, dest, created_ns = h.priority, h.dest, h.created_ns
+        ev = BundleEvent(t_ns, kind, self.node, bundle_id, priority, dest, created_ns, reason)
+        self.counters[kind if kind not in ("dropped", "discarded") else f"{kind}.{reason}"] += 1
+        if self.events is not None:
+            self.events.append(ev)
+        if self.on_event is not None:
+            self.on_event(ev)
+
+    def _bits(self, data: bytes) -> int:
+        return self.config.bundle_bits or 8 * len(data)
+
+    def _created_ns(self, b: Bundle) -> int:
+        return (b.creation_ms - self.config.epoch_dtn_ms) * 1_000_000
+
+    def held_count(self) -> int:
+        """Bundles this node still holds (queued or in flight)."""
+        return len(self._held) + len(self._in_flight)
+
+    # ---------------------------------------------------------------- entry points
+    def originate(self, payload: bytes, dest: str, priority: int, now_ns: int) -> str:
+        """Create a bundle for ``dest`` (node name) with ``priority`` 1..15; returns its id."""
+        if not (1 <= int(priority) <= 15):
+            raise ValueError(f"bundle priority {priority}: must be 1..15")
+        if dest == self.node:
+            raise ValueError(f"bundle from {self.node} to itself")
+        ttl_s = ttl_s_for_priority(int(priority), self.config.ttl_s_by_priority)
+        b = Bundle(dest=ipn(node_number(dest), 1), src=ipn(self.number, 1),
+                   creation_ms=self.config.epoch_dtn_ms + now_ns // 1_000_000, seq=self._seq,
+                   lifetime_ms=int(round(ttl_s * 1000)), payload=bytes(payload))
+        self._seq += 1
+        if self.store is not None:
+            self.store.set_meta("seq", self._seq)
+        b.set_block(PRIORITY_BLOCK, cbor2.dumps(int(priority)))
+        b.hop_count = (self.config.hop_limit, 0)
+        add_bib(b, self.config.key, ipn(self.number, 0))
+        h = _Held(b, int(priority), dest, self._created_ns(b) + int(ttl_s * _NS), self._created_ns(b), now_ns)
+        self._emit(now_ns, "created", h, b.bundle_id)
+        self._accept(h, now_ns)
+        return b.bundle_id
+
+    def receive(self, bundle_bytes: bytes, from_node: str, now_ns: int) -> str:
+        """A copy heard on the medium; returns what happened (delivered, queued, discarded.*, dropped.*)."""
+        self._settle(now_ns)
+        try:
+            nh = peek_next_hop(bundle_bytes)
+            if nh is not None and nh != self.number:  # a copy for another node: discard unchecked
+                self._emit(now_ns, "discarded", None, "?", reason="not_next_hop")
+                return "discarded.not_next_hop"
+            b = decode_bundle(bundle_bytes)
+        except BundleError as exc:
+            self._emit(now_ns, "dropped", None, "?", reason="integrity")
+            self.last_error = str(exc)
+            return "dropped.integrity"
+        try:
+            if self.config.verify_integrity:
+                verify_bib(b, self.config.key)
+            prio_blk = b.block(PRIORITY_BLOCK)
+            priority = int(cbor2.loads(prio_blk.data)) if prio_blk is not None else 15
+            dest = node_name(b.dest[0])
+        except (IntegrityError, BundleError, ValueError) as exc:
+            self.last_error = str(exc)
+            self._emit(now_ns, "dropped", None, b.bundle_id, reason="integrity")
+            return "dropped.integrity"
+        created = self._created_ns(b)
+        h = _Held(b, priority, dest, created + b.lifetime_ms * 1_000_000, created, now_ns)
+        bid = b.bundle_id
+        if bid in self._held or bid in self._in_flight or bid in self._seen:
+            # a copy of one we hold, or of one delivered here: discard. A bundle that comes back to a
+            # relay that already forwarded it is accepted again (hop limit bounds any loop).
+            self._emit(now_ns, "discarded", h, bid, reason="duplicate")
+            return "discarded.duplicate"
+        if now_ns >= h.expiry_ns:
+            self._emit(now_ns, "dropped", h, b.bundle_id, reason="ttl")
+            return "dropped.ttl"
+        if b.dest[0] == self.number:
+            self._seen.add(bid)
+            self._emit(now_ns, "delivered", h, b.bundle_id)
+            return "delivered"
+        limit, count = b.hop_count or (self.config.hop_limit, 0)
+        if count + 1 > limit:
+            self._emit(now_ns, "dropped", h, b.bundle_id, reason="hop_limit")
+            return "dropped.hop_limit"
+        b.hop_count = (limit, count + 1)
+        if b.previous_node is not None:
+            h.excluded_node = node_name(b.previous_node[0])
+        return self._accept(h, now_ns)
+
+    def _accept(self, h: _Held, now_ns: int) -> str:
+        bid = h.bundle.bundle_id
+        self._held[bid] = h
+        if self.store is not None:
+            self.store.put(StoredBundle(bid, encode_bundle(h.bundle), h.priority, h.dest, h.expiry_ns, now_ns))
+        heapq.heappush(self._expiry_heap, (h.expiry_ns, bid))
+        return self._route(h, now_ns)
+
+    def _route(self, h: _Held, now_ns: int) -> str:
+        bits = self.config.bundle_bits or 8 * len(encode_bundle(h.bundle))
+        t_s = max(now_ns, self.radio_free_ns) / _NS
+        backlog = float(self._backlog_bits[: h.priority + 1].sum())
+        excluded = None
+        if h.excluded:
+            excluded = np.zeros(len(self._residual), dtype=np.bool_)
+            excluded[list(h.excluded)] = True
+        ex_nodes = (h.excluded_node,) if h.excluded_node else ()
+        r = self.graph.route(self.node, h.dest, t_s, bits, backlog_bits=backlog, deadline_s=h.expiry_ns / _NS,
+                             residual_bits=self._residual, excluded=excluded, excluded_nodes=ex_nodes)
+        bid = h.bundle.bundle_id
+        if r is None:
+            self._forget(bid)
+            self._emit(now_ns, "dropped", h, bid, reason="no_route")
+            return "dropped.no_route"
+        c = r.contacts[0]
+        h.contact = c
+        self._residual[c] -= bits
+        self._backlog_bits[h.priority] += bits
+        heapq.heappush(self._queues.setdefault(c, []), (h.priority, next(self._order), bid))
+        return "queued"
+
+    def _forget(self, bid: str) -> None:
+        self._held.pop(bid, None)
+        if self.store is not None:
+            self.store.delete(bid)
+
+    def _dequeue(self, h: _Held, *, sent: bool = False) -> None:
+        bits = self.config.bundle_bits or 8 * len(encode_bundle(h.bundle))
+        self._backlog_bits[h.priority] -= bits
+        if not sent:  # volume booked on the contact is given back unless it was used
+            self._residual[h.contact] += bits
+
+    # ---------------------------------------------------------------- radio
+    def _head(self, c: int):
+        q = self._queues.get(c)
+        while q:
+            bid = q[0][2]
+            h = self._held.get(bid)
+            if h is not None and h.contact == c:
+                return h
+            heapq.heappop(q)  # stale entry (dropped or re-routed)
+        return None
+
+    def _next_start(self):
+        """(start_ns, priority, order, contact) of the next transmission the radio can start."""
+        best = None
+        empty = []
+        for c, q in self._queues.items():
+            h = self._head(c)
+            if h is None:
+                empty.append(c)
+                continue
+            s = max(self.radio_free_ns, int(np.ceil(self.graph.start_s[c] * _NS)), h.ready_ns)
+            key = (s, q[0][0], q[0][1], c)
+            if best is None or key < best:
+                best = key
+        for c in empty:
+            del self._queues[c]
+        return best
+
+    def transmissions_until(self, t_ns: int) -> list[Transmission]:
+        """Transmissions this radio starts at or before ``t_ns`` (in order)."""
+        out: list[Transmission] = []
+        self._settle(t_ns)
+        while True:
+            nxt = self._next_start()
+            if nxt is None or nxt[0] > t_ns:
+                break
+            s, _p, _o, c = nxt
+            bid = heapq.heappop(self._queues[c])[2]
+            h = self._held[bid]
+            self._dequeue(h, sent=True)
+            if s >= h.expiry_ns:
+                self._forget(bid)
+                self._emit(s, "dropped", h, bid, reason="ttl")
+                continue
+            data = None
+            h.bundle.previous_node = ipn(self.number, 0)
+            h.bundle.next_hop = node_number(self.graph.contacts[c].dst)
+            data = encode_bundle(h.bundle)
+            bits = self._bits(data)
+            end = s + int(np.ceil(bits / self.graph.rate_bps[c] * _NS))
+            if end > self.graph.end_s[c] * _NS:
+                h.excluded.add(c)  # missed contact: re-route without it
+                self._route(h, s)
+                continue
+            tx = Transmission(data, self.graph.contacts[c].dst, s, end, bits, self.node, bid, c)
+            del self._held[bid]
+            self._in_flight[bid] = (tx, h)
+            self.radio_free_ns = end
+            self._emit(s, "forwarded", h, bid)
+            out.append(tx)
+        return out
+
+    def _settle(self, now_ns: int) -> None:
+        """Transmissions that ended without a failure report are done: forget those bundles."""
+        for bid in [b for b, (tx, _h) in self._in_flight.items() if tx.end_ns <= now_ns]:
+            del self._in_flight[bid]
+            if self.store is not None:
+                self.store.delete(bid)
+
+    def transmission_failed(self, tx: Transmission, now_ns: int) -> None:
+        """The medium says ``tx`` did not get through: take the bundle back, re-route without that contact."""
+        item = self._in_flight.pop(tx.bundle_id, None)
+        if item is None:
+            return
+        _tx, h = item
+        self.counters["tx_failed"] += 1
+        h.excluded.add(tx.contact)
+        h.ready_ns = now_ns
+        self._held[tx.bundle_id] = h
+        if now_ns >= h.expiry_ns:
+            self._forget(tx.bundle_id)
+            self._emit(now_ns, "dropped", h, tx.bundle_id, reason="ttl")
+            return
+        self._route(h, now_ns)
+
+    def expire(self, now_ns: int) -> int:
+        """Drop held bundles whose lifetime is over; returns how many."""
+        n = 0
+        while self._expiry_heap and self._expiry_heap[0][0] <= now_ns:
+            exp, bid = heapq.heappop(self._expiry_heap)
+            h = self._held.get(bid)
+            if h is None or h.expiry_ns != exp:
+                continue
+            self._dequeue(h)
+            self._forget(bid)
+            self._emit(exp, "dropped", h, bid, reason="ttl")
+            n += 1
+        return n
+
+    def next_event_ns(self) -> int | None:
+        """Earliest time this agent needs to act (a transmission start or an expiry), or None."""
+        cands = []
+        nxt = self._next_start()
+        if nxt is not None:
+            cands.append(nxt[0])
+        while self._expiry_heap and self._expiry_heap[0][1] not in self._held:
+            heapq.heappop(self._expiry_heap)
+        if self._expiry_heap:
+            cands.append(self._expiry_heap[0][0])
+        if self._in_flight:
+            cands.append(min(tx.end_ns for tx, _h in self._in_flight.values()))
+        return min(cands) if cands else None
+
+    # ---------------------------------------------------------------- persistence
+    def _resume(self) -> None:
+        """Reload every stored bundle after a restart and route it again."""
+        for sb in self.store.load_all():
+            try:
+                b = decode_bundle(sb.data)
+            except BundleError:
+                self.store.delete(sb.bundle_id)
+                continue
+            created = self._created_ns(b)
+            h = _Held(b, sb.priority, sb.dest, sb.expiry_ns, created, sb.received_ns)
+            self._held[sb.bundle_id] = h
+            heapq.heappush(self._expiry_heap, (h.expiry_ns, sb.bundle_id))
+            self._route(h, sb.received_ns)
