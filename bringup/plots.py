@@ -124,7 +124,7 @@ def figure_ground_tracks(tracks: Mapping[str, tuple[Sequence[float], Sequence[fl
         ax.plot([lon0], [lat0], marker="s", ms=9, mfc="none", mec="crimson", mew=1.8)
         ax.annotate(str(_get(r, "name")), (lon0, lat0), xytext=(6, 6), textcoords="offset points",
                     color="crimson", fontsize=10, fontweight="bold",
-                    bbox=dict(boxstyle="round,pad=0.15", fc="white", ec="none", alpha=0.7))
+                    bbox={"boxstyle": "round,pad=0.15", "fc": "white", "ec": "none", "alpha": 0.7})
     for s in stations:
         ax.plot([float(_get(s, "lon_deg"))], [float(_get(s, "lat_deg"))], "^", ms=9, color="black",
                 gid=f"station:{_get(s, 'name')}")
@@ -417,7 +417,7 @@ def figure_latency_vs_gaps(latency_s_by_priority: Mapping[int, Sequence[float]],
                 vals.append(a)
         if vals:
             bp = ax.boxplot(vals, positions=pos, widths=0.34, patch_artist=True, manage_ticks=False,
-                            flierprops=dict(marker=".", ms=3, alpha=0.5))
+                            flierprops={"marker": ".", "ms": 3, "alpha": 0.5})
             for b in bp["boxes"]:
                 b.set(facecolor=color, alpha=0.6, gid=f"box:{kind}")
             boxes[kind] = len(vals)

@@ -272,9 +272,9 @@ def _region_values(rng: np.random.Generator, x_km: np.ndarray, y_km: np.ndarray,
         # Place the cell so that at mid-life it is over (or near) the region.
         mx, my = rng.uniform(-1.1 * half_km, 1.1 * half_km, size=2)
         mid_h = t0_h + 0.5 * life_h
-        cells.append(dict(t0_h=t0_h, life_h=life_h, x0_km=mx - vx * mid_h, y0_km=my - vy * mid_h,
-                          vx_km_h=vx, vy_km_h=vy, radius_km=rng.uniform(*p.cell_radius_km),
-                          rain_mm_h=rng.uniform(*p.cell_rain_mm_h)))
+        cells.append({"t0_h": t0_h, "life_h": life_h, "x0_km": mx - vx * mid_h, "y0_km": my - vy * mid_h,
+                      "vx_km_h": vx, "vy_km_h": vy, "radius_km": rng.uniform(*p.cell_radius_km),
+                      "rain_mm_h": rng.uniform(*p.cell_rain_mm_h)})
     dt_h = slot_s / 3600.0 / p.substeps_per_slot
     decay = math.exp(-dt_h / p.drain_tau_h)
     flood = np.zeros_like(x_km)
@@ -313,7 +313,7 @@ def synthetic_field(gps: Any, *, region_names: Sequence[str], region_centers_deg
         raise OsseError(f"ground points: region_index {g.region_index.max()} but only {n_reg} regions")
     if not (horizon_s > 0 and slot_s > 0):
         raise OsseError(f"synthetic OSSE: horizon_s ({horizon_s}) and slot_s ({slot_s}) must be > 0")
-    n_slots = int(math.ceil(horizon_s / slot_s - 1e-9))
+    n_slots = math.ceil(horizon_s / slot_s - 1e-9)
     values = np.empty((n_slots, len(g)), dtype=np.int16)
     cells_by_region = {}
     for r, name in enumerate(region_names):

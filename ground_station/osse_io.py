@@ -114,7 +114,7 @@ def _read_npz(path: Path) -> ValueGrid:
 
 def _read_csv(path: Path) -> ValueGrid:
     try:
-        fh = open(path, newline="", encoding="utf-8")
+        fh = open(path, newline="", encoding="utf-8")  # noqa: SIM115 - closed by the with below
     except OSError as exc:
         raise OsseError(f"{path}: cannot read: {exc.strerror or exc}") from None
     with fh:
@@ -172,7 +172,7 @@ def _read_nc(path: Path) -> ValueGrid:
     try:
         with netcdf_file(path, "r", mmap=False) as nc:
             arrays = {k: np.array(v[:], dtype=np.float64) for k, v in nc.variables.items()}
-    except Exception as exc:  # scipy raises a mix of TypeError/ValueError on corrupt files
+    except Exception as exc:  # noqa: BLE001 - scipy raises assorted errors on corrupt files; report all as one line
         raise OsseError(f"{path}: unreadable NetCDF-3 file ({type(exc).__name__}: {exc})") from None
     return ValueGrid(path, *(_pick(path, arrays, k) for k in ("t_s", "lat_deg", "lon_deg", "value")))
 
@@ -211,7 +211,7 @@ def load_value_grid(path: str | Path, gps: Any, *, horizon_s: float, slot_s: flo
     g = as_ground_point_arrays(gps)
     grid = read_grid(path)
     p = grid.path
-    n_slots = int(math.ceil(horizon_s / slot_s - 1e-9))
+    n_slots = math.ceil(horizon_s / slot_s - 1e-9)
     t_slot = np.arange(n_slots) * float(slot_s)
     names = list(region_names) if region_names is not None else [f"region_{i}" for i in
                                                                  range(int(g.region_index.max()) + 1)]
