@@ -261,6 +261,8 @@ def write_value_grid(field: OsseField, path: str | Path) -> Path:
     suffix = p.suffix.lower()
     if suffix not in _READERS:
         raise OsseError(f"{p}: unknown OSSE file type '{suffix}' (supported: {', '.join(GRID_SUFFIXES)})")
+    # GP grids that are not rectilinear in lat/lon (e.g. orbit_clock's, whose columns drift ~0.002 deg
+    # from row to row) give one axis line per distinct value: 50 x 500 for the paper's 500 GPs.
     lat_ax, ii = np.unique(field.lat_deg, return_inverse=True)
     lon_ax, jj = np.unique(field.lon_deg, return_inverse=True)
     t_s = np.arange(field.n_slots) * field.slot_s
