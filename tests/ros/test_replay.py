@@ -17,7 +17,7 @@ pytestmark = [pytest.mark.ros, pytest.mark.timeout(120)]
 S = 1_000_000_000
 
 
-def _make_bag(path):
+def _make_bag(path, with_clock=True):
     from bringup.recording import BagWriter
     from bringup.viz import write_viz
     from msgs_json.envelope import Envelope
@@ -25,7 +25,8 @@ def _make_bag(path):
     with BagWriter(path) as bag:
         for k in range(6):
             t = k * S
-            bag.write_clock(t)
+            if with_clock:
+                bag.write_clock(t)
             bag.write_envelope(Envelope(t, "sat_11", k, "/sat_11/observations", f'{{"k": {k}}}'))
             bag.write_envelope(Envelope(t, "sat_11", k, "/sat_11/dtn/out", bytes([k, 0, 255])))
             if k % 2 == 0:
@@ -33,7 +34,8 @@ def _make_bag(path):
     return path
 
 
-def test_replay_delivers_every_message_and_clock(tmp_path):
+@pytest.mark.parametrize("with_clock", [True, False], ids=["recorded_clock", "synthesised_clock"])
+def test_replay_delivers_every_message_and_clock(tmp_path, with_clock):
     import rclpy
     from rclpy.context import Context
     from rclpy.executors import SingleThreadedExecutor
@@ -42,12 +44,18 @@ def test_replay_delivers_every_message_and_clock(tmp_path):
     from bringup.launcher import child_env, lease_domain_id
     from bringup.recording import BagReader
 
-    bag = _make_bag(tmp_path / "bag")
+    from bringup.recording import CLOCK_TYPE, clock_cdr
+
+    bag = _make_bag(tmp_path / "bag", with_clock)
     with BagReader(bag) as r:
         expected: dict[str, list[bytes]] = {}
         for m in r.messages():
             expected.setdefault(m.topic, []).append(m.cdr)
         types = {t.topic: t.msgtype for t in r.topics()}
+    n_recorded = sum(len(v) for v in expected.values())
+    if not with_clock:  # the replayer publishes one /clock per distinct log time
+        expected["/clock"] = [clock_cdr(k * S) for k in range(6)]
+        types["/clock"] = CLOCK_TYPE
     assert set(expected) == {"/clock", "/sat_11/observations", "/sat_11/dtn/out", "/sat_11/fix", "/viz/constellation"}
 
     got: dict[str, list[bytes]] = {t: [] for t in expected}
@@ -82,8 +90,8 @@ def test_replay_delivers_every_message_and_clock(tmp_path):
                 env=child_env(lease.domain_id), capture_output=True, text=True, timeout=90,
             )
             assert proc.returncode == 0, proc.stderr[-2000:]
-            total = sum(len(v) for v in expected.values())
-            assert f"replayed {total} messages on 5 topics" in proc.stdout
+            n_topics = 5 if with_clock else 4
+            assert f"replayed {n_recorded} messages on {n_topics} topics" in proc.stdout
             with cond:
                 assert cond.wait_for(done, timeout=20.0), {t: (len(got[t]), len(expected[t])) for t in expected}
         finally:
