@@ -26,7 +26,7 @@ from collections.abc import Sequence
 
 import rclpy
 from rclpy.context import Context
-from rclpy.executors import SingleThreadedExecutor
+from rclpy.experimental import EventsExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
@@ -58,6 +58,8 @@ QOS_SYNC_PUB = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=16, reliability
 QOS_SYNC_SUB = QoSProfile(history=HistoryPolicy.KEEP_ALL, reliability=ReliabilityPolicy.RELIABLE,
                           durability=DurabilityPolicy.TRANSIENT_LOCAL)
 _CLOCK_REMAP = ["--ros-args", "-r", "/clock:=/_lockstep/unused_clock"]
+# Fewer entities per node = smaller wait sets per spin (no parameter services, no /rosout writer).
+_LEAN = {"start_parameter_services": False, "enable_rosout": False}
 
 
 class HostError(RuntimeError):
@@ -91,8 +93,8 @@ class ParticipantHost:
         self._stop_requested = False
         self.ctx = Context()
         rclpy.init(context=self.ctx, signal_handler_options=SignalHandlerOptions.NO)
-        self.executor = SingleThreadedExecutor(context=self.ctx)
-        self.host_node = rclpy.create_node(f"host_{role}", context=self.ctx, cli_args=_CLOCK_REMAP)
+        self.executor = EventsExecutor(context=self.ctx)
+        self.host_node = rclpy.create_node(f"host_{role}", context=self.ctx, cli_args=_CLOCK_REMAP, **_LEAN)
         self._steps: deque[StepMsg] = deque()
         self.host_node.create_subscription(String, STEP_TOPIC, self._on_step, QOS_SYNC_SUB)
         self.ack_pub = self.host_node.create_publisher(String, ACK_TOPIC, QOS_SYNC_PUB)
@@ -101,7 +103,7 @@ class ParticipantHost:
         self.inboxes_by_topic: dict[str, list[TopicInbox]] = {}
         for p in participants:
             node = rclpy.create_node(
-                p.name, context=self.ctx, cli_args=_CLOCK_REMAP,
+                p.name, context=self.ctx, cli_args=_CLOCK_REMAP, **_LEAN,
                 parameter_overrides=[Parameter("use_sim_time", Parameter.Type.BOOL, True)],
             )
             slot = _Slot(p, node)

@@ -30,7 +30,7 @@ import time
 import rclpy
 from rclpy.context import Context
 from rclpy.duration import Duration
-from rclpy.executors import SingleThreadedExecutor
+from rclpy.experimental import EventsExecutor
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rclpy.serialization import serialize_message
 from rclpy.signals import SignalHandlerOptions
@@ -71,8 +71,8 @@ class LockstepClock:
         self._stop_requested = False
         self.ctx = Context()
         rclpy.init(context=self.ctx, signal_handler_options=SignalHandlerOptions.NO)
-        self.node = rclpy.create_node("orbit_clock", context=self.ctx)
-        self.executor = SingleThreadedExecutor(context=self.ctx)
+        self.node = rclpy.create_node("orbit_clock", context=self.ctx, start_parameter_services=False)
+        self.executor = EventsExecutor(context=self.ctx)
         self.executor.add_node(self.node)
         self.clock_pub = self.node.create_publisher(Clock, "/clock", _QOS_CLOCK)
         self.step_pub = self.node.create_publisher(String, STEP_TOPIC, QOS_SYNC_PUB)

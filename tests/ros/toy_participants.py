@@ -14,6 +14,7 @@ split steps by stamp alone.
 
 ``make(spec, role)`` is the run-spec factory: role ``pingpong`` hosts ping and pong in one process,
 role ``c<i>`` hosts counter i (``spec.extra["n_counters"]`` counters in the ring;
+``blob_every`` (0: no blobs) and ``period_s`` tune the counters;
 ``spec.extra["stall"] = {"role": ..., "at_ns": ...}`` makes one a Staller). ``all_participants``
 returns fresh instances of every role's participants, for the local engine reference run.
 """
@@ -79,16 +80,17 @@ class Pong:
 
 
 class Counter:
-    def __init__(self, i: int, n: int, blob_every: int = 3):
+    def __init__(self, i: int, n: int, blob_every: int = 3, period_s: float | None = None):
         self.i, self.n_ring = i, n
         self.name = f"c{i}"
-        self.period_ns = (3 + 1.37 * (i % 5)) * S
+        self.period_ns = (period_s if period_s else 3 + 1.37 * (i % 5)) * S
         self.count = 0
         self.blob_every = blob_every
         self.seen = 0
 
     def subscriptions(self) -> list[str]:
-        return [f"/toy/count/c{(self.i + 1) % self.n_ring}", "/toy/blob", "/toy/hello"]
+        blobs = ["/toy/blob"] if self.blob_every else []
+        return [f"/toy/count/c{(self.i + 1) % self.n_ring}", *blobs, "/toy/hello"]
 
     def start(self, t0_ns: int) -> StepResult:
         return StepResult([Emit("/toy/hello", json.dumps({"from": self.name}), t0_ns)], t0_ns + int(self.period_ns))
@@ -100,7 +102,7 @@ class Counter:
             self.count += 1
             stamp = max(0, t_ns - 1000 * self.i)
             emits.append(Emit(f"/toy/count/{self.name}", json.dumps({"c": self.count, "crc": _crc(inbox)}), stamp))
-            if self.count % self.blob_every == 0:
+            if self.blob_every and self.count % self.blob_every == 0:
                 emits.append(Emit("/toy/blob", bytes([self.i % 256]) + _crc(inbox).to_bytes(4, "big"), stamp))
         nxt = (t_ns // int(self.period_ns) + 1) * int(self.period_ns)
         return StepResult(emits, nxt)
@@ -133,7 +135,7 @@ def make(spec, role: str) -> list:
         stall = spec.extra.get("stall")
         if stall and stall.get("role") == role:
             return [Staller(i, n, int(stall["at_ns"]))]
-        return [Counter(i, n)]
+        return [Counter(i, n, int(spec.extra.get("blob_every", 3)), spec.extra.get("period_s"))]
     raise ValueError(f"toy factory: unknown role {role!r}")
 
 

@@ -1,0 +1,99 @@
+"""Lockstep throughput of the ROS engine: steps/s with 2, 8 and 24 participant processes.
+
+Each process hosts one toy Counter (tests/ros/toy_participants.py) that wakes every 10 s (= the
+max step, so every step is 10 s of sim time) and sends one envelope per step to its ring neighbour; the clock records everything into an MCAP bag.
+Prints, per process count: steps, wall time, steps/s, real-time factor at 10 s steps, peak RSS of
+all processes together (sampled from /proc). Usage:
+    .venv/bin/python bench/bench_lockstep.py [--procs 2 8 24] [--steps 300] [--no-bag]
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import shutil
+import sys
+import tempfile
+import threading
+import time
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO))
+
+from bringup.launcher import launch  # noqa: E402
+from bringup.run_spec import RunSpec  # noqa: E402
+
+
+def _rss_tree_kib(root_pid: int) -> int:
+    """Sum of VmRSS over root_pid and its descendants."""
+    children: dict[int, list[int]] = {}
+    rss: dict[int, int] = {}
+    for d in os.listdir("/proc"):
+        if not d.isdigit():
+            continue
+        try:
+            with open(f"/proc/{d}/status") as fh:
+                ppid, kib = 0, 0
+                for line in fh:
+                    if line.startswith("PPid:"):
+                        ppid = int(line.split()[1])
+                    elif line.startswith("VmRSS:"):
+                        kib = int(line.split()[1])
+            children.setdefault(ppid, []).append(int(d))
+            rss[int(d)] = kib
+        except OSError:
+            continue
+    total, todo = 0, [root_pid]
+    while todo:
+        p = todo.pop()
+        total += rss.get(p, 0) if p != root_pid else 0
+        todo.extend(children.get(p, []))
+    return total
+
+
+def bench(n_procs: int, steps: int, bag: bool) -> dict:
+    out = Path(tempfile.mkdtemp(prefix=f"bench_lockstep_{n_procs}_"))
+    max_step = 10 * 10**9
+    spec = RunSpec(factory="tests.ros.toy_participants:make", roles=[f"c{i}" for i in range(n_procs)],
+                   horizon_ns=steps * max_step, max_step_ns=max_step,
+                   bag_dir=str(out / "bag") if bag else None, extra={"n_counters": n_procs, "blob_every": 0, "period_s": 10.0},
+                   ack_timeout_s=60.0, startup_timeout_s=180.0)
+    peak = [0]
+    stop = threading.Event()
+
+    def sample():
+        while not stop.is_set():
+            peak[0] = max(peak[0], _rss_tree_kib(os.getpid()))
+            time.sleep(0.5)
+
+    th = threading.Thread(target=sample, daemon=True)
+    th.start()
+    t0 = time.monotonic()
+    res = launch(spec, out)
+    total = time.monotonic() - t0
+    stop.set()
+    th.join()
+    shutil.rmtree(out, ignore_errors=True)
+    if not res.ok:
+        raise SystemExit(f"{n_procs} processes: run failed: {res.message}")
+    p = res.last
+    return {"procs": n_procs, "steps": p.steps, "step_wall_s": p.wall_s, "steps_per_s": p.steps_per_s,
+            "rtf_at_10s_steps": p.real_time_factor, "total_wall_s": total, "peak_rss_mib": peak[0] / 1024}
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--procs", type=int, nargs="+", default=[2, 8, 24])
+    ap.add_argument("--steps", type=int, default=300)
+    ap.add_argument("--no-bag", action="store_true")
+    a = ap.parse_args()
+    print(f"{'procs':>5} {'steps':>6} {'wall_s':>8} {'steps/s':>8} {'RTF@10s':>8} {'startup+all_s':>13} {'peakRSS_MiB':>11}")
+    for n in a.procs:
+        r = bench(n, a.steps, not a.no_bag)
+        print(f"{r['procs']:>5} {r['steps']:>6} {r['step_wall_s']:>8.2f} {r['steps_per_s']:>8.1f} "
+              f"{r['rtf_at_10s_steps']:>8.0f} {r['total_wall_s']:>13.1f} {r['peak_rss_mib']:>11.0f}", flush=True)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,134 @@
+"""The launcher: domain-id leases, child environment, run spec, a killed process named, Ctrl-C.
+
+Oracles: the run spec round-trips; two leases never share an id; a participant process killed
+mid-run (SIGKILL) is named in the result; SIGINT to a running launcher ends every process and
+leaves a bag that both the `mcap` reader and `rosbags` (via BagReader) open.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from bringup.errors import UserError
+from bringup.launcher import REPO, child_env, launch, lease_domain_id
+from bringup.recording import BagReader
+from bringup.run_spec import RunSpec
+from tests.ros import toy_participants as toy
+
+pytestmark = [pytest.mark.ros, pytest.mark.timeout(180)]
+S = 10**9
+
+
+def test_run_spec_round_trip_and_errors(tmp_path):
+    spec = RunSpec(factory="tests.ros.toy_participants:make", roles=["a", "b"], horizon_ns=5, max_step_ns=1,
+                   extra={"n_counters": 2})
+    spec.to_file(tmp_path / "s.json")
+    assert RunSpec.from_file(tmp_path / "s.json") == spec
+    (tmp_path / "bad.json").write_text('{"factory": "x:y", "roles": ["clock"]}')
+    with pytest.raises(UserError, match="clock"):
+        RunSpec.from_file(tmp_path / "bad.json")
+    with pytest.raises(UserError, match="no such file"):
+        RunSpec.from_file(tmp_path / "missing.json")
+
+
+def test_domain_leases_are_exclusive():
+    a = lease_domain_id(90, 91)
+    b = lease_domain_id(90, 91)
+    try:
+        assert {a.domain_id, b.domain_id} == {90, 91}
+        with pytest.raises(UserError, match="no free ROS_DOMAIN_ID"):
+            lease_domain_id(90, 91)
+    finally:
+        a.release()
+        b.release()
+    lease_domain_id(90, 90).release()  # free again
+
+
+def test_child_env_is_loopback_and_isolated():
+    env = child_env(42)
+    assert env["ROS_AUTOMATIC_DISCOVERY_RANGE"] == "LOCALHOST"
+    assert env["ROS_DOMAIN_ID"] == "42"
+    assert Path(env["FASTRTPS_DEFAULT_PROFILES_FILE"]).is_file()
+
+
+def _pids_with(arg: str) -> list[int]:
+    out = []
+    for d in os.listdir("/proc"):
+        if d.isdigit():
+            try:
+                cmd = Path(f"/proc/{d}/cmdline").read_bytes().split(b"\0")
+            except OSError:
+                continue
+            if arg.encode() in cmd and b"node" in cmd:
+                out.append(int(d))
+    return out
+
+
+def test_killed_process_is_named(tmp_path):
+    spec = RunSpec(factory="tests.ros.toy_participants:make", roles=toy.roles(3, pingpong=False),
+                   horizon_ns=3600 * S, max_step_ns=10 * S, real_time_factor=50.0, ack_timeout_s=5.0,
+                   progress_period_s=0.2, extra={"n_counters": 3})
+    run_spec_path = str(tmp_path / "run_spec.json")
+    killed: list[int] = []
+
+    def on_progress(p):
+        if p.steps >= 3 and not killed:
+            pids = [pid for pid in _pids_with(run_spec_path) if str(pid) and
+                    b"c2" in Path(f"/proc/{pid}/cmdline").read_bytes().split(b"\0")]
+            assert len(pids) == 1
+            os.kill(pids[0], signal.SIGKILL)
+            killed.append(pids[0])
+
+    t0 = time.monotonic()
+    res = launch(spec, tmp_path, progress=on_progress)
+    assert killed
+    assert not res.ok
+    assert "c2" in res.message, res.message
+    assert "c2" in res.failed_roles
+    assert time.monotonic() - t0 < 60
+
+
+def test_sigint_leaves_readable_bag(tmp_path):
+    script = f"""
+import sys
+from bringup.launcher import launch
+from bringup.run_spec import RunSpec
+spec = RunSpec(factory="tests.ros.toy_participants:make", roles=["pingpong", "c0", "c1"],
+               horizon_ns=3600 * 10**9, max_step_ns=10**10, real_time_factor=100.0,
+               bag_dir={str(tmp_path / "bag")!r}, progress_period_s=0.2, extra={{"n_counters": 2}})
+res = launch(spec, {str(tmp_path / "run")!r}, progress=lambda p: print("steps", p.steps, flush=True))
+print("rc", res.returncode, res.message, flush=True)
+sys.exit(0 if res.returncode == 130 else 1)
+"""
+    env = child_env(0)  # the launcher picks its own domain for the children
+    proc = subprocess.Popen([sys.executable, "-c", script], cwd=str(REPO), env=env, stdout=subprocess.PIPE, text=True)
+    try:
+        for line in proc.stdout:  # wait until it is stepping (bounded by the test timeout)
+            if line.startswith("steps") and int(line.split()[1]) >= 5:
+                break
+        proc.send_signal(signal.SIGINT)
+        rest = proc.communicate(timeout=60)[0]
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 0, rest
+    assert "interrupted" in rest
+    with BagReader(tmp_path / "bag") as bag:
+        topics = {t.topic: t.count for t in bag.topics()}
+        assert topics["/clock"] >= 5
+        assert topics["/toy/ping"] >= 1
+        n_env = sum(1 for _ in bag.envelopes(["/toy/ping", "/toy/pong"]))
+    from mcap.reader import make_reader
+
+    mcap_file = next((tmp_path / "bag").glob("*.mcap"))
+    with open(mcap_file, "rb") as fh:
+        n = sum(1 for _ in make_reader(fh).iter_messages(topics=["/toy/ping", "/toy/pong"]))
+    assert n == n_env > 0
+    assert not _pids_with(str(tmp_path / "run" / "run_spec.json"))  # every child is gone
