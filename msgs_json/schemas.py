@@ -37,31 +37,31 @@ nothing but MessageError on arbitrary input.
 
 from __future__ import annotations
 
-from typing import Annotated, Literal, Union
+from typing import Annotated, Literal
 
 import msgspec
 from msgspec import Meta
 
 __all__ = [
-    "SCHEMA_VERSION",
-    "SimStep",
-    "SimAck",
-    "ContactWindow",
-    "AcsCommand",
-    "AcsState",
-    "ScheduleItem",
-    "Schedule",
-    "Observation",
-    "GroundDownlink",
-    "GroundUplink",
-    "BundleCreated",
-    "BundleForwarded",
-    "BundleDelivered",
-    "BundleDropped",
-    "CopyDiscarded",
-    "BundleEvent",
     "DROP_REASONS",
     "MESSAGE_TYPES",
+    "SCHEMA_VERSION",
+    "AcsCommand",
+    "AcsState",
+    "BundleCreated",
+    "BundleDelivered",
+    "BundleDropped",
+    "BundleEvent",
+    "BundleForwarded",
+    "ContactWindow",
+    "CopyDiscarded",
+    "GroundDownlink",
+    "GroundUplink",
+    "Observation",
+    "Schedule",
+    "ScheduleItem",
+    "SimAck",
+    "SimStep",
 ]
 
 SCHEMA_VERSION = 1
@@ -238,7 +238,7 @@ class _BundleEvt(_Msg, kw_only=True, frozen=True, tag_field="event"):
     bundle_id: BundleId
     src: NodeName
     dst: NodeName
-    priority: Priority
+    priority: Annotated[int, Meta(ge=0, le=15, description="1..15; 0 = unknown (copy not decoded)")]
     creation_ns: NsTime
 
     def _check(self) -> None:
@@ -264,7 +264,7 @@ class BundleForwarded(_BundleEvt, kw_only=True, frozen=True, tag="forwarded"):
 class BundleDelivered(_BundleEvt, kw_only=True, frozen=True, tag="delivered"):
     """The bundle reached its destination ``sat`` (== dst) after ``hop_count`` hops."""
 
-    hop_count: Count
+    hop_count: Count = 0
 
     def _check(self) -> None:
         super()._check()
@@ -280,12 +280,14 @@ class BundleDropped(_BundleEvt, kw_only=True, frozen=True, tag="dropped"):
 
 
 class CopyDiscarded(_BundleEvt, kw_only=True, frozen=True, tag="copy_discarded"):
-    """A broadcast copy received by ``sat`` that was not its intended next hop, discarded."""
+    """A copy received by ``sat`` and discarded: not its intended next hop (broadcast medium), or a
+    duplicate of a bundle it holds or already delivered."""
 
-    intended_next_hop: NodeName
+    intended_next_hop: NodeName | None = None
+    reason: Literal["not_next_hop", "duplicate", "other"] = "not_next_hop"
 
 
-BundleEvent = Union[BundleCreated, BundleForwarded, BundleDelivered, BundleDropped, CopyDiscarded]
+BundleEvent = BundleCreated | BundleForwarded | BundleDelivered | BundleDropped | CopyDiscarded
 
 MESSAGE_TYPES: tuple[type[msgspec.Struct], ...] = (
     SimStep,
