@@ -19,10 +19,17 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from bringup.scenario import load_scenario  # noqa: E402
-from orbit_clock import (access_windows, access_windows_bruteforce, build_constellation,  # noqa: E402
-                         ground_contact_plan, ground_points, isl_contact_plan, isl_windows)
-from orbit_clock.contact_plan import canonical_node, read_contact_plan  # noqa: E402
+from bringup.scenario import load_scenario
+from orbit_clock import (
+    access_windows,
+    access_windows_bruteforce,
+    build_constellation,
+    ground_contact_plan,
+    ground_points,
+    isl_contact_plan,
+    isl_windows,
+)
+from orbit_clock.contact_plan import canonical_node, read_contact_plan
 
 
 def _t(fn):
@@ -71,7 +78,7 @@ def main() -> int:
         dmax = float(max(np.abs(b.start_s - w.start_s).max(), np.abs(b.end_s - w.end_s).max())) if same else float("nan")
         print(f"BASELINE access brute force 1 s grid, all 500 GPs: {len(b)} windows in {t_b:.3f} s "
               f"(x{t_b / t_acc:.0f} slower); identical windows: {same}, max edge diff {dmax:.2e} s")
-        (bi, bj, bs, be), t_bi = _t(lambda: isl_windows(c, 0.0, H, step_s=1.0, refine=False))
+        (bi, _bj, _bs, _be), t_bi = _t(lambda: isl_windows(c, 0.0, H, step_s=1.0, refine=False))
         print(f"BASELINE ISL brute force 1 s grid: {len(bi)} undirected windows in {t_bi:.3f} s "
               f"(refined plan has {len(isl) // 2})")
     return 0

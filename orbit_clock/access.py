@@ -37,11 +37,11 @@ from orbit_clock.propagation import MU_WGS84_KM3_S2, Constellation
 
 __all__ = [
     "AccessWindows",
-    "off_nadir_deg",
-    "visibility_matrix",
     "access_windows",
     "access_windows_bruteforce",
+    "off_nadir_deg",
     "off_nadir_profile",
+    "visibility_matrix",
 ]
 
 
@@ -127,7 +127,7 @@ class AccessWindows:
     def region_of(self, gps: GroundPoints) -> np.ndarray:
         return gps.region_index[self.gp]
 
-    def select(self, mask) -> "AccessWindows":
+    def select(self, mask) -> AccessWindows:
         return AccessWindows(self.sat_names, self.sat[mask], self.gp[mask], self.start_s[mask], self.end_s[mask],
                              self.min_off_nadir_deg[mask], self.max_off_nadir_deg, self.t0_s, self.t1_s, self.meta,
                              self.gp_region, self.region_names)
@@ -240,7 +240,6 @@ def access_windows_bruteforce(constellation: Constellation, gps: GroundPoints, t
     out = {k: [] for k in ("sat", "gp", "start", "end", "min")}
     chunk = 2000
     for sat in sat_list:
-        cols, sts, ens, mns = [], [], [], []
         r_all = constellation.positions_ecef_km_at(np.full(t.size, sat), t)
         eta = np.empty((t.size, len(gps)))
         vis = np.empty((t.size, len(gps)), dtype=bool)

@@ -22,18 +22,18 @@ from __future__ import annotations
 import numpy as np
 
 __all__ = [
+    "C_KM_S",
+    "OMEGA_EARTH_RAD_S",
     "WGS84_A_KM",
-    "WGS84_F",
     "WGS84_B_KM",
     "WGS84_E2",
-    "OMEGA_EARTH_RAD_S",
-    "C_KM_S",
+    "WGS84_F",
+    "ecef_to_geodetic",
+    "elevation_deg",
+    "geodetic_to_ecef_km",
     "gmst_rad",
     "teme_to_ecef",
-    "geodetic_to_ecef_km",
-    "ecef_to_geodetic",
     "up_unit",
-    "elevation_deg",
 ]
 
 WGS84_A_KM = 6378.137

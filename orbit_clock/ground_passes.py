@@ -22,7 +22,7 @@ from orbit_clock.frames import C_KM_S, elevation_deg, geodetic_to_ecef_km, up_un
 from orbit_clock.isl import _grid, windows_from_margin
 from orbit_clock.propagation import Constellation, build_constellation
 
-__all__ = ["station_names", "station_passes", "ground_contact_plan"]
+__all__ = ["ground_contact_plan", "station_names", "station_passes"]
 
 
 def station_names(scenario) -> list[str]:

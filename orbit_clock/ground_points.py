@@ -73,7 +73,7 @@ def region_grid(lat_deg: float, lon_deg: float, size_km: float, spacing_km: floa
     """(lat_deg, lon_deg, row, col) arrays of one region's grid, row-major north->south, west->east."""
     if spacing_km <= 0 or size_km <= 0:
         raise ValueError(f"region grid: size_km={size_km} and spacing_km={spacing_km} must be > 0")
-    n = max(1, int(round(size_km / spacing_km)))
+    n = max(1, round(size_km / spacing_km))
     off_km = (np.arange(n) + 0.5) * spacing_km - n * spacing_km / 2.0
     lat0 = np.deg2rad(lat_deg)
     s2 = np.sin(lat0) ** 2

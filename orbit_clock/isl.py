@@ -23,7 +23,7 @@ in-plane neighbours of the paper constellation in contact the whole horizon).
 
 from __future__ import annotations
 
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 
@@ -31,8 +31,14 @@ from orbit_clock.contact_plan import Contact, ContactPlan
 from orbit_clock.frames import C_KM_S, WGS84_A_KM, WGS84_B_KM
 from orbit_clock.propagation import Constellation, build_constellation
 
-__all__ = ["los_clearance_km", "los_clear", "windows_from_margin", "isl_windows", "isl_contact_plan",
-           "mean_range_km"]
+__all__ = [
+    "isl_contact_plan",
+    "isl_windows",
+    "los_clear",
+    "los_clearance_km",
+    "mean_range_km",
+    "windows_from_margin",
+]
 
 _Z_SCALE = WGS84_A_KM / WGS84_B_KM
 

@@ -27,7 +27,7 @@ from sgp4.api import WGS84, Satrec, SatrecArray, jday
 from orbit_clock.frames import gmst_rad, teme_to_ecef
 from orbit_clock.walker import WalkerElements, walker_elements
 
-__all__ = ["Constellation", "build_constellation", "PropagationError", "MU_WGS84_KM3_S2"]
+__all__ = ["MU_WGS84_KM3_S2", "Constellation", "PropagationError", "build_constellation"]
 
 MU_WGS84_KM3_S2 = 398600.5  # sgp4's wgs84 mu [km^3/s^2]
 _SGP4_EPOCH0_JD = 2433281.5  # 1949 Dec 31 00:00 UT, origin of sgp4init's epoch argument
@@ -38,7 +38,7 @@ class PropagationError(ValueError):
 
 
 def _jd_fr(epoch: _dt.datetime) -> tuple[float, float]:
-    e = epoch.astimezone(_dt.timezone.utc)
+    e = epoch.astimezone(_dt.UTC)
     return jday(e.year, e.month, e.day, e.hour, e.minute, e.second + e.microsecond * 1e-6)
 
 

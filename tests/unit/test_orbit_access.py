@@ -97,7 +97,7 @@ def test_access_against_skyfield_find_events(setup):
 
 
 def test_coarse_refine_matches_bruteforce_grid(setup):
-    sc, c, g = setup
+    _sc, c, g = setup
     sats = [0, 5, 12, 20]
     fast = access_windows(c, g, 0.0, 3600.0, LIMIT, sats=sats)
     ref = access_windows_bruteforce(c, g, 0.0, 3600.0, LIMIT, sats=sats)
@@ -124,7 +124,7 @@ def test_invariants_paper_scale(setup):
     # off-nadir profile is inside the limit within the window and outside just beyond its edges
     rng = np.random.default_rng(3)
     for k in rng.choice(len(w), 25, replace=False):
-        t, eta = off_nadir_profile(c, g, w, int(k))
+        _t, eta = off_nadir_profile(c, g, w, int(k))
         assert np.all(eta <= LIMIT + 1e-3)
         assert eta.min() == pytest.approx(w.min_off_nadir_deg[k], abs=0.05)
         if w.start_s[k] > 1.0:
@@ -133,7 +133,7 @@ def test_invariants_paper_scale(setup):
 
 
 def test_visibility_matrix_agrees_with_windows(setup):
-    sc, c, g = setup
+    _sc, c, g = setup
     t = np.arange(0.0, 3600.0, 1.0)
     vis, eta = visibility_matrix(c, "sat_12", t, g, LIMIT)
     assert vis.shape == eta.shape == (t.size, len(g))

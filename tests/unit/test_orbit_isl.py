@@ -2,13 +2,23 @@
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from orbit_clock import (access_windows, build_constellation, ground_contact_plan, ground_points,
-                         isl_contact_plan, isl_windows, los_clear, priority_order)
+from orbit_clock import (
+    access_windows,
+    build_constellation,
+    ground_contact_plan,
+    ground_points,
+    isl_contact_plan,
+    isl_windows,
+    los_clear,
+    priority_order,
+)
 from orbit_clock.access import AccessWindows
 from orbit_clock.contact_plan import canonical_node, read_contact_plan
 from orbit_clock.frames import WGS84_A_KM, WGS84_B_KM
@@ -60,7 +70,7 @@ def paper(paper_scenario):
 
 
 def test_isl_plan_shape_and_symmetry(paper):
-    sc, c, plan = paper
+    sc, _c, plan = paper
     fwd = {(x.src, x.dst, x.start_s, x.end_s, x.range_light_s) for x in plan}
     assert all((b, a, s, e, r) in fwd for a, b, s, e, r in fwd)  # both directions, identical windows
     assert all(0.0 <= x.start_s < x.end_s <= sc.scenario.horizon_s and x.rate_bps == 1000.0 for x in plan)
@@ -75,12 +85,12 @@ def test_isl_plan_shape_and_symmetry(paper):
     for x in plan:
         by_pair.setdefault((x.src, x.dst), []).append(x)
     for xs in by_pair.values():
-        assert all(a.end_s < b.start_s for a, b in zip(xs, xs[1:]))
+        assert all(a.end_s < b.start_s for a, b in itertools.pairwise(xs))
 
 
 def test_isl_plan_against_the_studys_plan(paper, paper_inputs):
     """Same pairs as the study's contact plan, count within 2 %, cross-plane windows of similar length."""
-    sc, c, plan = paper
+    _sc, _c, plan = paper
     theirs = read_contact_plan(paper_inputs / "contact_plan_3p_8s.csv", rate_bps=1000.0)
     assert len(theirs) == 1384
     assert plan.pairs() == {tuple(sorted(map(canonical_node, p))) for p in theirs.pairs()}
@@ -91,7 +101,7 @@ def test_isl_plan_against_the_studys_plan(paper, paper_inputs):
 
 
 def test_isl_refined_edges_match_1s_bruteforce(paper):
-    sc, c, _ = paper
+    _sc, c, _ = paper
     i, j, s, e = isl_windows(c, 0.0, 3600.0, step_s=10.0)
     bi, bj, bs, be = isl_windows(c, 0.0, 3600.0, step_s=1.0, refine=False)
     assert len(i) == len(bi) > 25

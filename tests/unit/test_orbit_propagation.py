@@ -149,5 +149,5 @@ def test_core_modules_import_without_rclpy():
             "import orbit_clock, orbit_clock.walker, orbit_clock.frames, orbit_clock.propagation, "
             "orbit_clock.ground_points, orbit_clock.access, orbit_clock.isl, orbit_clock.ground_passes, "
             "orbit_clock.priority\n")
-    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    r = subprocess.run([sys.executable, "-c", code], check=False, capture_output=True, text=True, timeout=60)
     assert r.returncode == 0, r.stderr
