@@ -7,10 +7,16 @@ time ``t`` is
 * else ``absval(g, t) / (n + 1)`` where ``n`` is how many times ``g`` was seen before ``t`` and
   ``absval`` is the OSSE value (integer 1..256 per GP per 15-min slot).
 
-"Seen before t" uses every observation the caller knows of (executed by anyone, or planned by
-another satellite, see :func:`prior_state`): an observation at exactly ``t`` by another satellite
-counts as before ours when its source name sorts before ours, so two satellites with the same
-knowledge resolve the same claim the same way (implicit consensus, deterministic tie-breaking).
+"Seen before t" uses every observation the caller knows was executed (by itself or by anyone who
+told it); at exactly ``t`` another satellite's look counts as before ours when its name sorts first.
+
+Implicit consensus (:func:`prior_state`): plans of other satellites are claims resolved by a fixed
+rank, the satellite name order (``sat_11`` outranks ``sat_12``). A satellite yields to every known
+planned look of a satellite that outranks it - the GP is worth 0 to it within ``revisit_zero_s``
+*before or after* that look, and counts as seen after it - and ignores the plans of lower-ranked
+satellites (they yield to it). Two satellites that know each other's plans therefore never both keep
+the same GP within 15 min, and replanning in turns settles after one round (the higher rank does
+not move for the lower).
 
 Belief: satellite ``s`` does not know ``absval`` exactly; it believes ``absval * (1 + sigma_s z)``
 with ``z ~ N(0, 1)`` i.i.d. per (GP, slot), clipped at 0, and ``sigma_s ~ U(sigma_min, sigma_max)``
@@ -117,11 +123,12 @@ class Belief:
 
 @dataclass(frozen=True, order=True)
 class KnownObservation:
-    """An observation a satellite knows of: executed by anyone, or planned by another satellite."""
+    """An observation a satellite knows of: executed by anyone, or planned (by another satellite)."""
 
     t_s: float
     gp: int
     source: str
+    planned: bool = False
 
 
 def prior_state(known: Iterable[KnownObservation], gp_ids: np.ndarray, times_s: np.ndarray,
@@ -139,18 +146,22 @@ def prior_state(known: Iterable[KnownObservation], gp_ids: np.ndarray, times_s: 
     count = np.zeros((T, G), dtype=np.int64)
     recent = np.zeros((T, G), dtype=bool)
     col = {int(g): j for j, g in enumerate(gp_ids)}
-    by_col: dict[int, list[tuple[float, bool]]] = {}
+    by_col: dict[int, list[tuple[float, bool, bool]]] = {}
     for ob in known:
         j = col.get(int(ob.gp))
         if j is None:
             continue
-        by_col.setdefault(j, []).append((float(ob.t_s), ob.source <= me))
+        if ob.planned and ob.source >= me:
+            continue  # own plan or a lower-ranked satellite's: it yields to us
+        by_col.setdefault(j, []).append((float(ob.t_s), ob.source <= me, bool(ob.planned)))
     for j, obs in by_col.items():
         ts = np.array([o[0] for o in obs])
         wins = np.array([o[1] for o in obs])  # counts at equal time
+        planned = np.array([o[2] for o in obs])
         # before[t, k]: observation k precedes time t
         before = (ts[None, :] < times_s[:, None]) | ((ts[None, :] == times_s[:, None]) & wins[None, :])
         count[:, j] = before.sum(axis=1)
         rec = before & ((times_s[:, None] - ts[None, :]) < revisit_zero_s)
+        rec |= planned[None, :] & (np.abs(times_s[:, None] - ts[None, :]) < revisit_zero_s)
         recent[:, j] = rec.any(axis=1)
     return count, recent

@@ -28,7 +28,7 @@ class BruteTooLarge(ValueError):
 
 def solve_brute(p: SchedulingProblem, *, rule: str = "sequential", max_candidates: int = 60,
                 max_nodes: int = 2_000_000) -> Plan:
-    """The optimum plan by exhaustive search (ties: the first found in (step, GP) order)."""
+    """The optimum plan by exhaustive search (ties: the fewest observations, then the first found)."""
     if rule not in ("sequential", "pairwise"):
         raise ValueError(f"solve_brute: rule must be 'sequential' or 'pairwise', got {rule!r}")
     ks, gs = np.nonzero(p.v_first > 0.0)
@@ -50,7 +50,7 @@ def solve_brute(p: SchedulingProblem, *, rule: str = "sequential", max_candidate
         if nodes[0] > max_nodes:
             raise BruteTooLarge(f"solve_brute: more than max_nodes={max_nodes} plans")
         v, _ = evaluate_plan(p, ks[seq], gs[seq])
-        if v > best[0] + 1e-12:
+        if v > best[0] + 1e-9 or (v > best[0] - 1e-9 and len(seq) < len(best[1])):
             best[0], best[1] = v, list(seq)
         start = seq[-1] + 1 if seq else 0
         for j in range(start, n):
