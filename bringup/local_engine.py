@@ -39,7 +39,7 @@ from operator import attrgetter
 
 from msgs_json.envelope import Emit, Envelope, Participant, StepResult
 
-__all__ = ["EngineError", "Progress", "RunResult", "LocalEngine", "run_local"]
+__all__ = ["EngineError", "LocalEngine", "Progress", "RunResult", "run_local"]
 
 
 class EngineError(ValueError):
@@ -232,8 +232,7 @@ class LocalEngine:
             for w in wake:
                 if w is not None and w < nxt:
                     nxt = w
-            if nxt > horizon:
-                nxt = horizon
+            nxt = min(nxt, horizon)
             t = nxt if nxt > t else t + 1
 
         # finish: emits recorded, delivered to no one (the last step's emits too)

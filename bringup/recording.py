@@ -40,7 +40,7 @@ from __future__ import annotations
 import struct
 from collections.abc import Iterable, Iterator
 from pathlib import Path
-from typing import Any, NamedTuple
+from typing import Any, NamedTuple, Self
 
 from rosbags.interfaces import Qos, QosDurability, QosHistory, QosLiveliness, QosReliability, QosTime
 from rosbags.rosbag2 import Reader, Writer
@@ -52,17 +52,17 @@ from msgs_json.envelope import Envelope
 from msgs_json.wire import WireError, decode_envelope, encode_envelope
 
 __all__ = [
-    "BagWriter",
+    "CLOCK_TYPE",
+    "STRING",
+    "TYPESTORE",
     "BagReader",
+    "BagWriter",
     "RawMessage",
     "TopicStats",
-    "TYPESTORE",
-    "STRING",
-    "CLOCK_TYPE",
-    "string_cdr",
-    "string_from_cdr",
     "clock_cdr",
     "make_qos",
+    "string_cdr",
+    "string_from_cdr",
 ]
 
 TYPESTORE = get_typestore(Stores.ROS2_JAZZY)
@@ -195,7 +195,7 @@ class BagWriter:
             self._closed = True
             self._w.close()
 
-    def __enter__(self) -> BagWriter:
+    def __enter__(self) -> Self:
         return self
 
     def __exit__(self, *exc) -> None:
@@ -220,13 +220,13 @@ class BagReader:
         try:
             self._r = Reader(self.path)
             self._r.open()
-        except Exception as exc:  # rosbags raises ReaderError, YAML errors, struct errors...
+        except Exception as exc:  # noqa: BLE001 - rosbags raises ReaderError, YAML, struct errors...
             raise UserError(f"bag {self.path}: cannot open: {_line(exc)}") from None
 
     def close(self) -> None:
         self._r.close()
 
-    def __enter__(self) -> BagReader:
+    def __enter__(self) -> Self:
         return self
 
     def __exit__(self, *exc) -> None:
@@ -263,7 +263,7 @@ class BagReader:
                 yield RawMessage(c.topic, c.msgtype, int(t), bytes(raw))
         except UserError:
             raise
-        except Exception as exc:
+        except Exception as exc:  # noqa: BLE001 - a damaged file fails in many ways: one line for all
             raise UserError(f"bag {self.path}: unreadable: {_line(exc)}") from None
 
     def envelopes(self, topics: Iterable[str] | None = None) -> Iterator[Envelope]:
@@ -281,7 +281,7 @@ class BagReader:
         for m in self.messages(topics):
             try:
                 yield m.topic, m.log_time_ns, TYPESTORE.deserialize_cdr(m.cdr, m.msgtype)
-            except Exception as exc:
+            except Exception as exc:  # noqa: BLE001 - any decoding failure is the bag's fault
                 raise UserError(f"bag {self.path}: {m.topic}: cannot decode {m.msgtype}: {_line(exc)}") from None
 
 

@@ -33,18 +33,18 @@ from msgs_json.topics import VIZ_MARKERS, fix_topic
 
 __all__ = [
     "FRAME",
+    "MARKERS_TYPE",
+    "NAVSAT_TYPE",
     "SCALE_KM",
     "WGS84_A_KM",
     "WGS84_F",
+    "constellation_markers",
     "ecef_to_geodetic",
     "geodetic_to_ecef",
     "navsat_fix",
-    "constellation_markers",
     "value_color",
     "viz_messages",
     "write_viz",
-    "NAVSAT_TYPE",
-    "MARKERS_TYPE",
 ]
 
 FRAME = "earth"

@@ -20,7 +20,7 @@ import msgspec
 
 from msgs_json.topics import is_bytes_topic, schema_for
 
-__all__ = ["MessageError", "encode", "encode_bytes", "decode", "decode_as"]
+__all__ = ["MessageError", "decode", "decode_as", "encode", "encode_bytes"]
 
 
 class MessageError(ValueError):

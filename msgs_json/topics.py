@@ -18,26 +18,26 @@ from msgs_json import schemas as S
 from msgs_json.schemas import SCHEMA_VERSION
 
 __all__ = [
-    "SCHEMA_VERSION",
     "CLOCK",
-    "SIM_STEP",
-    "SIM_ACK",
     "CONTACTS",
-    "GROUND_UPLINK",
     "GROUND_DOWNLINK",
+    "GROUND_UPLINK",
+    "SCHEMA_VERSION",
+    "SIM_ACK",
+    "SIM_STEP",
     "VIZ_MARKERS",
     "acs_command_topic",
     "acs_state_topic",
-    "schedule_topic",
-    "observations_topic",
     "dtn_events_topic",
-    "dtn_out_topic",
     "dtn_in_topic",
+    "dtn_out_topic",
     "fix_topic",
-    "sat_of_topic",
-    "schema_for",
     "is_bytes_topic",
     "is_known_topic",
+    "observations_topic",
+    "sat_of_topic",
+    "schedule_topic",
+    "schema_for",
 ]
 
 CLOCK = "/clock"

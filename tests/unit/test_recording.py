@@ -10,7 +10,14 @@ from hypothesis import strategies as st
 
 from bringup.errors import UserError
 from bringup.recording import (
-    CLOCK_TYPE, STRING, TYPESTORE, BagReader, BagWriter, clock_cdr, string_cdr, string_from_cdr,
+    CLOCK_TYPE,
+    STRING,
+    TYPESTORE,
+    BagReader,
+    BagWriter,
+    clock_cdr,
+    string_cdr,
+    string_from_cdr,
 )
 from msgs_json.envelope import Envelope
 
@@ -112,10 +119,9 @@ def test_clock_cdr_matches_rosbags_serializer():
 
 
 def test_bag_closed_on_exception_stays_readable(tmp_path):
-    with pytest.raises(KeyboardInterrupt):
-        with BagWriter(tmp_path / "bag") as bag:
-            bag.write_envelope(_envelopes()[1])
-            raise KeyboardInterrupt
+    with pytest.raises(KeyboardInterrupt), BagWriter(tmp_path / "bag") as bag:
+        bag.write_envelope(_envelopes()[1])
+        raise KeyboardInterrupt
     assert len(list(BagReader(tmp_path / "bag").envelopes())) == 1
 
 
@@ -131,9 +137,8 @@ def test_writer_refuses_existing_path_and_bad_input(tmp_path):
 
 
 def _one_line_user_error(path, match):
-    with pytest.raises(UserError, match=match) as ei:
-        with BagReader(path) as r:
-            list(r.messages())
+    with pytest.raises(UserError, match=match) as ei, BagReader(path) as r:
+        list(r.messages())
     assert "\n" not in str(ei.value)
 
 

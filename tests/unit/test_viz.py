@@ -7,8 +7,17 @@ import pytest
 
 from bringup.recording import TYPESTORE, BagReader, BagWriter
 from bringup.viz import (
-    FRAME, MARKERS_TYPE, NAVSAT_TYPE, SCALE_KM, constellation_markers, ecef_to_geodetic,
-    geodetic_to_ecef, navsat_fix, value_color, viz_messages, write_viz,
+    FRAME,
+    MARKERS_TYPE,
+    NAVSAT_TYPE,
+    SCALE_KM,
+    constellation_markers,
+    ecef_to_geodetic,
+    geodetic_to_ecef,
+    navsat_fix,
+    value_color,
+    viz_messages,
+    write_viz,
 )
 
 
@@ -90,7 +99,7 @@ def test_viz_written_to_bag_decodes_with_mcap(tmp_path):
                    make_reader(f, decoder_factories=[DecoderFactory()]).iter_decoded_messages()]
     fixes = [m for t, m in decoded if t == "/sat_12/fix"]
     assert len(fixes) == 3 and fixes[0].longitude == pytest.approx(90.0)
-    ma = [m for t, m in decoded if t == "/viz/constellation"][0]
+    ma = next(m for t, m in decoded if t == "/viz/constellation")
     assert {m.ns for m in ma.markers} == {"earth", "satellites", "isl", "labels"}
 
 
