@@ -105,8 +105,9 @@ def run_dtn(plan: ContactPlan, traffic: list[TrafficItem], *, config: AgentConfi
         elif kind == _ARRIVE:
             node, raw, sender = data
             if node in agents:
-                agents[node].receive(raw, sender, t)
-                service(node, t)
+                status = agents[node].receive(raw, sender, t)
+                if status == "queued":  # nothing else changes what the agent's radio does
+                    service(node, t)
         else:
             if wake_at.get(data) == t:
                 wake_at[data] = None

@@ -174,6 +174,8 @@ class Bundle:
     blocks: list[CanonicalBlock] = field(default_factory=list)  # every block except the payload
     payload_crc_type: int = CRC_NONE
     payload_flags: int = 0
+    # the primary block's bytes as received (decode_bundle sets it; BPSec's IPPT reads it)
+    primary_raw: bytes | None = field(default=None, compare=False, repr=False)
 
     # -- identity
     @property
@@ -262,7 +264,10 @@ def _loads(data: bytes, what: str):
 
 
 def encode_primary(b: Bundle) -> bytes:
-    """The primary block's bytes (CRC filled)."""
+    """The primary block's bytes (CRC filled); as received when the bundle was decoded (the
+    primary block is immutable in transit, RFC 9171 4.3.1)."""
+    if b.primary_raw is not None:
+        return b.primary_raw
     prim = [7, b.flags, b.crc_type, _eid_cbor(b.dest), _eid_cbor(b.src), _eid_cbor(b.report_to or b.src),
             [b.creation_ms, b.seq], b.lifetime_ms]
     if b.fragment is not None:
@@ -294,13 +299,26 @@ def _split_blocks(data: bytes) -> list[tuple[object, bytes]]:
         items = cbor2.loads(data)
     except Exception as exc:  # cbor2 raises several types on garbage
         raise BundleError(f"bad CBOR: {exc}") from None
-    if isinstance(items, list):
+    if isinstance(items, list) and items:
+        # raw bytes are needed only for the CRC checks and the primary block (BPSec's IPPT reads
+        # it): re-encode and compare with the input (true for every shortest-form encoder, ours too).
         try:
-            pieces = [cbor2.dumps(x) for x in items]
-        except Exception:
-            pieces = None
-        if pieces is not None and len(data) == 2 + sum(map(len, pieces)) and b"".join(pieces) == data[1:-1]:
+            no_crc = all(isinstance(x, list) and len(x) == 5 and x[3] == 0 for x in items[1:])
+            pieces = []
+            pos = 1
+            for x in (items[:1] if no_crc else items):
+                enc = cbor2.dumps(x)
+                if data[pos:pos + len(enc)] != enc:
+                    raise ValueError("not shortest form")
+                pieces.append(enc)
+                pos += len(enc)
+            if no_crc:
+                pieces += [b""] * (len(items) - 1)
+            elif pos != len(data) - 1:
+                raise ValueError("length")
             return list(zip(items, pieces))
+        except Exception:
+            pass
     fp = io.BytesIO(data)
     fp.read(1)
     dec = cbor2.CBORDecoder(fp)
@@ -361,7 +379,7 @@ def decode_bundle(data: bytes) -> Bundle:
     ts = prim[6]
     if not (isinstance(ts, list) and len(ts) == 2):
         raise BundleError("primary block: creation timestamp is not [time, seq]")
-    b = Bundle(dest=_eid_from(prim[3], "destination"), src=_eid_from(prim[4], "source"),
+    b = Bundle(primary_raw=raw, dest=_eid_from(prim[3], "destination"), src=_eid_from(prim[4], "source"),
                report_to=_eid_from(prim[5], "report-to"), creation_ms=_uint(ts[0], "creation time"),
                seq=_uint(ts[1], "sequence number"), lifetime_ms=_uint(prim[7], "lifetime"), flags=flags,
                crc_type=crc_type,

@@ -1,0 +1,147 @@
+"""The ISL medium as a lockstep participant: bundles cross only during contacts (DESIGN.md section 5).
+
+Reads every satellite's ``/sat_XX/dtn/out`` (raw BPv7 bytes, stamped with the transmission's start
+time by the sending agent), checks the transmission against the truth contact plan with
+dtn_router/link.py (a contact from the sender to the intended next hop covers it, the sender's radio
+is free, the transmission ends before the contact does), and delivers a copy to every satellite in
+contact with the sender at that time (broadcast medium) on ``/sat_YY/dtn/in``, stamped with its
+arrival time (start + bits / rate + light time). A delivery waits in the router until the step that
+reaches its arrival time (contract rule 2: nothing is emitted stamped in the future), and the router
+asks to be woken exactly then.
+
+It also announces contact windows on ``/orbit/contacts`` as they open and close (ISL and ground),
+each stamped with its edge time and emitted at the step covering it (edges do not add steps).
+
+Oracle: the system test checks from the bag that every delivery on /sat_YY/dtn/in lies inside a
+contact from its sender with the link delay (tests/system/test_run_local.py).
+"""
+
+from __future__ import annotations
+
+import heapq
+import itertools
+
+from msgs_json import codec, schemas as S, topics as T
+from msgs_json.envelope import Emit, Envelope, StepResult
+
+__all__ = ["RouterLogic", "ROUTER_NAME"]
+
+ROUTER_NAME = "dtn_router"
+_NS = 1_000_000_000
+
+
+class RouterLogic:
+    name = ROUTER_NAME
+
+    def __init__(self, world, *, bundle_bits: int | None = None, truth_plan=None, extra_delay_s: float = 0.0,
+                 cuts: list[tuple[str, str, float, float]] | None = None):
+        from dtn_router.link import LinkModel
+        from orbit_clock.contact_plan import Contact, ContactPlan
+
+        self.world = world
+        self.sats = list(world.sat_names)
+        self.bits = int(bundle_bits or world.scenario.isl.bundle_bits)
+        plan = truth_plan or world.isl_plan
+        if cuts:
+            plan = ContactPlan(_apply_cuts(plan.contacts, cuts, Contact))
+        if extra_delay_s:
+            plan = ContactPlan([Contact(c.start_s, c.end_s, c.src, c.dst, c.rate_bps,
+                                        c.range_light_s + extra_delay_s) for c in plan.contacts])
+        self.link = LinkModel(plan)
+        self.pending: list[tuple[int, str, int, bytes]] = []  # (arrival_ns, receiver, order, bytes)
+        self._order = itertools.count()
+        self.rejected = 0
+        self.failures: dict[str, int] = {}
+        # contact window announcements: (t_ns, order, event, contact, kind)
+        edges = []
+        for kind, cp in (("isl", plan), ("ground", world.ground_plan)):
+            for c in cp.contacts:
+                s_ns, e_ns = int(round(c.start_s * _NS)), int(round(c.end_s * _NS))
+                if e_ns <= s_ns:
+                    continue
+                edges.append((s_ns, 0, "open", c, kind))
+                edges.append((e_ns, 1, "close", c, kind))
+        edges.sort(key=lambda e: (e[0], e[1], e[3].src, e[3].dst))
+        self._edges = edges
+        self._edge_i = 0
+
+    def subscriptions(self) -> list[str]:
+        return [T.dtn_out_topic(s) for s in self.sats]
+
+    def start(self, t0_ns: int) -> StepResult:
+        return StepResult(self._announce(t0_ns), self._wakeup(t0_ns))
+
+    def step(self, t_ns: int, inbox: list[Envelope]) -> StepResult:
+        for env in inbox:
+            self._transmit(env)
+        emits = self._announce(t_ns)
+        while self.pending and self.pending[0][0] <= t_ns:
+            arrival, receiver, _, data = heapq.heappop(self.pending)
+            emits.append(Emit(T.dtn_in_topic(receiver), data, arrival))
+        return StepResult(emits, self._wakeup(t_ns))
+
+    def finish(self, t_ns: int) -> list[Emit]:
+        return []
+
+    def _transmit(self, env: Envelope) -> None:
+        from sat_node.dtn.bpv7 import BundleError, peek_next_hop
+        from orbit_clock.contact_plan import node_name
+
+        if not isinstance(env.data, bytes) or env.source not in self.sats:
+            self.rejected += 1
+            return
+        try:
+            nh = peek_next_hop(env.data)
+            next_hop = node_name(nh) if nh is not None else None
+        except (BundleError, ValueError):
+            self.rejected += 1
+            return
+        if next_hop is None:
+            self.rejected += 1
+            return
+        out = self.link.transmit(env.source, next_hop, env.t_ns, self.bits)
+        if not out.ok:
+            self.failures[out.reason] = self.failures.get(out.reason, 0) + 1
+            return
+        for cp in out.copies:
+            heapq.heappush(self.pending, (cp.arrival_ns, cp.node, next(self._order), env.data))
+
+    def _announce(self, t_ns: int) -> list[Emit]:
+        emits = []
+        while self._edge_i < len(self._edges) and self._edges[self._edge_i][0] <= t_ns:
+            at, _, event, c, kind = self._edges[self._edge_i]
+            self._edge_i += 1
+            msg = S.ContactWindow(event=event, kind=kind, src=c.src, dst=c.dst,
+                                  start_ns=int(round(c.start_s * _NS)), end_ns=int(round(c.end_s * _NS)),
+                                  rate_bps=float(c.rate_bps), range_light_s=float(c.range_light_s))
+            emits.append(Emit(T.CONTACTS, codec.encode(msg), at))
+        return emits
+
+    def _wakeup(self, t_ns: int) -> int | None:
+        cands = []
+        if self.pending:
+            cands.append(self.pending[0][0])
+        cands = [c for c in cands if c > t_ns]
+        return min(cands) if cands else None
+
+
+def _apply_cuts(contacts, cuts, Contact):
+    """Remove [t1, t2] from every contact between the named pair (both directions)."""
+    out = []
+    for c in contacts:
+        pieces = [(c.start_s, c.end_s)]
+        for a, b, t1, t2 in cuts:
+            if {c.src, c.dst} != {a, b}:
+                continue
+            nxt = []
+            for s, e in pieces:
+                if t2 <= s or t1 >= e:
+                    nxt.append((s, e))
+                    continue
+                if s < t1:
+                    nxt.append((s, t1))
+                if t2 < e:
+                    nxt.append((t2, e))
+            pieces = nxt
+        out += [Contact(s, e, c.src, c.dst, c.rate_bps, c.range_light_s) for s, e in pieces if e > s]
+    return out
