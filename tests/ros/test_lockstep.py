@@ -80,3 +80,28 @@ def test_stalled_participant_is_named(tmp_path):
     assert "c1" in res.message and "no ack" in res.message, res.message
     assert "c0" not in res.message.split("from", 1)[-1]  # only the silent one is blamed
     assert waited < 60  # bounded: ack timeout (2 s) + start-up + shutdown, not forever
+
+
+def test_bad_message_is_counted_not_fatal(monkeypatch):
+    """A subscription callback fed junk counts it and keeps going (no exception escapes)."""
+    from std_msgs.msg import String
+
+    from bringup.launcher import lease_domain_id
+    from bringup.ros_host import ParticipantHost
+
+    with lease_domain_id() as lease:
+        monkeypatch.setenv("ROS_DOMAIN_ID", str(lease.domain_id))
+        host = ParticipantHost("pingpong", [toy.Ping(), toy.Pong()])
+        try:
+            box = host.slots[1].inboxes[0]  # pong's /toy/ping inbox
+            cb = host._make_cb(box)
+            cb(String(data="not json"))
+            cb(String(data='{"t_ns": -1, "src": "x", "seq": 0, "body": "{}"}'))
+            cb(String(data='{"t_ns": 5, "src": "ping", "seq": 0, "body": "{}"}'))
+            assert box.decode_errors == 2 and host.decode_errors == {"/toy/ping": 2}
+            assert [e.seq for e in box.pending] == [0]
+            assert box.ready({"ping": 0}) is True and box.expected == 0  # a later step's envelope is held
+            box.expected = 1
+            assert box.ready({"ping": 1}) and [e.t_ns for e in box.take({"ping": 1})] == [5]
+        finally:
+            host.close()
