@@ -20,6 +20,7 @@ import heapq
 import itertools
 import time
 from dataclasses import dataclass, field
+from pathlib import Path
 
 from orbit_clock.contact_plan import ContactPlan
 from sat_node.dtn.agent import AgentConfig, BundleAgent
@@ -54,8 +55,10 @@ def _payload(item: TrafficItem, size: int) -> bytes:
 
 def run_dtn(plan: ContactPlan, traffic: list[TrafficItem], *, config: AgentConfig | None = None,
             truth: ContactPlan | None = None, horizon_ns: int | None = None, payload_bytes: int = 160,
-            on_bundle_created=None) -> DtnRun:
-    """Run the DTN on ``plan`` (what agents believe; ``truth`` defaults to it) with ``traffic``."""
+            dump_dir=None, dump_count: int = 100) -> DtnRun:
+    """Run the DTN on ``plan`` (what agents believe; ``truth`` defaults to it) with ``traffic``.
+    ``dump_dir``: write the encoded bytes of the first ``dump_count`` bundles created there
+    (``<bundle id>.bpv7``, as they stand at creation: primary, BIB, priority, hop count, payload)."""
     t0 = time.perf_counter()
     config = config or AgentConfig()
     graph = ContactGraph(plan)
@@ -99,8 +102,10 @@ def run_dtn(plan: ContactPlan, traffic: list[TrafficItem], *, config: AgentConfi
             item = traffic[data]
             bid = agents[item.source].originate(_payload(item, payload_bytes), item.dest, item.priority, t)
             run.created_ids[data] = bid
-            if on_bundle_created is not None:
-                on_bundle_created(data, bid)
+            if dump_dir is not None and len(run.created_ids) <= dump_count:
+                raw = agents[item.source].bundle_bytes(bid)
+                if raw is not None:
+                    (Path(dump_dir) / f"{bid}.bpv7").write_bytes(raw)
             service(item.source, t)
         elif kind == _ARRIVE:
             node, raw, sender = data

@@ -161,6 +161,13 @@ class BundleAgent:
     def _created_ns(self, b: Bundle) -> int:
         return (b.creation_ms - self.config.epoch_dtn_ms) * 1_000_000
 
+    def bundle_bytes(self, bundle_id: str) -> bytes | None:
+        """Encoded bytes of a bundle this node holds (None if it does not)."""
+        h = self._held.get(bundle_id)
+        if h is None and bundle_id in self._in_flight:
+            h = self._in_flight[bundle_id][1]
+        return None if h is None else encode_bundle(h.bundle)
+
     def held_count(self) -> int:
         """Bundles this node still holds (queued or in flight)."""
         return len(self._held) + len(self._in_flight)

@@ -1,0 +1,101 @@
+"""``constellation dtn``: run the DTN alone (bundle agents + ISL link model) on a contact plan and a
+traffic table with the deterministic discrete-event engine, and print the report's dtn.* figures."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from pathlib import Path
+
+from bringup.errors import UserError
+
+HELP = "run the DTN alone (BPv7 agents, CGR, ISL link model) on a contact plan and traffic; print dtn.* figures"
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--contact-plan", type=Path, required=True,
+                   help="contact plan file (.csv the study's table, .json HDTN, .rc/.txt ION)")
+    p.add_argument("--plan-format", choices=["csv", "ion", "hdtn-json"], default=None,
+                   help="contact plan format (default: from the suffix)")
+    p.add_argument("--traffic", type=Path, required=True, help="traffic table (the study's traffic_case*.csv)")
+    p.add_argument("--rate-bps", type=float, default=1000.0,
+                   help="ISL rate [bit/s] for plans without a rate column (default: 1000)")
+    p.add_argument("--bundle-bits", type=int, default=2000, help="bundle size on the link [bit] (default: 2000)")
+    p.add_argument("--ttl-s", default="1:900,3:1800,15:3000",
+                   help="TTL by priority as 'maxprio:seconds,...' (default: the study's 1:900,3:1800,15:3000)")
+    p.add_argument("--json", action="store_true", help="print the figures as one JSON object")
+    p.add_argument("--dump-bundles", type=Path, default=None, metavar="DIR",
+                   help="write the encoded bytes of the first 100 bundles created, one <id>.bpv7 file each")
+    p.add_argument("--no-lower-bound", action="store_true", help="skip the latency lower bound")
+
+
+def _parse_ttl(text: str) -> dict[int, float]:
+    try:
+        out = {int(k): float(v) for k, v in (part.split(":") for part in text.split(","))}
+    except ValueError:
+        raise UserError(f"--ttl-s {text!r}: expected 'maxprio:seconds,...' e.g. 1:900,3:1800,15:3000") from None
+    if not out or max(out) < 15 or any(v <= 0 for v in out.values()):
+        raise UserError(f"--ttl-s {text!r}: must cover priority 15 with positive TTLs")
+    return out
+
+
+def run(args: argparse.Namespace) -> int:
+    from dtn_router.des import latency_lower_bounds, run_dtn
+    from orbit_clock.contact_plan import ContactPlanError, read_contact_plan
+    from sat_node.dtn.agent import AgentConfig
+    from sat_node.dtn.stats import dtn_report
+    from sat_node.dtn.traffic import TrafficError, read_traffic
+
+    t0 = time.perf_counter()
+    if args.rate_bps <= 0 or args.bundle_bits <= 0:
+        raise UserError("--rate-bps and --bundle-bits must be positive")
+    try:
+        plan = read_contact_plan(args.contact_plan, args.plan_format, rate_bps=args.rate_bps)
+        traffic = read_traffic(args.traffic)
+    except (ContactPlanError, TrafficError) as exc:
+        raise UserError(str(exc)) from None
+    unknown = sorted({t.source for t in traffic} - set(plan.nodes))
+    if unknown:
+        raise UserError(f"{args.traffic}: sources {unknown[:5]} have no contact in {args.contact_plan}")
+    config = AgentConfig(ttl_s_by_priority=_parse_ttl(args.ttl_s), bundle_bits=args.bundle_bits)
+    dump = None
+    if args.dump_bundles is not None:
+        args.dump_bundles.mkdir(parents=True, exist_ok=True)
+        dump = args.dump_bundles
+    run_ = run_dtn(plan, traffic, config=config, dump_dir=dump, dump_count=100)
+    report = dtn_report(run_.events, held=run_.held(),
+                        lower_bound_s=None if args.no_lower_bound else
+                        latency_lower_bounds(plan, traffic, args.bundle_bits, run_.created_ids))
+    report["dtn.sim_wall_s"] = run_.wall_s
+    report["runtime.wall_s"] = time.perf_counter() - t0
+    if args.json:
+        print(json.dumps(report, indent=1, sort_keys=True))
+    else:
+        _print_table(report)
+    return 0
+
+
+def _fmt(v) -> str:
+    if v is None:
+        return "-"
+    if isinstance(v, float):
+        return f"{v:.3f}"
+    return str(v)
+
+
+def _print_table(r: dict) -> None:
+    keys = ["dtn.bundles_created", "dtn.bundles_delivered", "dtn.delivery_ratio", "dtn.latency_s.mean",
+            "dtn.latency_s.lower_bound_mean", "dtn.latency_s.median", "dtn.latency_s.p95", "dtn.latency_s.max",
+            "dtn.dropped.ttl", "dtn.dropped.integrity", "dtn.dropped.other", "dtn.copies_discarded",
+            "dtn.bundles_held_at_end", "runtime.wall_s"]
+    for k in keys:
+        if k in r:
+            print(f"{k:34s} {_fmt(r[k])}")
+    print(f"{'priority':>8s} {'created':>8s} {'delivered':>9s} {'median_s':>9s} {'max_s':>9s}")
+    for p in range(1, 16):
+        c = r.get(f"dtn.latency_s_by_priority.{p}.created", 0)
+        if c:
+            print(f"{p:8d} {c:8d} {r[f'dtn.latency_s_by_priority.{p}.count']:9d} "
+                  f"{_fmt(r[f'dtn.latency_s_by_priority.{p}.median']):>9s} "
+                  f"{_fmt(r[f'dtn.latency_s_by_priority.{p}.max']):>9s}")
