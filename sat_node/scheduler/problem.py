@@ -115,13 +115,14 @@ class SchedulingProblem:
 
 def build_problem(*, t0_s: float, step_s: float, sat_pos_km, gp_ecef_km, in_for, absval,
                   slew: SlewModel, revisit_zero_s: float, gp_ids=None, prior_count=None,
-                  prior_recent=None, init_target_km=None, ready_t_s: float | None = None,
-                  sat_name: str = "") -> SchedulingProblem:
+                  prior_recent=None, init_target_km=None, init_sat_pos_km=None,
+                  ready_t_s: float | None = None, sat_name: str = "") -> SchedulingProblem:
     """Validate arrays and make an instance.
 
     absval may be (T, G) or (G,) (constant over the window). init_target_km: the ECEF point the
-    satellite points at when the window starts (None: nadir). ready_t_s: when the satellite can
-    start slewing (default t0_s). prior_count/prior_recent: from :func:`sat_node.value.prior_state`
+    satellite points at when the window starts (None: nadir), seen from init_sat_pos_km (default:
+    its first position). ready_t_s: when the satellite can start slewing (default t0_s; e.g. the
+    time of its last observation, with init_sat_pos_km its position then). prior_count/prior_recent: from :func:`sat_node.value.prior_state`
     (default: nothing known).
     """
     sat = np.ascontiguousarray(sat_pos_km, dtype=np.float64)
@@ -160,7 +161,10 @@ def build_problem(*, t0_s: float, step_s: float, sat_pos_km, gp_ecef_km, in_for,
         tgt = np.asarray(init_target_km, np.float64)
         if tgt.shape != (3,):
             raise ProblemError(f"init_target_km: need shape (3,), got {tgt.shape}")
-        u0 = unit_vectors(tgt - sat[0])
+        origin = sat[0] if init_sat_pos_km is None else np.asarray(init_sat_pos_km, np.float64)
+        if origin.shape != (3,):
+            raise ProblemError(f"init_sat_pos_km: need shape (3,), got {origin.shape}")
+        u0 = unit_vectors(tgt - origin)
     if revisit_zero_s < 0:
         raise ProblemError(f"revisit_zero_s: must be >= 0, got {revisit_zero_s}")
     return SchedulingProblem(
@@ -301,12 +305,13 @@ class OrbitContext:
 
 def instance_from_orbit(ctx: OrbitContext, *, sat: str, t0_s: float, window_s: float | None = None,
                         step_s: float | None = None, known=(), belief=None, init_target_km=None,
-                        gp_ids=None) -> SchedulingProblem:
+                        init_t_s: float | None = None, gp_ids=None) -> SchedulingProblem:
     """The instance of satellite ``sat`` over [t0_s, t0_s + window_s) on the scenario's DP grid.
 
     GPs: ``gp_ids`` or every GP in the FOR at some step of the window. Value: the OSSE field,
     through ``belief`` (a :class:`sat_node.value.Belief`) when given; known observations
     (:class:`sat_node.value.KnownObservation`) enter via :func:`sat_node.value.prior_state`.
+    init_target_km / init_t_s: the GP the satellite last pointed at and when (it may slew from then).
     """
     from sat_node.value import prior_state
 
@@ -329,9 +334,13 @@ def instance_from_orbit(ctx: OrbitContext, *, sat: str, t0_s: float, window_s: f
     else:
         absval = true
     count, recent = prior_state(known, ids, times, sat, sc.value.revisit_zero_s)
+    init_pos = None
+    if init_target_km is not None and init_t_s is not None:
+        init_pos = ctx.track_ecef_km(sat, np.array([float(init_t_s)]))[0]
     return build_problem(t0_s=t0_s, step_s=step, sat_pos_km=sat_pos, gp_ecef_km=ctx.gps.ecef_km[ids],
                          in_for=vis, absval=absval, slew=ctx.slew, revisit_zero_s=sc.value.revisit_zero_s,
                          gp_ids=ids, prior_count=count, prior_recent=recent, init_target_km=init_target_km,
+                         init_sat_pos_km=init_pos, ready_t_s=init_t_s if init_pos is not None else None,
                          sat_name=sat)
 
 
