@@ -21,8 +21,8 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from bringup.launcher import launch  # noqa: E402
-from bringup.run_spec import RunSpec  # noqa: E402
+from bringup.launcher import launch
+from bringup.run_spec import RunSpec
 
 
 def _rss_tree_kib(root_pid: int) -> int:

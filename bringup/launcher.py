@@ -35,8 +35,15 @@ from pathlib import Path
 from bringup.errors import UserError
 from bringup.run_spec import CLOCK_ROLE, RunSpec
 
-__all__ = ["DomainLease", "lease_domain_id", "LaunchProgress", "LaunchResult", "launch", "child_env",
-           "FASTDDS_PROFILE"]
+__all__ = [
+    "FASTDDS_PROFILE",
+    "DomainLease",
+    "LaunchProgress",
+    "LaunchResult",
+    "child_env",
+    "launch",
+    "lease_domain_id",
+]
 
 REPO = Path(__file__).resolve().parents[1]
 FASTDDS_PROFILE = Path(__file__).resolve().parent / "dds" / "fastdds_profile.xml"
@@ -56,7 +63,7 @@ class DomainLease:
             os.close(self._fd)
             self._fd = None
 
-    def __enter__(self) -> "DomainLease":
+    def __enter__(self) -> DomainLease:
         return self
 
     def __exit__(self, *exc) -> None:

@@ -20,7 +20,7 @@ import msgspec
 
 from bringup.errors import UserError
 
-__all__ = ["RunSpec", "CLOCK_ROLE", "load_factory"]
+__all__ = ["CLOCK_ROLE", "RunSpec", "load_factory"]
 
 CLOCK_ROLE = "clock"
 
@@ -49,7 +49,7 @@ class RunSpec(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
         path.write_bytes(msgspec.json.format(msgspec.json.encode(self), indent=2))
 
     @classmethod
-    def from_file(cls, path: Path) -> "RunSpec":
+    def from_file(cls, path: Path) -> RunSpec:
         try:
             spec = msgspec.json.decode(Path(path).read_bytes(), type=cls)
         except FileNotFoundError:

@@ -31,16 +31,16 @@ from msgs_json.envelope import Envelope
 from msgs_json.schemas import SimAck, SimStep
 
 __all__ = [
-    "STEP_TOPIC",
     "ACK_TOPIC",
+    "STEP_TOPIC",
+    "AckMsg",
     "LockstepError",
     "StepMsg",
-    "AckMsg",
-    "encode_msg",
-    "decode_step",
-    "decode_ack",
-    "next_step_ns",
     "TopicInbox",
+    "decode_ack",
+    "decode_step",
+    "encode_msg",
+    "next_step_ns",
 ]
 
 STEP_TOPIC = "/sim/step"
