@@ -17,8 +17,8 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from bringup.commands import bench_scheduler as bs  # noqa: E402
-from bringup.commands._common import scenario_from_args  # noqa: E402
+from bringup.commands import bench_scheduler as bs
+from bringup.commands._common import scenario_from_args
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -4,6 +4,12 @@ from sat_node.acs import SlewModel, SlewModelError, slew_angle_deg
 from sat_node.value import Belief, KnownObservation, belief_sigma, prior_state, true_value
 
 __all__ = [
-    "SlewModel", "SlewModelError", "slew_angle_deg",
-    "Belief", "KnownObservation", "belief_sigma", "prior_state", "true_value",
+    "Belief",
+    "KnownObservation",
+    "SlewModel",
+    "SlewModelError",
+    "belief_sigma",
+    "prior_state",
+    "slew_angle_deg",
+    "true_value",
 ]

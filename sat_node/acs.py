@@ -27,12 +27,12 @@ import numpy as np
 __all__ = [
     "SlewModel",
     "SlewModelError",
-    "unit_vectors",
-    "pointing_unit",
-    "nadir_unit",
     "angle_between_deg",
-    "slew_angle_deg",
+    "nadir_unit",
     "off_nadir_deg",
+    "pointing_unit",
+    "slew_angle_deg",
+    "unit_vectors",
 ]
 
 
@@ -97,7 +97,7 @@ class SlewModel:
                 f"acs.slew_coeffs_s: slew time must be positive and increasing on 0..180 deg, got {list(c)}")
 
     @classmethod
-    def from_scenario(cls, sc) -> "SlewModel":
+    def from_scenario(cls, sc) -> SlewModel:
         return cls(tuple(sc.acs.slew_coeffs_s), float(sc.acs.slew_margin_s))
 
     @property

@@ -35,18 +35,18 @@ Not done: the optional spatial-diversity term of the issue.
 from __future__ import annotations
 
 import zlib
+from collections.abc import Iterable
 from dataclasses import dataclass, field
-from typing import Iterable
 
 import numpy as np
 
 __all__ = [
-    "true_value",
-    "belief_sigma",
     "Belief",
     "KnownObservation",
-    "prior_state",
+    "belief_sigma",
     "name_key",
+    "prior_state",
+    "true_value",
 ]
 
 
@@ -102,7 +102,7 @@ class Belief:
         self.z = rng.standard_normal((self.n_gp, self.n_slots))
 
     @classmethod
-    def from_scenario(cls, sc, sat_name: str, n_gp: int, n_slots: int) -> "Belief":
+    def from_scenario(cls, sc, sat_name: str, n_gp: int, n_slots: int) -> Belief:
         return cls(seed=sc.scenario.seed, sat_name=sat_name, n_gp=n_gp, n_slots=n_slots,
                    sigma_min=sc.value.belief_sigma_min, sigma_max=sc.value.belief_sigma_max)
 

@@ -167,15 +167,15 @@ def _warm_up(ctx) -> None:
 
 def format_summary(r: dict) -> str:
     lines = [
-        f"scenario {r['scenario']}: {r['sat']} over {r['horizon_s']:.0f} s, {r['replans']} replans "
-        f"(lookahead {r['plan_lookahead_s']:.0f} s, step {r['dp_step_s']:g} s)",
-        f"  DP time          {r['dp_s_per_sat_6h']:.3f} s per satellite per 6 h "
-        f"({100 * r['horizon_fraction']:.5f} % of the horizon; study: 1 %, target <= 0.01 %)",
+        (f"scenario {r['scenario']}: {r['sat']} over {r['horizon_s']:.0f} s, {r['replans']} replans "
+         f"(lookahead {r['plan_lookahead_s']:.0f} s, step {r['dp_step_s']:g} s)"),
+        (f"  DP time          {r['dp_s_per_sat_6h']:.3f} s per satellite per 6 h "
+         f"({100 * r['horizon_fraction']:.5f} % of the horizon; study: 1 %, target <= 0.01 %)"),
         f"  slowest replan   {r['dp_max_replan_s']:.3f} s; instance building {r['build_s_per_sat_6h']:.2f} s / 6 h",
-        f"  observations     {r['observations']} of {r['gps_observed']} GPs; value assumed {r['value_assumed']:.0f}, "
-        f"true {r['value_true']:.0f} (belief sigma {100 * r['belief_sigma']:.1f} %)",
-        f"  DP / MILP        min {r['dp_over_milp_min']:.4f}, mean {r['dp_over_milp_mean']:.4f} over "
-        f"{r['instances']} instances (all MILP optimal: {r['milp_all_optimal']})",
+        (f"  observations     {r['observations']} of {r['gps_observed']} GPs; value assumed "
+         f"{r['value_assumed']:.0f}, true {r['value_true']:.0f} (belief sigma {100 * r['belief_sigma']:.1f} %)"),
+        (f"  DP / MILP        min {r['dp_over_milp_min']:.4f}, mean {r['dp_over_milp_mean']:.4f} over "
+         f"{r['instances']} instances (all MILP optimal: {r['milp_all_optimal']})"),
         f"  MILP time        {r['milp_s_total']:.2f} s total; DP on the same {r['dp_s_on_milp_instances']:.3f} s",
     ]
     return "\n".join(lines)

@@ -13,19 +13,39 @@ from sat_node.scheduler.dp import Plan, ScheduleInvariantError, make_plan, solve
 from sat_node.scheduler.milp import MilpResult, solve_milp
 from sat_node.scheduler.nonagile import nadir_pass_crossings, solve_nonagile
 from sat_node.scheduler.problem import (
+    OrbitContext,
     ProblemError,
     SchedulingProblem,
     build_problem,
     circular_walker_ecef_km,
     evaluate_plan,
     for_mask,
+    instance_from_orbit,
+    pass_starts_s,
     plan_violations,
     square_region_gp_ecef_km,
 )
 
 __all__ = [
-    "BruteTooLarge", "solve_brute", "Plan", "ScheduleInvariantError", "make_plan", "solve_dp",
-    "MilpResult", "solve_milp", "nadir_pass_crossings", "solve_nonagile", "ProblemError",
-    "SchedulingProblem", "build_problem", "circular_walker_ecef_km", "evaluate_plan", "for_mask",
-    "plan_violations", "square_region_gp_ecef_km",
+    "BruteTooLarge",
+    "MilpResult",
+    "OrbitContext",
+    "Plan",
+    "ProblemError",
+    "ScheduleInvariantError",
+    "SchedulingProblem",
+    "build_problem",
+    "circular_walker_ecef_km",
+    "evaluate_plan",
+    "for_mask",
+    "instance_from_orbit",
+    "make_plan",
+    "nadir_pass_crossings",
+    "pass_starts_s",
+    "plan_violations",
+    "solve_brute",
+    "solve_dp",
+    "solve_milp",
+    "solve_nonagile",
+    "square_region_gp_ecef_km",
 ]

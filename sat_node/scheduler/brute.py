@@ -19,7 +19,7 @@ from sat_node.acs import angle_between_deg
 from sat_node.scheduler.dp import Plan, make_plan
 from sat_node.scheduler.problem import SchedulingProblem, evaluate_plan
 
-__all__ = ["solve_brute", "BruteTooLarge"]
+__all__ = ["BruteTooLarge", "solve_brute"]
 
 
 class BruteTooLarge(ValueError):

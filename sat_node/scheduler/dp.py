@@ -41,7 +41,7 @@ from sat_node.acs import angle_between_deg, nadir_unit
 from sat_node.scheduler import dp_kernels
 from sat_node.scheduler.problem import SchedulingProblem, evaluate_plan, plan_violations
 
-__all__ = ["Plan", "solve_dp", "ScheduleInvariantError", "slew_window_steps"]
+__all__ = ["Plan", "ScheduleInvariantError", "slew_window_steps", "solve_dp"]
 
 
 class ScheduleInvariantError(RuntimeError):
@@ -86,7 +86,7 @@ def slew_window_steps(p: SchedulingProblem, max_off_nadir_deg: float) -> int:
         rate = float(np.max(angle_between_deg(nad[:-1], nad[1:]))) / p.step_s
     else:
         rate = 0.0
-    w = max(1, int(math.ceil(p.slew.min_time_s / p.step_s)))
+    w = max(1, math.ceil(p.slew.min_time_s / p.step_s))
     while True:
         ang = min(180.0, 2.0 * max_off_nadir_deg + rate * w * p.step_s)
         if p.slew.time_s(ang) <= w * p.step_s:

@@ -17,7 +17,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-__all__ = ["path_gain", "dp_forward"]
+__all__ = ["dp_forward", "path_gain"]
 
 
 @njit(cache=True)

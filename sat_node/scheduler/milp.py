@@ -34,7 +34,7 @@ from sat_node.acs import angle_between_deg, nadir_unit
 from sat_node.scheduler.dp import Plan, ScheduleInvariantError, make_plan, slew_window_steps
 from sat_node.scheduler.problem import SchedulingProblem, plan_violations
 
-__all__ = ["solve_milp", "MilpResult"]
+__all__ = ["MilpResult", "solve_milp"]
 
 
 @dataclass(frozen=True)

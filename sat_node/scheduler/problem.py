@@ -40,18 +40,18 @@ import numpy as np
 from sat_node.acs import SlewModel, angle_between_deg, nadir_unit, off_nadir_deg, unit_vectors
 
 __all__ = [
+    "WGS84_A_KM",
+    "OrbitContext",
     "ProblemError",
     "SchedulingProblem",
     "build_problem",
-    "evaluate_plan",
-    "plan_violations",
     "circular_walker_ecef_km",
-    "square_region_gp_ecef_km",
+    "evaluate_plan",
     "for_mask",
-    "WGS84_A_KM",
-    "OrbitContext",
     "instance_from_orbit",
     "pass_starts_s",
+    "plan_violations",
+    "square_region_gp_ecef_km",
 ]
 
 WGS84_A_KM = 6378.137
@@ -183,9 +183,7 @@ def evaluate_plan(p: SchedulingProblem, steps, cols) -> tuple[float, np.ndarray]
     seen: dict[int, list[int]] = {}
     for i, (k, j) in enumerate(zip(steps, cols)):
         own = seen.setdefault(int(j), [])
-        if not p.in_for[k, j] or p.prior_recent[k, j]:
-            v = 0.0
-        elif any((k - kk) * p.step_s < p.revisit_zero_s for kk in own):
+        if not p.in_for[k, j] or p.prior_recent[k, j] or any((k - kk) * p.step_s < p.revisit_zero_s for kk in own):
             v = 0.0
         else:
             v = p.absval[k, j] / (p.prior_count[k, j] + len(own) + 1.0)
@@ -259,7 +257,7 @@ def circular_walker_ecef_km(times_s, *, total_sats: int, planes: int, phasing_f:
 
 def square_region_gp_ecef_km(lat_deg: float, lon_deg: float, size_km: float, spacing_km: float) -> np.ndarray:
     """GP centres (n*n, 3) of a size_km square on a spherical Earth of radius WGS84_A_KM."""
-    n = max(1, int(round(size_km / spacing_km)))
+    n = max(1, round(size_km / spacing_km))
     off = (np.arange(n) + 0.5) * (size_km / n) - size_km / 2
     yy, xx = np.meshgrid(off, off, indexing="ij")
     lat = np.radians(lat_deg) + yy.ravel() / WGS84_A_KM
@@ -290,7 +288,7 @@ class OrbitContext:
     slew: SlewModel
 
     @classmethod
-    def from_scenario(cls, sc) -> "OrbitContext":
+    def from_scenario(cls, sc) -> OrbitContext:
         from ground_station.osse import osse_from_scenario
         from orbit_clock import build_constellation, ground_points
 
@@ -318,7 +316,7 @@ def instance_from_orbit(ctx: OrbitContext, *, sat: str, t0_s: float, window_s: f
     sc = ctx.scenario
     step = float(step_s or sc.scheduler.dp_step_s)
     window = float(window_s or sc.scheduler.plan_lookahead_s)
-    n = max(1, int(round(window / step)))
+    n = max(1, round(window / step))
     times = t0_s + step * np.arange(n)
     sat_pos = ctx.track_ecef_km(sat, times)
     all_gp = ctx.gps.ecef_km if gp_ids is None else ctx.gps.ecef_km[np.asarray(gp_ids)]
