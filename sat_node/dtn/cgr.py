@@ -8,8 +8,11 @@ bits / rate, must end inside the contact and fit the contact's residual volume, 
 arrives one light time (range) after its last bit left. On the first hop the sender's queued
 backlog (bits of equal or higher priority ahead of this bundle) delays the start, as SABR's
 "earliest transmission opportunity". Ties (SABR 3.2.6.8): earliest arrival, then fewest hops, then
-the smallest contact index (a stable key: the plan is sorted by (start, src, dst)). A node is
-expanded once (at its earliest arrival), so routes never visit a node twice: no loops. Contacts
+the smallest contact index (a stable key: the plan is sorted by (start, src, dst)). Labels are
+(arrival, hops) per contact, kept Pareto-optimal (a later arrival with fewer hops can tie at the
+destination after a wait, so one label per contact is not enough for the hop tie-break); a path
+through a loop is dominated by the same path without the loop (no earlier, more hops), so routes
+never repeat a node (checked on every route returned): no loops. Contacts
 missed or failed are excluded by the caller (``excluded`` mask) and the route recomputed.
 
 Not done: Yen's k-shortest route lists (we recompute per bundle, which is cheap enough: see
@@ -41,18 +44,20 @@ INF = np.inf
 
 @numba.njit(cache=True)
 def _dijkstra(start, end, src, dst, rate, owlt, residual, out_ptr, out_idx, excluded, node_excluded,
-              source, dest, t0, bits, backlog_bits, deadline, arr, hops, pred):
-    """Fill arr/hops/pred per contact; return the best contact reaching ``dest`` (-1: none).
+              source, dest, t0, bits, backlog_bits, deadline, arr, pred):
+    """Label-setting search over (contact, hop count) states with Pareto pruning.
 
-    dest < 0: no early stop (one-to-all). node arrival = min over contacts into the node."""
-    n_nodes = out_ptr.shape[0] - 1
-    done = np.zeros(n_nodes, dtype=np.bool_)
-    done[source] = True
+    arr[c, h]: earliest arrival at dst[c] over routes ending with contact c after h hops; pred[c, h]:
+    the contact before c on that route (-1 first hop). A label is kept only if no label of the same
+    contact with fewer-or-equal hops arrives no later. States pop in (arrival, hops, contact) order,
+    so the first one reaching ``dest`` is the SABR choice. Returns (contact, hops) or (-1, 0).
+    dest < 0: no early stop (one-to-all)."""
+    H = arr.shape[1] - 1
     heap = [(np.inf, 0, 0)]
     heap.pop()
     for k in range(out_ptr[source], out_ptr[source + 1]):
         c = out_idx[k]
-        if excluded[c] or node_excluded[dst[c]] or end[c] <= t0:
+        if excluded[c] or node_excluded[dst[c]] or dst[c] == source or end[c] <= t0:
             continue
         ts = max(t0 + backlog_bits / rate[c], start[c])
         te = ts + bits / rate[c]
@@ -61,27 +66,29 @@ def _dijkstra(start, end, src, dst, rate, owlt, residual, out_ptr, out_idx, excl
         a = te + owlt[c]
         if a > deadline:
             continue
-        if a < arr[c]:
-            arr[c] = a
-            hops[c] = 1
-            pred[c] = -1
-            heapq.heappush(heap, (a, 1, c))
-    best = -1
+        arr[c, 1] = a
+        pred[c, 1] = -1
+        heapq.heappush(heap, (a, 1, c))
     while len(heap) > 0:
         a, h, c = heapq.heappop(heap)
-        if a > arr[c] or (a == arr[c] and h > hops[c]):
+        if a > arr[c, h]:
+            continue
+        dominated = False
+        for hh in range(1, h):
+            if arr[c, hh] <= a:
+                dominated = True
+                break
+        if dominated:
             continue
         v = dst[c]
-        if done[v]:
-            continue
-        done[v] = True
         if v == dest:
-            best = c
-            break
+            return c, h
+        if h >= H:
+            continue
         for k in range(out_ptr[v], out_ptr[v + 1]):
             e = out_idx[k]
             w = dst[e]
-            if excluded[e] or done[w] or node_excluded[w] or end[e] <= a:
+            if excluded[e] or w == source or node_excluded[w] or end[e] <= a:
                 continue
             ts = max(a, start[e])
             te = ts + bits / rate[e]
@@ -90,12 +97,17 @@ def _dijkstra(start, end, src, dst, rate, owlt, residual, out_ptr, out_idx, excl
             na = te + owlt[e]
             if na > deadline:
                 continue
-            if na < arr[e] or (na == arr[e] and h + 1 < hops[e]):
-                arr[e] = na
-                hops[e] = h + 1
-                pred[e] = c
-                heapq.heappush(heap, (na, h + 1, e))
-    return best
+            dom = False
+            for hh in range(1, h + 2):
+                if arr[e, hh] <= na:
+                    dom = True
+                    break
+            if dom:
+                continue
+            arr[e, h + 1] = na
+            pred[e, h + 1] = c
+            heapq.heappush(heap, (na, h + 1, e))
+    return -1, 0
 
 
 @dataclass(frozen=True)
@@ -145,21 +157,21 @@ class ContactGraph:
 
     def _run(self, source, dest, t_s, bits, backlog_bits, deadline_s, residual, excluded, excluded_nodes):
         n = len(self.contacts)
-        arr = np.full(n, INF)
-        hops = np.zeros(n, dtype=np.int64)
-        pred = np.full(n, -1, dtype=np.int64)
+        H = len(self.node_names)  # a simple path has at most n_nodes - 1 hops
+        arr = np.full((n, H + 1), INF)
+        pred = np.full((n, H + 1), -1, dtype=np.int64)
         node_ex = self._no_node_exclusion
         if excluded_nodes:
             node_ex = node_ex.copy()
             for x in excluded_nodes:
                 if x in self.node_index:
                     node_ex[self.node_index[x]] = True
-        best = _dijkstra(self.start_s, self.end_s, self.src, self.dst, self.rate_bps, self.owlt_s,
-                         self.volume_bits if residual is None else residual, self.out_ptr, self.out_idx,
-                         self._no_exclusion if excluded is None else excluded, node_ex,
-                         self.node_index[source], -1 if dest is None else self.node_index[dest],
-                         float(t_s), float(bits), float(backlog_bits), float(deadline_s), arr, hops, pred)
-        return best, arr, hops, pred
+        best, hops = _dijkstra(self.start_s, self.end_s, self.src, self.dst, self.rate_bps, self.owlt_s,
+                               self.volume_bits if residual is None else residual, self.out_ptr, self.out_idx,
+                               self._no_exclusion if excluded is None else excluded, node_ex,
+                               self.node_index[source], -1 if dest is None else self.node_index[dest],
+                               float(t_s), float(bits), float(backlog_bits), float(deadline_s), arr, pred)
+        return best, hops, arr, pred
 
     def route(self, source: str, dest: str, t_s: float, bits: float, *, backlog_bits: float = 0.0,
               deadline_s: float = INF, residual_bits: np.ndarray | None = None,
@@ -171,22 +183,24 @@ class ContactGraph:
             raise ValueError(f"route from {source} to itself")
         if source not in self.node_index or dest not in self.node_index:
             return None
-        best, arr, _hops, pred = self._run(source, dest, t_s, bits, backlog_bits, deadline_s, residual_bits,
-                                           excluded, excluded_nodes)
+        best, hops, arr, pred = self._run(source, dest, t_s, bits, backlog_bits, deadline_s, residual_bits,
+                                          excluded, excluded_nodes)
         if best < 0:
             return None
+        arrival = float(arr[best, hops])
         path = []
-        c = best
+        c, h = best, hops
         while c >= 0:
             path.append(int(c))
-            c = pred[c]
+            c, h = pred[c, h], h - 1
         path.reverse()
-        self._check(path, source, dest, t_s, bits, backlog_bits, arr[best])
-        return Route(tuple(path), self.contacts[path[0]].dst, float(arr[best]))
+        self._check(path, source, dest, t_s, bits, backlog_bits, arrival)
+        return Route(tuple(path), self.contacts[path[0]].dst, arrival)
 
     def earliest_arrivals(self, source: str, t_s: float, bits: float) -> dict[str, float]:
         """One-to-all earliest arrival [s] with full volumes and no backlog (lower bounds)."""
-        _best, arr, _hops, _pred = self._run(source, None, t_s, bits, 0.0, INF, None, None, ())
+        _best, _h, arr2, _pred = self._run(source, None, t_s, bits, 0.0, INF, None, None, ())
+        arr = arr2.min(axis=1)
         out: dict[str, float] = {}
         finite = np.isfinite(arr)
         for c in np.nonzero(finite)[0]:

@@ -1,0 +1,71 @@
+"""CGR against an independent brute-force search over every simple path, on random plans."""
+
+import numpy as np
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from orbit_clock.contact_plan import Contact, ContactPlan
+from sat_node.dtn.cgr import ContactGraph
+
+NODES = [f"sat_{p}{s}" for p in (1, 2) for s in (1, 2, 3)]
+
+
+def random_plan(rng, n_contacts):
+    cs = []
+    for _ in range(n_contacts):
+        a, b = rng.choice(len(NODES), 2, replace=False)
+        t0 = float(rng.integers(0, 80))
+        cs.append(Contact(t0, t0 + float(rng.integers(1, 30)), NODES[a], NODES[b], float(rng.choice([0.5, 1, 2])),
+                          float(rng.choice([0.0, 0.25, 1.0]))))
+    return ContactPlan(cs)
+
+
+def brute_force(plan, src, dst, t, bits, backlog=0.0):
+    """(arrival, hops) of the best simple path, by depth-first enumeration of every simple path."""
+    best = (float("inf"), 0)
+    cs = plan.contacts
+
+    def dfs(node, t_at, visited, hops):
+        nonlocal best
+        for c in cs:
+            if c.src != node or c.dst in visited:
+                continue
+            ts = max(t_at + (backlog / c.rate_bps if hops == 0 else 0.0), c.start_s)
+            te = ts + bits / c.rate_bps
+            if te > c.end_s:
+                continue
+            arr = te + c.range_light_s
+            if c.dst == dst:
+                best = min(best, (arr, hops + 1))
+            else:
+                dfs(c.dst, arr, visited | {c.dst}, hops + 1)
+
+    dfs(src, t, {src}, 0)
+    return best
+
+
+def _compare(seed):
+    rng = np.random.default_rng(seed)
+    plan = random_plan(rng, int(rng.integers(5, 22)))
+    g = ContactGraph(plan)
+    mismatches = 0
+    for _ in range(4):
+        a, b = rng.choice(len(NODES), 2, replace=False)
+        t = float(rng.integers(0, 60))
+        backlog = float(rng.choice([0.0, 0.0, 3.0]))
+        want = brute_force(plan, NODES[a], NODES[b], t, 2.0, backlog)
+        r = g.route(NODES[a], NODES[b], t, 2.0, backlog_bits=backlog)
+        got = (float("inf"), 0) if r is None else (r.arrival_s, r.hops)
+        if not (np.isclose(got[0], want[0]) or got[0] == want[0]) or got[1] != want[1]:
+            mismatches += 1
+    return mismatches
+
+
+def test_zero_mismatches_on_400_random_plans():
+    assert sum(_compare(seed) for seed in range(400)) == 0
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.integers(min_value=1000, max_value=10**6))
+def test_random_plans_hypothesis(seed):
+    assert _compare(seed) == 0
