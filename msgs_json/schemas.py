@@ -183,6 +183,8 @@ class Schedule(_Msg, kw_only=True, frozen=True):
     planned_ns: NsTime
     cutoff_ns: NsTime
     items: list[ScheduleItem] = []
+    # CPU time [s] the planner spent on this plan (runtime figure; not part of the plan itself).
+    solve_cpu_s: NonNeg = 0.0
 
     def _check(self) -> None:
         if self.cutoff_ns > self.planned_ns:

@@ -1,0 +1,213 @@
+"""`constellation run`: one whole run of a scenario, recorded and reported (DESIGN.md section 6).
+
+``--engine ros`` (default): the clock, the router / ground station and one OS process per satellite
+over DDS (bringup/launcher.py), recording every topic into ``OUT/bag``. ``--engine local``: the same
+node logic in this process (bringup/local_engine.py), recording the same topics. Either way the run
+ends with ``OUT/report.json`` (rebuilt from the bag, bringup/report.py), ``OUT/report.md`` and
+``OUT/plots/*.png``, and a non-zero exit with a one-line message if anything failed.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import shutil
+import sys
+import time
+from pathlib import Path
+
+from bringup.commands._common import add_scenario_args, scenario_from_args
+from bringup.errors import UserError
+
+HELP = "run a scenario (ROS 2 processes or the local engine), record an MCAP bag, write the report"
+
+_NS = 1_000_000_000
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    add_scenario_args(p)
+    p.add_argument("--mode", choices=("distributed", "centralized", "nonagile"), default="distributed")
+    p.add_argument("--engine", choices=("ros", "local"), default="ros")
+    p.add_argument("--out", type=Path, default=None, help="run folder (default runs/<scenario>-<mode>)")
+    p.add_argument("--real-time-factor", type=float, default=None,
+                   help="pace the clock at this many sim seconds per wall second (default: as fast as possible)")
+    p.add_argument("--no-progress", action="store_true", help="no progress display")
+    p.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
+    p.add_argument("--isl-delay-s", type=float, default=0.0, help="extra one-way ISL delay [s] added by the router")
+    p.add_argument("--cut", action="append", default=[], metavar="A-B@T1-T2",
+                   help="cut the ISL between satellites A and B from T1 to T2 [s] (repeatable)")
+
+
+def parse_cut(text: str) -> tuple[str, str, float, float]:
+    try:
+        link, span = text.split("@")
+        a, b = link.split("-")
+        t1, t2 = (float(x) for x in span.split("-"))
+    except ValueError:
+        raise UserError(f"--cut {text!r}: expected A-B@T1-T2, e.g. sat_11-sat_21@600-1200") from None
+    if not t2 > t1:
+        raise UserError(f"--cut {text!r}: T2 must be after T1")
+    return a, b, t1, t2
+
+
+def run(args: argparse.Namespace) -> int:
+    from bringup.participants import roles_for
+    from bringup.report import RunMeta
+    from bringup.world import World
+
+    sc = scenario_from_args(args)
+    out = args.out or Path("runs") / f"{sc.name}-{args.mode}"
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    bag_dir = out / "bag"
+    if bag_dir.exists():
+        shutil.rmtree(bag_dir)
+    cuts = [parse_cut(c) for c in args.cut]
+    for a, b, _, _ in cuts:
+        for n in (a, b):
+            if n not in sc.sat_names:
+                raise UserError(f"--cut: {n!r} is not a satellite of the scenario ({sc.sat_names[0]}..)")
+    say = (lambda *a: None) if args.no_progress else (lambda *a: print(*a, file=sys.stderr))
+    say(f"run: {sc.name}, {sc.constellation.total_sats} satellites, {sc.scenario.horizon_s / 3600:g} h, "
+        f"mode {args.mode}, engine {args.engine} -> {out}")
+    t0 = time.perf_counter()
+    world = World.cached(sc, out / "cache")
+    world_path = out / "cache" / f"world-{world.key}.pkl"
+    if not world_path.exists():
+        world.save(world_path)
+    say(f"run: world ready in {time.perf_counter() - t0:.1f} s ({len(world.isl_plan)} ISL contacts, "
+        f"{len(world.ground_plan)} ground contacts, {world.n_gp} ground points)")
+    meta = RunMeta(scenario=sc.name, mode=args.mode, engine=args.engine, seed=sc.scenario.seed,
+                   horizon_s=sc.scenario.horizon_s, n_sats=len(world.sat_names), n_gp=world.n_gp,
+                   revisit_zero_s=sc.value.revisit_zero_s)
+    router_kw = {"extra_delay_s": args.isl_delay_s, "cuts": cuts} if (args.isl_delay_s or cuts) else None
+    if args.engine == "local":
+        runtime = _run_local(world, args, meta, bag_dir, out, router_kw, show=not args.no_progress)
+    else:
+        runtime = _run_ros(world, world_path, args, meta, bag_dir, out, router_kw, show=not args.no_progress)
+    return _finish(out, bag_dir, runtime, world, args, say)
+
+
+def _progress_display(show: bool, horizon_ns: int):
+    """A rich progress bar (sim time, real-time factor, envelopes) or a no-op."""
+    if not show:
+        return None, (lambda **kw: None)
+    from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+
+    prog = Progress(TextColumn("[bold]sim {task.fields[sim]}"), BarColumn(), TextColumn("{task.percentage:>5.1f}%"),
+                    TextColumn("RTF {task.fields[rtf]}"), TextColumn("{task.fields[extra]}"), TimeElapsedColumn(),
+                    transient=False, refresh_per_second=4)
+    task = prog.add_task("run", total=horizon_ns, sim="0:00:00", rtf="-", extra="")
+
+    def update(*, t_ns: int, rtf: float | None, extra: str = ""):
+        s = int(t_ns // _NS)
+        prog.update(task, completed=t_ns, sim=f"{s // 3600}:{s // 60 % 60:02d}:{s % 60:02d}",
+                    rtf=f"{rtf:,.0f}x" if rtf else "-", extra=extra)
+
+    return prog, update
+
+
+def _run_local(world, args, meta, bag_dir: Path, out: Path, router_kw, *, show: bool) -> dict:
+    from bringup.local_engine import run_local
+    from bringup.participants import all_participants
+    from bringup.recording import BagWriter
+    from bringup.viz_feed import VizFeed
+    from msgs_json.envelope import Envelope
+
+    sc = world.scenario
+    store_dir = out / "store"
+    if store_dir.exists():
+        shutil.rmtree(store_dir)
+    store_dir.mkdir()
+    parts = all_participants(world, args.mode, store_dir=store_dir, router_kw=router_kw)
+    viz = VizFeed(world)
+    prog, update = _progress_display(show, sc.horizon_ns)
+    in_flight = {"n": 0}
+    with BagWriter(bag_dir) as bag:
+        bag.write_envelope(Envelope(0, "run", 0, "/run/meta", json.dumps({"meta": meta.__dict__})))
+
+        def on_step(t_ns: int) -> None:
+            bag.write_clock(t_ns)
+            viz.write(bag, t_ns)
+
+        def progress(p) -> None:
+            router = next((q for q in parts if q.name == "dtn_router"), None)
+            if router is not None:
+                in_flight["n"] = len(router.pending)
+            update(t_ns=p.t_ns, rtf=p.real_time_factor, extra=f"{p.envelopes:,} msgs, {in_flight['n']} bundles in flight")
+
+        if prog is not None:
+            prog.start()
+        try:
+            res = run_local(parts, horizon_ns=sc.horizon_ns, max_step_ns=int(round(sc.scenario.lockstep_max_step_s * _NS)),
+                            sink=bag.write_envelope, on_step=on_step, progress=progress, progress_interval_s=0.25)
+        finally:
+            if prog is not None:
+                prog.stop()
+        runtime = {"wall_s": res.wall_s, "real_time_factor": res.real_time_factor, "steps": res.steps,
+                   "envelopes": sum(res.counts_by_topic.values()),
+                   "rejected_messages": sum(getattr(p, "rejected", 0) for p in parts)}
+        bag.write_envelope(Envelope(sc.horizon_ns, "run", 1, "/run/meta",
+                                    json.dumps({"meta": meta.__dict__, "runtime": runtime})))
+    return runtime
+
+
+def _run_ros(world, world_path: Path, args, meta, bag_dir: Path, out: Path, router_kw, *, show: bool) -> dict:
+    from bringup.launcher import launch
+    from bringup.participants import FACTORY, roles_for
+    from bringup.run_spec import RunSpec
+
+    sc = world.scenario
+    store_dir = out / "store"
+    if store_dir.exists():
+        shutil.rmtree(store_dir)
+    store_dir.mkdir()
+    spec = RunSpec(factory=FACTORY, roles=roles_for(world, args.mode), scenario=str(Path(sc.source_path).resolve()),
+                   overrides={"sats": args.sats, "hours": args.hours, "seed": args.seed}, mode=args.mode,
+                   real_time_factor=args.real_time_factor, bag_dir=str(bag_dir.resolve()),
+                   extra={"world": str(world_path.resolve()), "world_key": world.key,
+                          "store_dir": str(store_dir.resolve()), "meta": meta.__dict__,
+                          "router": router_kw})
+    prog, update = _progress_display(show, sc.horizon_ns)
+
+    def progress(p) -> None:
+        update(t_ns=p.t_ns, rtf=p.real_time_factor, extra=f"{p.steps:,} steps, {p.steps_per_s:,.0f} steps/s")
+
+    if prog is not None:
+        prog.start()
+    t0 = time.perf_counter()
+    try:
+        res = launch(spec, out, progress=progress)
+    finally:
+        if prog is not None:
+            prog.stop()
+    wall = time.perf_counter() - t0
+    if not res.ok:
+        raise UserError(f"ROS run failed: {res.message} (logs in {out / 'logs'})")
+    last = res.last
+    return {"wall_s": wall, "real_time_factor": (sc.scenario.horizon_s / wall) if wall > 0 else None,
+            "steps": last.steps if last else None, "domain_id": res.domain_id}
+
+
+def _finish(out: Path, bag_dir: Path, runtime: dict, world, args, say) -> int:
+    from bringup.report import report_from_bag
+    from bringup.report_md import write_report_md
+
+    rep = report_from_bag(bag_dir)
+    rep["runtime"].update({k: v for k, v in runtime.items() if k not in rep["runtime"]})
+    rep["runtime"].update({"wall_s": runtime.get("wall_s"), "real_time_factor": runtime.get("real_time_factor")})
+    (out / "report.json").write_text(json.dumps(rep, indent=2, sort_keys=True) + "\n")
+    plots = []
+    if not args.no_plots:
+        from bringup.run_plots import run_plots
+
+        plots = run_plots(out, bag_dir, world, rep)
+    write_report_md(out / "report.md", rep, plots)
+    v = rep["value"]
+    d = rep["dtn"]
+    say(f"run: done in {runtime.get('wall_s', 0):.1f} s "
+        f"(RTF {runtime.get('real_time_factor') or 0:,.0f}x): value {v['cumulative']:.0f}, "
+        f"{rep['observations']['count']} observations, "
+        f"{(rep['coverage']['gp_observed_fraction'] or 0) * 100:.1f} % of GPs, "
+        f"bundles {d.get('bundles_delivered', 0)}/{d.get('bundles_created', 0)} delivered -> {out / 'report.json'}")
+    return 0

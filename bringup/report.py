@@ -1,0 +1,210 @@
+"""report.json from a run's envelopes (DESIGN.md section 6), the same function for a live run and a bag.
+
+Inputs: the envelopes of a run (observations, bundle events, schedules), the run's metadata
+(scenario, mode, engine, seed, horizon, n_sats, n_gp) and the runtime figures. Everything but
+``runtime.*`` is a pure function of the envelopes, so ``constellation report BAG`` rebuilds the
+report written by the run.
+
+Definitions:
+* value.cumulative - Eq. 1 of the study over every executed observation in time order (ties by
+  satellite name): ``recorded / (times seen + 1)``, 0 if the GP was seen within
+  ``revisit_zero_s``; ``recorded`` is the OSSE value the instrument measured (Observation.
+  recorded_value).
+* observations.duplicates_15min - observations of a GP seen (by anyone) less than revisit_zero_s
+  before.
+* value.assumed_error_mean - mean over observations with a true Eq. 1 value > 0 of
+  |assumed - true| / true, where assumed is what the planner expected (Observation.assumed_value).
+* coverage.gp_observed_fraction - distinct GPs observed / GPs of the scenario.
+* dtn.* - sat_node/dtn/stats.py over the bundle events (first delivery per bundle counts).
+
+Oracle: tests/unit/test_report.py - hand-made observation lists with the value worked out by hand,
+and the round trip run -> bag -> report equals the run's report (tests/system).
+"""
+
+from __future__ import annotations
+
+import json
+from collections import defaultdict
+from dataclasses import dataclass
+
+import numpy as np
+
+from msgs_json import codec, schemas as S
+from msgs_json.envelope import Envelope
+
+__all__ = ["RunMeta", "build_report", "report_from_bag", "flatten", "true_values", "REPORT_TOPIC_SUFFIXES"]
+
+_NS = 1_000_000_000
+REPORT_TOPIC_SUFFIXES = ("/observations", "/dtn/events", "/schedule", "/ground/uplink")
+
+
+@dataclass
+class RunMeta:
+    scenario: str
+    mode: str
+    engine: str
+    seed: int
+    horizon_s: float
+    n_sats: int
+    n_gp: int
+    revisit_zero_s: float = 900.0
+
+    def to_json(self) -> str:
+        return json.dumps(self.__dict__, sort_keys=True)
+
+    @classmethod
+    def from_json(cls, text: str) -> "RunMeta":
+        return cls(**json.loads(text))
+
+
+@dataclass
+class _Ev:
+    """Agent-event view of a msgs_json bundle event, as sat_node/dtn/stats.py reads it."""
+
+    t_ns: int
+    kind: str
+    node: str
+    bundle_id: str
+    priority: int
+    dest: str
+    created_ns: int
+    reason: str = ""
+
+
+_KIND = {"created": "created", "forwarded": "forwarded", "delivered": "delivered", "dropped": "dropped",
+         "copy_discarded": "discarded"}
+
+
+def _bundle_event(msg) -> _Ev:
+    kind = _KIND[type(msg).__struct_config__.tag]
+    reason = getattr(msg, "reason", "")
+    if kind == "dropped" and getattr(msg, "detail", "") in ("hop_limit",):
+        reason = msg.detail
+    return _Ev(msg.t_ns, kind, msg.sat, msg.bundle_id, msg.priority, msg.dst, msg.creation_ns, reason)
+
+
+def build_report(envelopes, meta: RunMeta, runtime: dict | None = None) -> dict:
+    """The report dict (nested, DESIGN.md keys) from envelopes (any iterable of Envelope)."""
+    obs: list[S.Observation] = []
+    events: list[_Ev] = []
+    n_schedules = 0
+    cpu_by_planner: dict[str, float] = defaultdict(float)
+    bad = 0
+    for env in envelopes:
+        t = env.topic
+        try:
+            if t.endswith("/observations"):
+                obs.append(codec.decode(t, env.data))
+            elif t.endswith("/dtn/events"):
+                events.append(_bundle_event(codec.decode(t, env.data)))
+            elif t.endswith("/schedule"):
+                n_schedules += 1
+                cpu_by_planner[codec.decode(t, env.data).sat] += codec.decode(t, env.data).solve_cpu_s
+            elif t == "/ground/uplink":
+                cpu_by_planner["ground"] += codec.decode(t, env.data).schedule.solve_cpu_s
+        except ValueError:
+            bad += 1
+    rep: dict = {
+        "scenario": meta.scenario, "mode": meta.mode, "engine": meta.engine, "seed": meta.seed,
+        "horizon_s": meta.horizon_s, "n_sats": meta.n_sats,
+    }
+    rep.update(_value_figures(obs, meta))
+    rep["schedules"] = {"count": n_schedules}
+    rep["dtn"] = _dtn_figures(events)
+    rep["messages_rejected_in_report"] = bad
+    rt = dict(runtime or {})
+    rt["scheduler_cpu_s_per_sat"] = (sum(cpu_by_planner.values()) / meta.n_sats) if meta.n_sats else None
+    rep["runtime"] = rt
+    return rep
+
+
+def true_values(obs: list, revisit_zero_s: float) -> list[tuple]:
+    """[(observation, true Eq. 1 value, was_duplicate)] in time order (ties by satellite, GP)."""
+    obs = sorted(obs, key=lambda o: (o.t_ns, o.sat, o.gp))
+    last: dict[int, int] = {}
+    seen: dict[int, int] = defaultdict(int)
+    zero_ns = int(round(revisit_zero_s * _NS))
+    out = []
+    for o in obs:
+        lt = last.get(o.gp)
+        recent = lt is not None and (o.t_ns - lt) < zero_ns
+        v = 0.0 if recent else o.recorded_value / (seen[o.gp] + 1)
+        seen[o.gp] += 1
+        last[o.gp] = o.t_ns
+        out.append((o, v, recent))
+    return out
+
+
+def _value_figures(obs: list, meta: RunMeta) -> dict:
+    rows = true_values(obs, meta.revisit_zero_s)
+    total = 0.0
+    errs = []
+    per_sat: dict[str, float] = defaultdict(float)
+    for o, v, _ in rows:
+        if v > 0:
+            errs.append(abs(o.assumed_value - v) / v)
+        total += v
+        per_sat[o.sat] += v
+    dup = sum(1 for _, _, d in rows if d)
+    observed = {o.gp for o in obs}
+    return {
+        "value": {
+            "cumulative": total,
+            "assumed_error_mean": float(np.mean(errs)) if errs else None,
+            "assumed_error_median": float(np.median(errs)) if errs else None,
+            "per_sat": dict(sorted(per_sat.items())),
+        },
+        "coverage": {
+            "gp_observed": len(observed),
+            "gp_total": meta.n_gp,
+            "gp_observed_fraction": (len(observed) / meta.n_gp) if meta.n_gp else None,
+        },
+        "observations": {"count": len(obs), "duplicates_15min": dup},
+    }
+
+
+def _dtn_figures(events: list[_Ev]) -> dict:
+    from sat_node.dtn.stats import dtn_report
+
+    flat = dtn_report(events)
+    nested: dict = {}
+    for k, v in flat.items():
+        parts = k.split(".")
+        if parts[0] == "dtn":
+            parts = parts[1:]
+        d = nested
+        for p in parts[:-1]:
+            d = d.setdefault(p, {})
+        d[parts[-1]] = v
+    return nested
+
+
+def flatten(rep: dict, prefix: str = "") -> dict:
+    out = {}
+    for k, v in rep.items():
+        key = f"{prefix}{k}"
+        if isinstance(v, dict):
+            out.update(flatten(v, key + "."))
+        else:
+            out[key] = v
+    return out
+
+
+def report_from_bag(bag_path) -> dict:
+    """Rebuild report.json from a bag alone (metadata from its /run/meta record)."""
+    from bringup.errors import UserError
+    from bringup.recording import BagReader
+
+    with BagReader(bag_path) as bag:
+        names = [t.topic for t in bag.topics()]
+        if "/run/meta" not in names:
+            raise UserError(f"{bag_path}: no /run/meta record: not a bag written by `constellation run`")
+        meta = None
+        runtime = {}
+        for env in bag.envelopes(["/run/meta"]):
+            d = json.loads(env.data)
+            meta = RunMeta(**d["meta"])
+            runtime = d.get("runtime", runtime)
+        wanted = [t for t in names if t.endswith(REPORT_TOPIC_SUFFIXES)]
+        envs: list[Envelope] = list(bag.envelopes(wanted))
+    return build_report(envs, meta, runtime)

@@ -1,0 +1,60 @@
+"""report.md: the human summary of a run's report.json, with its plots embedded."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+__all__ = ["write_report_md", "report_md"]
+
+
+def _fmt(v, nd=3):
+    if v is None:
+        return "-"
+    if isinstance(v, float):
+        return f"{v:,.{nd}f}"
+    return f"{v:,}" if isinstance(v, int) else str(v)
+
+
+def report_md(rep: dict, plots: list[Path] = (), base: Path | None = None) -> str:
+    v, c, o, d, r = rep["value"], rep["coverage"], rep["observations"], rep.get("dtn", {}), rep.get("runtime", {})
+    lines = [
+        f"# Run report: {rep['scenario']} / {rep['mode']} / {rep['engine']} engine",
+        "",
+        f"{rep['n_sats']} satellites, horizon {rep['horizon_s'] / 3600:g} h, seed {rep['seed']}.",
+        "",
+        "| figure | value |",
+        "|---|---|",
+        f"| cumulative value (Eq. 1) | {_fmt(v['cumulative'], 1)} |",
+        f"| GPs observed | {c['gp_observed']} / {c['gp_total']} ({_fmt((c['gp_observed_fraction'] or 0) * 100, 1)} %) |",
+        f"| observations | {o['count']} ({o['duplicates_15min']} within 15 min of another) |",
+        f"| assumed vs recorded value error (mean) | {_fmt((v['assumed_error_mean'] or 0) * 100, 1)} % |",
+        f"| bundles created / delivered | {_fmt(d.get('bundles_created'))} / {_fmt(d.get('bundles_delivered'))} |",
+        f"| delivery ratio | {_fmt(d.get('delivery_ratio'))} |",
+        f"| latency mean / median / p95 [s] | {_fmt((d.get('latency_s') or {}).get('mean'), 1)} / "
+        f"{_fmt((d.get('latency_s') or {}).get('median'), 1)} / {_fmt((d.get('latency_s') or {}).get('p95'), 1)} |",
+        f"| drops ttl / integrity / other | {_fmt((d.get('dropped') or {}).get('ttl'))} / "
+        f"{_fmt((d.get('dropped') or {}).get('integrity'))} / {_fmt((d.get('dropped') or {}).get('other'))} |",
+        f"| wall time [s] / real-time factor | {_fmt(r.get('wall_s'), 1)} / {_fmt(r.get('real_time_factor'), 0)} |",
+        f"| scheduler CPU per satellite [s] | {_fmt(r.get('scheduler_cpu_s_per_sat'), 2)} |",
+        "",
+    ]
+    by_p = d.get("latency_s_by_priority") or {}
+    if by_p:
+        lines += ["## Bundle latency by priority", "", "| priority | count | median [s] | max [s] |", "|---|---|---|---|"]
+        for p in sorted(by_p, key=int):
+            e = by_p[p]
+            lines.append(f"| {p} | {_fmt(e.get('count'))} | {_fmt(e.get('median'), 1)} | {_fmt(e.get('max'), 1)} |")
+        lines.append("")
+    if plots:
+        lines += ["## Plots", ""]
+        for p in plots:
+            rel = Path(p).relative_to(base) if base else Path(p).name
+            lines.append(f"![{Path(p).stem}]({rel})")
+        lines.append("")
+    return "\n".join(lines)
+
+
+def write_report_md(path: Path, rep: dict, plots: list[Path] = ()) -> Path:
+    path = Path(path)
+    path.write_text(report_md(rep, plots, base=path.parent))
+    return path

@@ -1,0 +1,48 @@
+"""The plots of one run (PNG, bringup/plots.py), from its bag and world: written to OUT/plots/."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ["run_plots"]
+
+_NS = 1_000_000_000
+
+
+def run_plots(out: Path, bag_dir: Path, world, rep: dict) -> list[Path]:
+    from bringup import plots
+    from bringup.recording import BagReader
+    from bringup.report import true_values
+    from msgs_json import codec
+
+    d = Path(out) / "plots"
+    d.mkdir(parents=True, exist_ok=True)
+    sc = world.scenario
+    made: list[Path] = []
+    t = np.arange(0.0, sc.scenario.horizon_s + 1, 60.0)
+    pos = world.constellation.positions_ecef_km(t)
+    from orbit_clock import ecef_to_geodetic
+
+    tracks = {}
+    for i, name in enumerate(world.sat_names):
+        lat, lon, _ = ecef_to_geodetic(pos[i])
+        tracks[name] = (np.asarray(lat), np.asarray(lon))
+    made.append(plots.plot_ground_tracks(d / "ground_tracks.png", tracks, regions=sc.regions.list,
+                                         stations=sc.ground.stations))
+    made.append(plots.plot_osse_snapshot(d / "osse_snapshot.png", world.osse, slot=world.osse.n_slots // 2))
+    if len(world.isl_plan):
+        made.append(plots.plot_contact_timeline(d / "contact_plan.png", world.isl_plan, max_rows=60))
+    with BagReader(bag_dir) as bag:
+        topics = [x.topic for x in bag.topics() if x.topic.endswith("/observations")]
+        obs = [codec.decode(e.topic, e.data) for e in bag.envelopes(topics)]
+    if obs:
+        rows = [{"sat": o.sat, "t_ns": o.t_ns, "region": world.region_of_gp(o.gp)} for o in obs]
+        made.append(plots.plot_observation_gantt(d / "observations_gantt.png", rows, sat_names=world.sat_names,
+                                                 region_names=[r.name for r in sc.regions.list]))
+        tv = true_values(obs, sc.value.revisit_zero_s)
+        made.append(plots.plot_value_over_time(
+            d / "value_over_time.png", {rep["mode"]: ([o.t_ns / _NS for o, _, _ in tv], [v for _, v, _ in tv])},
+            horizon_s=sc.scenario.horizon_s))
+    return made

@@ -1,0 +1,158 @@
+"""Everything a run derives from its scenario before the first step, computed once and cached.
+
+The world of a run is a pure function of the scenario (and its seed): the constellation (SGP4),
+the ground points, the OSSE value field, GP access windows over the horizon (bundle priority
+order), the ISL contact plan and the ground-station contact plan. The ROS engine starts one
+process per satellite; rather than each recomputing it, the launcher builds it once and every
+process loads the same pickle (`World.load`), so every process sees bit-identical inputs.
+
+Oracle: tests/unit/test_world.py - a loaded world equals a freshly built one (contacts, windows,
+OSSE values), and the cache key changes with any scenario field.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import pickle
+from dataclasses import dataclass
+from pathlib import Path
+
+import msgspec
+import numpy as np
+
+from bringup.scenario import Scenario
+
+__all__ = ["World", "scenario_key"]
+
+_FORMAT = 1
+
+
+def scenario_key(sc: Scenario) -> str:
+    """Stable hash of every scenario field (not where it was loaded from)."""
+    raw = msgspec.to_builtins(sc)
+    raw.pop("source_path", None)
+    blob = msgspec.json.encode({"format": _FORMAT, "scenario": raw})
+    return hashlib.sha256(blob).hexdigest()[:16]
+
+
+@dataclass
+class World:
+    scenario: Scenario
+    ctx: object  # sat_node.scheduler.problem.OrbitContext (constellation, gps, osse, slew)
+    access: object  # orbit_clock.access.AccessWindows over [0, horizon]
+    isl_plan: object  # orbit_clock.contact_plan.ContactPlan
+    ground_plan: object  # orbit_clock.contact_plan.ContactPlan (sat <-> gs_*)
+    key: str
+
+    @property
+    def constellation(self):
+        return self.ctx.constellation
+
+    @property
+    def gps(self):
+        return self.ctx.gps
+
+    @property
+    def osse(self):
+        return self.ctx.osse
+
+    @property
+    def n_gp(self) -> int:
+        return len(self.ctx.gps)
+
+    @property
+    def sat_names(self) -> list[str]:
+        return list(self.scenario.sat_names)
+
+    @property
+    def station_nodes(self) -> list[str]:
+        return [f"gs_{s.name}" for s in self.scenario.ground.stations]
+
+    def region_of_gp(self, gp: int) -> int:
+        return int(self.ctx.gps.region_index[gp])
+
+    @classmethod
+    def build(cls, sc: Scenario) -> "World":
+        from orbit_clock import access_windows, ground_contact_plan, isl_contact_plan
+        from sat_node.scheduler.problem import OrbitContext
+
+        ctx = OrbitContext.from_scenario(sc)
+        horizon_s = sc.scenario.horizon_s
+        acc = access_windows(ctx.constellation, ctx.gps, 0.0, horizon_s, sc.instrument.for_off_nadir_deg)
+        isl = isl_contact_plan(sc, ctx.constellation)
+        gnd = ground_contact_plan(sc, ctx.constellation) if sc.ground.stations else None
+        if gnd is None:
+            from orbit_clock.contact_plan import ContactPlan
+
+            gnd = ContactPlan([])
+        return cls(scenario=sc, ctx=ctx, access=acc, isl_plan=isl, ground_plan=gnd, key=scenario_key(sc))
+
+    # The SGP4 satellite records do not pickle: drop the constellation, rebuild it on load
+    # (a pure function of the scenario, milliseconds).
+    def __getstate__(self):
+        st = dict(self.__dict__)
+        ctx = self.ctx
+        st["ctx"] = {"gps": ctx.gps, "osse": ctx.osse, "slew": ctx.slew}
+        return st
+
+    def __setstate__(self, st):
+        from orbit_clock import build_constellation
+        from sat_node.scheduler.problem import OrbitContext
+
+        c = st["ctx"]
+        st["ctx"] = OrbitContext(scenario=st["scenario"], constellation=build_constellation(st["scenario"]),
+                                 gps=c["gps"], osse=c["osse"], slew=c["slew"])
+        self.__dict__.update(st)
+
+    def save(self, path: Path) -> Path:
+        path = Path(path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = path.with_suffix(".tmp")
+        with open(tmp, "wb") as fh:
+            pickle.dump(self, fh, protocol=pickle.HIGHEST_PROTOCOL)
+        tmp.replace(path)
+        return path
+
+    @staticmethod
+    def load(path: Path, expect_key: str | None = None) -> "World":
+        try:
+            with open(path, "rb") as fh:
+                w = pickle.load(fh)
+        except (OSError, pickle.UnpicklingError, EOFError) as exc:
+            raise ValueError(f"world cache {path}: cannot load ({exc})") from None
+        if not isinstance(w, World):
+            raise ValueError(f"world cache {path}: not a World")
+        if expect_key is not None and w.key != expect_key:
+            raise ValueError(f"world cache {path}: built for another scenario (key {w.key} != {expect_key})")
+        return w
+
+    @classmethod
+    def cached(cls, sc: Scenario, cache_dir: Path | None = None) -> "World":
+        """Load from ``cache_dir/world-<key>.pkl`` or build and save there."""
+        key = scenario_key(sc)
+        if cache_dir is None:
+            return cls.build(sc)
+        path = Path(cache_dir) / f"world-{key}.pkl"
+        if path.exists():
+            try:
+                return cls.load(path, key)
+            except ValueError:
+                pass
+        w = cls.build(sc)
+        w.save(path)
+        return w
+
+    # ---- queries used by the node logic ------------------------------------------------------
+    def destinations(self, gp: int, t_s: float, source: str) -> list[tuple[str, int]]:
+        """Bundle destinations for an observation of ``gp`` at ``t_s`` by ``source``:
+        [(sat, priority)], 1 = next on scene over the GP's region (orbit_clock.priority_order)."""
+        from orbit_clock import priority_order
+
+        region = self.region_of_gp(gp)
+        return priority_order(self.access, region, t_s, source=source)
+
+    def gp_region_name(self, gp: int) -> str:
+        return str(self.ctx.gps.region_names[self.region_of_gp(gp)])
+
+    def sat_positions_ecef_km(self, t_s: float) -> np.ndarray:
+        return self.ctx.constellation.positions_ecef_km(np.array([t_s]))[:, 0, :]
