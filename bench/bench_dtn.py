@@ -1,0 +1,68 @@
+"""Benchmark: CGR query time on the study's 1384-contact plan, and the whole DTN run on the study's
+traffic (case4, case1) at 1 kb/s with the study's TTLs. Prints one table row per case.
+
+    .venv/bin/python bench/bench_dtn.py [--cases case4 case1]
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import random
+import sys
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from dtn_router.des import latency_lower_bounds, run_dtn  # noqa: E402
+from orbit_clock.contact_plan import read_contact_plan  # noqa: E402
+from sat_node.dtn.cgr import ContactGraph  # noqa: E402
+from sat_node.dtn.stats import dtn_report  # noqa: E402
+from sat_node.dtn.traffic import read_traffic  # noqa: E402
+
+INPUTS = Path(os.environ.get("PAPER_INPUTS", Path(__file__).resolve().parents[2] / "shared" / "paper_inputs"))
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--cases", nargs="+", default=["case4", "case1"])
+    args = ap.parse_args()
+    plan = read_contact_plan(INPUTS / "contact_plan_3p_8s.csv", rate_bps=1000)
+    g = ContactGraph(plan)
+    g.route("sat_11", "sat_35", 0.0, 2000)  # compile / load the numba cache
+    rng = random.Random(1)
+    n = 2000
+    t0 = time.perf_counter()
+    for _ in range(n):
+        a, b = rng.sample(g.node_names, 2)
+        g.route(a, b, rng.uniform(0, 21000), 2000, backlog_bits=rng.choice([0, 20000]))
+    print(f"CGR query on {len(plan)} contacts: {(time.perf_counter() - t0) / n * 1e3:.3f} ms mean over {n}")
+    print("case   created delivered ratio  mean_s  bound_s  ratio_to_bound median_s p95_s  max_s  "
+          "drop_ttl drop_other copies_disc wall_s")
+    for case in args.cases:
+        traffic = read_traffic(INPUTS / f"traffic_{case}.csv")
+        t0 = time.perf_counter()
+        run = run_dtn(plan, traffic)
+        lb = latency_lower_bounds(plan, traffic, 2000, run.created_ids)
+        wall = time.perf_counter() - t0
+        r = dtn_report(run.events, held=run.held(), lower_bound_s=lb)
+        print(f"{case:6s} {r['dtn.bundles_created']:7d} {r['dtn.bundles_delivered']:9d} {r['dtn.delivery_ratio']:.4f} "
+              f"{r['dtn.latency_s.mean']:7.1f} {r['dtn.latency_s.lower_bound_mean']:8.1f} "
+              f"{r['dtn.latency_s.mean'] / r['dtn.latency_s.lower_bound_mean']:14.2f} {r['dtn.latency_s.median']:8.1f} "
+              f"{r['dtn.latency_s.p95']:6.1f} {r['dtn.latency_s.max']:6.1f} {r['dtn.dropped.ttl']:8d} "
+              f"{r['dtn.dropped.other']:10d} {r['dtn.copies_discarded']:11d} {wall:6.1f}  conservation="
+              f"{r['dtn.conservation_ok']}")
+        print("   prio created delivered median_s max_s")
+        for p in range(1, 16):
+            c = r[f"dtn.latency_s_by_priority.{p}.created"]
+            if c:
+                med = r[f"dtn.latency_s_by_priority.{p}.median"]
+                mx = r[f"dtn.latency_s_by_priority.{p}.max"]
+                print(f"   {p:4d} {c:7d} {r[f'dtn.latency_s_by_priority.{p}.count']:9d} "
+                      f"{med if med is None else round(med, 1)!s:>8s} {mx if mx is None else round(mx, 1)!s:>6s}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

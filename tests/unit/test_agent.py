@@ -1,0 +1,81 @@
+"""Bundle agents stepped by hand on a drawn plan (rate 1000 b/s, 2000-bit bundles = 2 s on air).
+
+   sat_11 --[0;100]--> sat_12 --[50;200]--> sat_13      (and the reverse contacts)
+"""
+
+from orbit_clock.contact_plan import Contact, ContactPlan
+from sat_node.dtn.agent import AgentConfig, BundleAgent
+
+S = 10**9
+PLAN = ContactPlan([Contact(0.0, 100.0, "sat_11", "sat_12", 1000.0, 0.0),
+                    Contact(0.0, 100.0, "sat_12", "sat_11", 1000.0, 0.0),
+                    Contact(50.0, 200.0, "sat_12", "sat_13", 1000.0, 0.5),
+                    Contact(50.0, 200.0, "sat_13", "sat_12", 1000.0, 0.5)])
+
+
+def agents(**kw):
+    cfg = AgentConfig(**kw)
+    return {n: BundleAgent(n, PLAN, cfg) for n in ("sat_11", "sat_12", "sat_13")}
+
+
+def test_two_hop_delivery_priority_order_and_events():
+    a = agents()
+    low = a["sat_11"].originate(b"low", "sat_13", 9, 10 * S)
+    high = a["sat_11"].originate(b"high", "sat_13", 1, 10 * S)
+    txs = a["sat_11"].transmissions_until(10 * S)
+    assert [t.bundle_id for t in txs] == [high]  # one radio: the second waits for the first
+    txs += a["sat_11"].transmissions_until(12 * S)
+    assert [t.bundle_id for t in txs] == [high, low] and [t.start_ns for t in txs] == [10 * S, 12 * S]
+    assert all(t.next_hop == "sat_12" for t in txs)
+    for t in txs:
+        assert a["sat_13"].receive(t.bundle_bytes, "sat_11", t.end_ns) == "discarded.not_next_hop"
+        assert a["sat_12"].receive(t.bundle_bytes, "sat_11", t.end_ns) == "queued"
+    assert a["sat_12"].next_event_ns() == 50 * S  # waits for the contact to sat_13
+    relay = a["sat_12"].transmissions_until(60 * S)
+    assert [(t.bundle_id, t.start_ns) for t in relay] == [(high, 50 * S), (low, 52 * S)]
+    for t in relay:
+        assert a["sat_13"].receive(t.bundle_bytes, "sat_12", t.end_ns + S // 2) == "delivered"
+    assert a["sat_13"].receive(relay[0].bundle_bytes, "sat_12", 70 * S) == "discarded.duplicate"
+    kinds = [(e.kind, e.node) for e in a["sat_13"].events]
+    assert kinds.count(("delivered", "sat_13")) == 2
+    d = [e for e in a["sat_13"].events if e.kind == "delivered"]
+    assert d[0].t_ns - d[0].created_ns == 42 * S + S // 2
+
+
+def test_ttl_drop_and_conservation():
+    a = agents(ttl_s_by_priority={1: 30.0, 15: 30.0})
+    a["sat_11"].originate(b"x", "sat_13", 1, 0)  # earliest arrival 52.5 s > 30 s lifetime: no route
+    assert a["sat_11"].counters["dropped.no_route"] == 1
+    a = agents(ttl_s_by_priority={1: 60.0, 15: 60.0})
+    a["sat_11"].originate(b"x", "sat_13", 1, 0)
+    t = a["sat_11"].transmissions_until(0)[0]
+    assert a["sat_12"].receive(t.bundle_bytes, "sat_11", t.end_ns) == "queued"
+    a["sat_12"].expire(61 * S)  # it was due at 50 s but 60 s is its lifetime: sending at 50 still fits
+    assert a["sat_12"].counters["dropped.ttl"] == 1 and a["sat_12"].held_count() == 0
+
+
+def test_integrity_and_malformed_are_dropped():
+    a = agents()
+    a["sat_11"].originate(b"payload", "sat_12", 1, 0)
+    t = a["sat_11"].transmissions_until(0)[0]
+    bad = bytearray(t.bundle_bytes)
+    bad[-3] ^= 0x01  # inside the payload
+    assert a["sat_12"].receive(bytes(bad), "sat_11", 3 * S) == "dropped.integrity"
+    assert a["sat_12"].receive(b"\x9f\x00", "sat_11", 3 * S) == "dropped.integrity"
+    other = BundleAgent("sat_12", PLAN, AgentConfig(key=b"another constellation"))
+    assert other.receive(t.bundle_bytes, "sat_11", 3 * S) == "dropped.integrity"
+    assert a["sat_12"].receive(t.bundle_bytes, "sat_11", 3 * S) == "delivered"
+
+
+def test_missed_contact_reroutes_and_failed_transmission_returns():
+    a = agents()
+    b1 = a["sat_11"].originate(b"x", "sat_12", 1, 99 * S - S // 2)  # 98.5-100.5 would overrun the contact
+    assert a["sat_11"].transmissions_until(100 * S) == []
+    assert a["sat_11"].counters["dropped.no_route"] == 1
+    a = agents()
+    b1 = a["sat_11"].originate(b"x", "sat_12", 1, 10 * S)
+    tx = a["sat_11"].transmissions_until(10 * S)[0]
+    a["sat_11"].transmission_failed(tx, 10 * S)
+    # the only contact to sat_12 was excluded after the failure: nothing else reaches it
+    assert a["sat_11"].counters["tx_failed"] == 1 and a["sat_11"].counters["dropped.no_route"] == 1
+    assert b1 == tx.bundle_id
