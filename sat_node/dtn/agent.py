@@ -74,6 +74,7 @@ class AgentConfig:
     epoch_dtn_ms: int = PAPER_EPOCH_DTN_MS
     hop_limit: int = 32
     verify_integrity: bool = True
+    hop_tolerance_s: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -117,6 +118,25 @@ class _Held:
     contact: int = -1
     excluded: set = field(default_factory=set)
     excluded_node: str | None = None  # the node it came from (no ping-pong)
+    bits: int = 0
+    group: object = None
+    route_memo: tuple | None = None  # (t_ns, parked version, Route | None)
+
+
+class _Group:
+    """Bundles that route alike (same destination, excluded node and excluded contacts), in
+    (priority, creation, arrival order). A group whose best route waits for a contact that is not
+    open yet is parked until that contact (or any new outgoing contact) opens."""
+
+    __slots__ = ("key", "heap", "n", "ready_ns", "parked_c", "parked_bits")
+
+    def __init__(self, key):
+        self.key = key
+        self.heap: list = []
+        self.n = 0
+        self.ready_ns = 0
+        self.parked_c = -1
+        self.parked_bits: Counter = Counter()  # priority -> bits counted on the parked contact
 
 
 class BundleAgent:
@@ -131,14 +151,16 @@ class BundleAgent:
         self.on_event = on_event
         self.events: list[BundleEvent] = [] if keep_events else None
         self.counters: Counter = Counter()
+        self.last_error = ""
         self._held: dict[str, _Held] = {}
-        self._queues: dict[int, list] = {}  # contact index -> heap of (priority, order, bundle id)
+        self._groups: dict[tuple, _Group] = {}
         self._order = itertools.count()
         self._seen: set[str] = set()
         self._in_flight: dict[str, tuple[Transmission, _Held]] = {}
-        self._backlog_bits = np.zeros(17)
-        self._residual = self.graph.volume_bits.copy()
+        self._parked: dict[int, list] = {}  # contact -> bits waiting for it, by priority (index 0..15)
+        self._version = 0  # bumped whenever _parked changes (route memo key)
         self._expiry_heap: list = []
+        self._out_starts = self.graph.out_starts.get(node, np.zeros(0))
         self.radio_free_ns = 0
         self._seq = 0 if store is None else store.get_meta("seq")
         if store is not None:
@@ -212,6 +234,8 @@ class BundleAgent:
                 verify_bib(b, self.config.key)
             prio_blk = b.block(PRIORITY_BLOCK)
             priority = int(cbor2.loads(prio_blk.data)) if prio_blk is not None else 15
+            if not 1 <= priority <= 15:
+                raise ValueError(f"priority block holds {priority}, not 1..15")
             dest = node_name(b.dest[0])
         except (IntegrityError, BundleError, ValueError) as exc:
             self.last_error = str(exc)
@@ -243,110 +267,223 @@ class BundleAgent:
 
     def _accept(self, h: _Held, now_ns: int) -> str:
         bid = h.bundle.bundle_id
+        h.bits = self.config.bundle_bits or 8 * len(encode_bundle(h.bundle))
         self._held[bid] = h
         if self.store is not None:
             self.store.put(StoredBundle(bid, encode_bundle(h.bundle), h.priority, h.dest, h.expiry_ns, now_ns))
         heapq.heappush(self._expiry_heap, (h.expiry_ns, bid))
-        return self._route(h, now_ns)
+        return self._enqueue(h, now_ns)
 
-    def _route(self, h: _Held, now_ns: int) -> str:
-        bits = self.config.bundle_bits or 8 * len(encode_bundle(h.bundle))
-        t_s = max(now_ns, self.radio_free_ns) / _NS
-        backlog = float(self._backlog_bits[: h.priority + 1].sum())
-        excluded = None
-        if h.excluded:
-            excluded = np.zeros(len(self._residual), dtype=np.bool_)
-            excluded[list(h.excluded)] = True
-        ex_nodes = (h.excluded_node,) if h.excluded_node else ()
-        r = self.graph.route(self.node, h.dest, t_s, bits, backlog_bits=backlog, deadline_s=h.expiry_ns / _NS,
-                             residual_bits=self._residual, excluded=excluded, excluded_nodes=ex_nodes)
+    def _enqueue(self, h: _Held, now_ns: int) -> str:
+        """Check that a route exists (else drop ``no_route`` now) and put the bundle in its group."""
         bid = h.bundle.bundle_id
+        h.ready_ns = now_ns
+        t = max(now_ns, self.radio_free_ns)
+        r = self._route(h, t)
         if r is None:
             self._forget(bid)
             self._emit(now_ns, "dropped", h, bid, reason="no_route")
             return "dropped.no_route"
-        c = r.contacts[0]
-        h.contact = c
-        self._residual[c] -= bits
-        self._backlog_bits[h.priority] += bits
-        heapq.heappush(self._queues.setdefault(c, []), (h.priority, next(self._order), bid))
+        key = (h.dest, h.excluded_node, frozenset(h.excluded))
+        g = self._groups.get(key)
+        new = g is None
+        if new:
+            g = self._groups[key] = _Group(key)
+            g.ready_ns = now_ns
+        elif g.parked_c < 0:
+            g.ready_ns = max(g.ready_ns, now_ns)
+        h.group = g
+        g.n += 1
+        heapq.heappush(g.heap, (h.priority, h.created_ns, next(self._order), bid))
+        if g.parked_c >= 0:
+            self._park_add(g.parked_c, h.priority, h.bits)
+            g.parked_bits[h.priority] += h.bits
+        elif new:  # its own group: if its best route waits for a contact not open yet, park it now
+            self._maybe_park(g, r.contacts[0], t)
         return "queued"
 
+    def _maybe_park(self, g: _Group, c: int, s: int) -> bool:
+        """Park ``g`` if its best first contact ``c`` is not open at ``s``: until it opens, or until
+        any other outgoing contact opens first (which may offer a better route)."""
+        start_ns = int(np.ceil(self.graph.start_s[c] * _NS))
+        if start_ns <= s:
+            return False
+        k = int(np.searchsorted(self._out_starts, s / _NS, side="right"))
+        nxt = int(np.ceil(self._out_starts[k] * _NS)) if k < len(self._out_starts) else start_ns
+        self._park(g, c, max(s + 1, min(start_ns, nxt)))
+        return True
+
+    def _route(self, h: _Held, t_ns: int):
+        """CGR from this node at ``t_ns`` (the radio free then), after the bits already waiting for
+        each contact that is not open yet (equal or higher priority). Memoised per (time, state)."""
+        memo = h.route_memo
+        if memo is not None and memo[0] == t_ns and memo[1] == self._version:
+            return memo[2]
+        fb = None
+        if self._parked:
+            fb = self.graph._no_backlog.copy()
+            p = h.priority
+            for c, byp in self._parked.items():
+                x = sum(byp[: p + 1])
+                if x > 0:
+                    fb[c] = x
+        excluded = None
+        if h.excluded:
+            excluded = np.zeros(len(self.graph.contacts), dtype=np.bool_)
+            excluded[list(h.excluded)] = True
+        r = self.graph.route(self.node, h.dest, t_ns / _NS, h.bits, deadline_s=h.expiry_ns / _NS,
+                             excluded=excluded, excluded_nodes=(h.excluded_node,) if h.excluded_node else (),
+                             first_backlog_bits=fb, hop_tolerance_s=self.config.hop_tolerance_s)
+        h.route_memo = (t_ns, self._version, r)
+        return r
+
+    def _park_add(self, c: int, priority: int, bits: int) -> None:
+        byp = self._parked.get(c)
+        if byp is None:
+            byp = self._parked[c] = [0] * 16
+        byp[priority] += bits
+        self._version += 1
+
+    def _park(self, g: _Group, c: int, until_ns: int) -> None:
+        g.parked_c = c
+        g.ready_ns = until_ns
+        for _p, _cr, _o, bid in g.heap:
+            h = self._held.get(bid)
+            if h is not None and h.group is g:
+                g.parked_bits[h.priority] += h.bits
+        for p, bits in g.parked_bits.items():
+            self._park_add(c, p, bits)
+
+    def _unpark(self, g: _Group) -> None:
+        if g.parked_c < 0:
+            return
+        byp = self._parked[g.parked_c]
+        for p, bits in g.parked_bits.items():
+            byp[p] -= bits
+        if not any(byp):
+            del self._parked[g.parked_c]
+        g.parked_c = -1
+        g.parked_bits = Counter()
+        self._version += 1
+
+    def _leave_group(self, h: _Held) -> None:
+        g = h.group
+        if g is None:
+            return
+        h.group = None
+        g.n -= 1
+        if g.parked_c >= 0:
+            g.parked_bits[h.priority] -= h.bits
+            byp = self._parked[g.parked_c]
+            byp[h.priority] -= h.bits
+            self._version += 1
+            if g.n == 0:
+                self._unpark(g)
+        if g.n == 0:
+            del self._groups[g.key]
+
     def _forget(self, bid: str) -> None:
-        self._held.pop(bid, None)
+        h = self._held.pop(bid, None)
+        if h is not None:
+            self._leave_group(h)
         if self.store is not None:
             self.store.delete(bid)
 
-    def _dequeue(self, h: _Held, *, sent: bool = False) -> None:
-        bits = self.config.bundle_bits or 8 * len(encode_bundle(h.bundle))
-        self._backlog_bits[h.priority] -= bits
-        if not sent:  # volume booked on the contact is given back unless it was used
-            self._residual[h.contact] += bits
-
     # ---------------------------------------------------------------- radio
-    def _head(self, c: int):
-        q = self._queues.get(c)
-        while q:
-            bid = q[0][2]
+    def _head(self, g: _Group):
+        while g.heap:
+            bid = g.heap[0][3]
             h = self._held.get(bid)
-            if h is not None and h.contact == c:
+            if h is not None and h.group is g:
                 return h
-            heapq.heappop(q)  # stale entry (dropped or re-routed)
+            heapq.heappop(g.heap)  # stale entry (dropped, sent or re-grouped)
         return None
 
-    def _next_start(self):
-        """(start_ns, priority, order, contact) of the next transmission the radio can start."""
-        best = None
-        empty = []
-        for c, q in self._queues.items():
-            h = self._head(c)
-            if h is None:
-                empty.append(c)
-                continue
-            s = max(self.radio_free_ns, int(np.ceil(self.graph.start_s[c] * _NS)), h.ready_ns)
-            key = (s, q[0][0], q[0][1], c)
-            if best is None or key < best:
-                best = key
-        for c in empty:
-            del self._queues[c]
-        return best
+    def _next_decision_ns(self) -> int | None:
+        """When the radio next chooses what to send: it is free and some group is ready."""
+        if not self._groups:
+            return None
+        ready = min(g.ready_ns for g in self._groups.values())
+        return max(ready, self.radio_free_ns)
+
+    def _decide(self, s: int) -> Transmission | None:
+        """At ``s`` (radio free): the highest-priority bundle whose best route leaves now goes; groups
+        whose best route waits for a contact not yet open are parked until it (or a new contact) opens."""
+        for g in list(self._groups.values()):
+            if g.parked_c >= 0 and g.ready_ns <= s:
+                self._unpark(g)
+        ready = []
+        for g in self._groups.values():
+            if g.ready_ns <= s:
+                h = self._head(g)
+                if h is not None:
+                    ready.append((g.heap[0], g))
+        ready.sort(key=lambda x: x[0])
+        for _k, g in ready:
+            while True:
+                h = self._head(g)
+                if h is None:
+                    break
+                bid = h.bundle.bundle_id
+                if s >= h.expiry_ns:
+                    self._forget(bid)
+                    self._emit(s, "dropped", h, bid, reason="ttl")
+                    continue
+                r = self._route(h, s)
+                if r is None:  # cannot arrive before its lifetime ends any more: drop it now
+                    self._forget(bid)
+                    self._emit(s, "dropped", h, bid, reason="no_route")
+                    continue
+                c = r.contacts[0]
+                if self._maybe_park(g, c, s):
+                    break
+                tx = self._send(h, c, s)
+                if tx is not None:
+                    return tx
+        return None
+
+    def _send(self, h: _Held, c: int, s: int) -> Transmission | None:
+        bid = h.bundle.bundle_id
+        h.bundle.previous_node = ipn(self.number, 0)
+        h.bundle.next_hop = node_number(self.graph.contacts[c].dst)
+        data = encode_bundle(h.bundle)
+        bits = self._bits(data)
+        end = s + int(np.ceil(bits / self.graph.rate_bps[c] * _NS))
+        if end > self.graph.end_s[c] * _NS:  # rounding: the contact closes first - re-route without it
+            self._leave_group(h)
+            h.excluded.add(c)
+            del self._held[bid]
+            self._held[bid] = h
+            self._enqueue(h, s)
+            return None
+        self._leave_group(h)
+        del self._held[bid]
+        h.contact = c
+        tx = Transmission(data, self.graph.contacts[c].dst, s, end, bits, self.node, bid, c)
+        self._in_flight[bid] = (tx, h)
+        self.radio_free_ns = end
+        self._emit(s, "forwarded", h, bid)
+        return tx
 
     def transmissions_until(self, t_ns: int) -> list[Transmission]:
-        """Transmissions this radio starts at or before ``t_ns`` (in order)."""
+        """Transmissions this radio starts at or before ``t_ns`` (in order). The next hop is chosen
+        when the radio is free (at transmission time), not when the bundle was queued."""
         out: list[Transmission] = []
         self._settle(t_ns)
         while True:
-            nxt = self._next_start()
-            if nxt is None or nxt[0] > t_ns:
+            s = self._next_decision_ns()
+            if s is None or s > t_ns:
                 break
-            s, _p, _o, c = nxt
-            bid = heapq.heappop(self._queues[c])[2]
-            h = self._held[bid]
-            self._dequeue(h, sent=True)
-            if s >= h.expiry_ns:
-                self._forget(bid)
-                self._emit(s, "dropped", h, bid, reason="ttl")
-                continue
-            data = None
-            h.bundle.previous_node = ipn(self.number, 0)
-            h.bundle.next_hop = node_number(self.graph.contacts[c].dst)
-            data = encode_bundle(h.bundle)
-            bits = self._bits(data)
-            end = s + int(np.ceil(bits / self.graph.rate_bps[c] * _NS))
-            if end > self.graph.end_s[c] * _NS:
-                h.excluded.add(c)  # missed contact: re-route without it
-                self._route(h, s)
-                continue
-            tx = Transmission(data, self.graph.contacts[c].dst, s, end, bits, self.node, bid, c)
-            del self._held[bid]
-            self._in_flight[bid] = (tx, h)
-            self.radio_free_ns = end
-            self._emit(s, "forwarded", h, bid)
-            out.append(tx)
+            tx = self._decide(s)
+            if tx is not None:
+                out.append(tx)
         return out
 
     def _settle(self, now_ns: int) -> None:
-        """Transmissions that ended without a failure report are done: forget those bundles."""
+        """Transmissions that have ended without a failure report are done: only now is the bundle
+        removed from the persistent store (a process killed mid-transmission still has it)."""
+        if not self._in_flight:
+            return
         for bid in [b for b, (tx, _h) in self._in_flight.items() if tx.end_ns <= now_ns]:
             del self._in_flight[bid]
             if self.store is not None:
@@ -360,13 +497,13 @@ class BundleAgent:
         _tx, h = item
         self.counters["tx_failed"] += 1
         h.excluded.add(tx.contact)
-        h.ready_ns = now_ns
+        h.route_memo = None
         self._held[tx.bundle_id] = h
         if now_ns >= h.expiry_ns:
             self._forget(tx.bundle_id)
             self._emit(now_ns, "dropped", h, tx.bundle_id, reason="ttl")
             return
-        self._route(h, now_ns)
+        self._enqueue(h, now_ns)
 
     def expire(self, now_ns: int) -> int:
         """Drop held bundles whose lifetime is over; returns how many."""
@@ -376,23 +513,23 @@ class BundleAgent:
             h = self._held.get(bid)
             if h is None or h.expiry_ns != exp:
                 continue
-            self._dequeue(h)
             self._forget(bid)
             self._emit(exp, "dropped", h, bid, reason="ttl")
             n += 1
         return n
 
     def next_event_ns(self) -> int | None:
-        """Earliest time this agent needs to act (a transmission start or an expiry), or None."""
+        """Earliest time this agent needs to act (a transmission decision or an expiry), or None;
+        with a persistent store also the end of a transmission (its bundle leaves the store then)."""
         cands = []
-        nxt = self._next_start()
+        nxt = self._next_decision_ns()
         if nxt is not None:
-            cands.append(nxt[0])
+            cands.append(nxt)
         while self._expiry_heap and self._expiry_heap[0][1] not in self._held:
             heapq.heappop(self._expiry_heap)
         if self._expiry_heap:
             cands.append(self._expiry_heap[0][0])
-        if self._in_flight:
+        if self._in_flight and self.store is not None:
             cands.append(min(tx.end_ns for tx, _h in self._in_flight.values()))
         return min(cands) if cands else None
 
@@ -407,6 +544,9 @@ class BundleAgent:
                 continue
             created = self._created_ns(b)
             h = _Held(b, sb.priority, sb.dest, sb.expiry_ns, created, sb.received_ns)
+            if b.previous_node is not None and b.previous_node[0] != self.number:
+                h.excluded_node = node_name(b.previous_node[0])
+            h.bits = self.config.bundle_bits or 8 * len(sb.data)
             self._held[sb.bundle_id] = h
             heapq.heappush(self._expiry_heap, (h.expiry_ns, sb.bundle_id))
-            self._route(h, sb.received_ns)
+            self._enqueue(h, sb.received_ns)

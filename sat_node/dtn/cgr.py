@@ -44,8 +44,13 @@ INF = np.inf
 
 @numba.njit(cache=True)
 def _dijkstra(start, end, src, dst, rate, owlt, residual, out_ptr, out_idx, excluded, node_excluded,
-              source, dest, t0, bits, backlog_bits, deadline, arr, pred):
+              source, dest, t0, bits, backlog_bits, deadline, arr, pred, first_backlog, hop_tol):
     """Label-setting search over (contact, hop count) states with Pareto pruning.
+
+    First hop on contact c starts at max(t0 + backlog_bits / rate, start) + first_backlog[c] / rate
+    (first_backlog: bits already waiting for that very contact, sent when it opens).
+    hop_tol >= 0: among routes arriving no later than the earliest arrival + hop_tol, the one with
+    fewest hops (then earliest arrival) is chosen; hop_tol = 0 is the plain SABR order.
 
     arr[c, h]: earliest arrival at dst[c] over routes ending with contact c after h hops; pred[c, h]:
     the contact before c on that route (-1 first hop). A label is kept only if no label of the same
@@ -59,7 +64,7 @@ def _dijkstra(start, end, src, dst, rate, owlt, residual, out_ptr, out_idx, excl
         c = out_idx[k]
         if excluded[c] or node_excluded[dst[c]] or dst[c] == source or end[c] <= t0:
             continue
-        ts = max(t0 + backlog_bits / rate[c], start[c])
+        ts = max(t0 + backlog_bits / rate[c], start[c]) + first_backlog[c] / rate[c]
         te = ts + bits / rate[c]
         if te > end[c] or residual[c] < bits:
             continue
@@ -69,10 +74,15 @@ def _dijkstra(start, end, src, dst, rate, owlt, residual, out_ptr, out_idx, excl
         arr[c, 1] = a
         pred[c, 1] = -1
         heapq.heappush(heap, (a, 1, c))
+    best_c = -1
+    best_h = 0
+    best_a = np.inf
     while len(heap) > 0:
         a, h, c = heapq.heappop(heap)
         if a > arr[c, h]:
             continue
+        if best_c >= 0 and a > best_a + hop_tol:
+            break
         dominated = False
         for hh in range(1, h):
             if arr[c, hh] <= a:
@@ -82,7 +92,15 @@ def _dijkstra(start, end, src, dst, rate, owlt, residual, out_ptr, out_idx, excl
             continue
         v = dst[c]
         if v == dest:
-            return c, h
+            if best_c < 0:
+                best_c, best_h, best_a = c, h, a
+                if hop_tol <= 0.0:
+                    break
+            elif h < best_h:
+                best_c, best_h = c, h
+            continue
+        if best_c >= 0 and h + 1 >= best_h:
+            continue  # within the tolerance only a route with fewer hops could still win
         if h >= H:
             continue
         for k in range(out_ptr[v], out_ptr[v + 1]):
@@ -107,7 +125,7 @@ def _dijkstra(start, end, src, dst, rate, owlt, residual, out_ptr, out_idx, excl
             arr[e, h + 1] = na
             pred[e, h + 1] = c
             heapq.heappush(heap, (na, h + 1, e))
-    return -1, 0
+    return best_c, best_h
 
 
 @dataclass(frozen=True)
@@ -150,12 +168,17 @@ class ContactGraph:
         self.out_idx = order.astype(np.int64)
         self._no_exclusion = np.zeros(n, dtype=np.bool_)
         self._no_node_exclusion = np.zeros(len(self.node_names), dtype=np.bool_)
+        self._no_backlog = np.zeros(n, dtype=np.float64)
+        # per node: its outgoing contacts' start times, sorted (when a new first hop appears)
+        self.out_starts = {name: np.sort(self.start_s[self.out_idx[self.out_ptr[i]:self.out_ptr[i + 1]]])
+                           for i, name in enumerate(self.node_names)}
 
     def outgoing(self, node: str) -> np.ndarray:
         i = self.node_index[node]
         return self.out_idx[self.out_ptr[i]:self.out_ptr[i + 1]]
 
-    def _run(self, source, dest, t_s, bits, backlog_bits, deadline_s, residual, excluded, excluded_nodes):
+    def _run(self, source, dest, t_s, bits, backlog_bits, deadline_s, residual, excluded, excluded_nodes,
+             first_backlog=None, hop_tol_s=0.0):
         n = len(self.contacts)
         H = len(self.node_names)  # a simple path has at most n_nodes - 1 hops
         arr = np.full((n, H + 1), INF)
@@ -170,21 +193,26 @@ class ContactGraph:
                                self.volume_bits if residual is None else residual, self.out_ptr, self.out_idx,
                                self._no_exclusion if excluded is None else excluded, node_ex,
                                self.node_index[source], -1 if dest is None else self.node_index[dest],
-                               float(t_s), float(bits), float(backlog_bits), float(deadline_s), arr, pred)
+                               float(t_s), float(bits), float(backlog_bits), float(deadline_s), arr, pred,
+                               self._no_backlog if first_backlog is None else first_backlog, float(hop_tol_s))
         return best, hops, arr, pred
 
     def route(self, source: str, dest: str, t_s: float, bits: float, *, backlog_bits: float = 0.0,
               deadline_s: float = INF, residual_bits: np.ndarray | None = None,
-              excluded: np.ndarray | None = None, excluded_nodes=()) -> Route | None:
+              excluded: np.ndarray | None = None, excluded_nodes=(), first_backlog_bits: np.ndarray | None = None,
+              hop_tolerance_s: float = 0.0) -> Route | None:
         """Best route from ``source`` at ``t_s`` for a bundle of ``bits`` (None if none arrives by
         ``deadline_s``). ``residual_bits``: per-contact remaining volume (default: full volumes);
-        ``excluded``: boolean mask of contacts not to use; ``excluded_nodes``: names not to visit."""
+        ``excluded``: boolean mask of contacts not to use; ``excluded_nodes``: names not to visit;
+        ``first_backlog_bits``: per contact, bits already waiting for it at ``source`` (sent after it
+        opens, before this bundle); ``hop_tolerance_s``: prefer fewer hops among routes arriving within
+        this many seconds of the earliest."""
         if source == dest:
             raise ValueError(f"route from {source} to itself")
         if source not in self.node_index or dest not in self.node_index:
             return None
         best, hops, arr, pred = self._run(source, dest, t_s, bits, backlog_bits, deadline_s, residual_bits,
-                                          excluded, excluded_nodes)
+                                          excluded, excluded_nodes, first_backlog_bits, hop_tolerance_s)
         if best < 0:
             return None
         arrival = float(arr[best, hops])
@@ -194,7 +222,8 @@ class ContactGraph:
             path.append(int(c))
             c, h = pred[c, h], h - 1
         path.reverse()
-        self._check(path, source, dest, t_s, bits, backlog_bits, arrival)
+        fb = 0.0 if first_backlog_bits is None else float(first_backlog_bits[path[0]])
+        self._check(path, source, dest, t_s, bits, backlog_bits, arrival, fb)
         return Route(tuple(path), self.contacts[path[0]].dst, arrival)
 
     def earliest_arrivals(self, source: str, t_s: float, bits: float) -> dict[str, float]:
@@ -210,12 +239,13 @@ class ContactGraph:
         out.pop(source, None)
         return out
 
-    def _check(self, path, source, dest, t_s, bits, backlog_bits, arrival):
+    def _check(self, path, source, dest, t_s, bits, backlog_bits, arrival, first_backlog=0.0):
         t = t_s
         seen = {source}
         for k, ci in enumerate(path):
             c = self.contacts[ci]
-            ts = max(t + (backlog_bits / c.rate_bps if k == 0 else 0.0), c.start_s)
+            ts = max(t + (backlog_bits / c.rate_bps if k == 0 else 0.0), c.start_s) \
+                + (first_backlog / c.rate_bps if k == 0 else 0.0)
             te = ts + bits / c.rate_bps
             if (k == 0 and c.src != source) or (k > 0 and c.src != self.contacts[path[k - 1]].dst) \
                     or te > c.end_s + 1e-9 or c.dst in seen:
