@@ -35,7 +35,7 @@ from msgs_json.envelope import Envelope
 __all__ = ["RunMeta", "build_report", "report_from_bag", "flatten", "true_values", "REPORT_TOPIC_SUFFIXES"]
 
 _NS = 1_000_000_000
-REPORT_TOPIC_SUFFIXES = ("/observations", "/dtn/events", "/schedule", "/ground/uplink")
+REPORT_TOPIC_SUFFIXES = ("/observations", "/dtn/events", "/dtn/counters", "/schedule", "/ground/uplink")
 
 
 @dataclass
@@ -88,6 +88,7 @@ def build_report(envelopes, meta: RunMeta, runtime: dict | None = None) -> dict:
     obs: list[S.Observation] = []
     events: list[_Ev] = []
     n_schedules = 0
+    counters: dict[str, dict] = {}
     cpu_by_planner: dict[str, float] = defaultdict(float)
     bad = 0
     for env in envelopes:
@@ -97,6 +98,9 @@ def build_report(envelopes, meta: RunMeta, runtime: dict | None = None) -> dict:
                 obs.append(codec.decode(t, env.data))
             elif t.endswith("/dtn/events"):
                 events.append(_bundle_event(codec.decode(t, env.data)))
+            elif t.endswith("/dtn/counters"):
+                m = codec.decode(t, env.data)
+                counters[m.sat] = m.counters
             elif t.endswith("/schedule"):
                 n_schedules += 1
                 cpu_by_planner[codec.decode(t, env.data).sat] += codec.decode(t, env.data).solve_cpu_s
@@ -111,6 +115,13 @@ def build_report(envelopes, meta: RunMeta, runtime: dict | None = None) -> dict:
     rep.update(_value_figures(obs, meta))
     rep["schedules"] = {"count": n_schedules}
     rep["dtn"] = _dtn_figures(events)
+    if counters:
+        # overheard copies are counted by the satellites (DtnCounters), not sent as events
+        over = sum(c.get("discarded.not_next_hop", 0) for c in counters.values())
+        rep["dtn"]["copies_discarded"] = rep["dtn"].get("copies_discarded", 0) + over
+        det = rep["dtn"].setdefault("copies_discarded_detail", {})
+        det["not_next_hop"] = det.get("not_next_hop", 0) + over
+        rep["dtn"]["held_at_end"] = sum(c.get("held", 0) for c in counters.values())
     rep["messages_rejected_in_report"] = bad
     rt = dict(runtime or {})
     rt["scheduler_cpu_s_per_sat"] = (sum(cpu_by_planner.values()) / meta.n_sats) if meta.n_sats else None

@@ -100,6 +100,7 @@ class GroundLogic:
         end_ns = min(horizon_ns, (nxt if nxt is not None else horizon_ns) + self.margin_ns)
         window_s = (end_ns - t_ns) / _NS
         items: list[S.ScheduleItem] = []
+        plan = None
         if window_s > 0:
             known = list(self.downlinked)
             for other, ks in self.planned.items():
@@ -108,10 +109,14 @@ class GroundLogic:
             ctx = self.world.ctx
             view = OrbitContext(scenario=ctx.scenario, constellation=ctx.constellation, gps=ctx.gps,
                                 osse=PersistenceOsse(ctx.osse, t_ns / _NS), slew=ctx.slew)
-            p = instance_from_orbit(view, sat=sat, t0_s=t_ns / _NS, window_s=window_s, known=known,
-                                    belief=self.belief)
-            plan = solve_dp(p, check=True)
-            self.planned[sat] = [KnownObservation(t_s, int(gp), sat) for gp, t_s in plan.as_list()]
+            ids = self.world.candidate_gp_ids(sat, t_ns / _NS, t_ns / _NS + window_s)
+            p = None
+            if len(ids):
+                p = instance_from_orbit(view, sat=sat, t0_s=t_ns / _NS, window_s=window_s, known=known,
+                                        belief=self.belief, gp_ids=ids)
+            plan = solve_dp(p, check=True) if p is not None else None
+        if plan is not None:
+            self.planned[sat] = [KnownObservation(t_s, int(gp), sat, planned=True) for gp, t_s in plan.as_list()]
             items = [S.ScheduleItem(gp=int(gp), t_ns=int(round(t_s * _NS)), value=max(0.0, float(v)))
                      for (gp, t_s), v in zip(plan.as_list(), plan.values)]
         cpu = time.process_time() - c0

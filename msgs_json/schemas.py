@@ -25,6 +25,7 @@ topic                  type                          meaning
 /sat_XX/dtn/events     BundleCreated | BundleForwar  bundle life cycle, tagged by ``event``:
                        ded | BundleDelivered |       created, forwarded, delivered,
                        BundleDropped | CopyDiscarded dropped(reason), copy_discarded
+/sat_XX/dtn/counters   DtnCounters                   cumulative DTN counters (overheard copies, held)
 /ground/downlink       GroundDownlink                observations a satellite downlinked at a pass
 /ground/uplink         GroundUplink                  a plan uplinked to a satellite at a pass
 =====================  ============================  =============================================
@@ -52,6 +53,7 @@ __all__ = [
     "BundleDelivered",
     "BundleDropped",
     "BundleEvent",
+    "DtnCounters",
     "BundleForwarded",
     "ContactWindow",
     "CopyDiscarded",
@@ -291,6 +293,18 @@ class CopyDiscarded(_BundleEvt, kw_only=True, frozen=True, tag="copy_discarded")
 
 BundleEvent = BundleCreated | BundleForwarded | BundleDelivered | BundleDropped | CopyDiscarded
 
+
+class DtnCounters(_Msg, kw_only=True, frozen=True):
+    """Cumulative DTN counters of satellite ``sat`` at ``t_ns`` (/sat_XX/dtn/counters).
+
+    Copies overheard on the broadcast medium and meant for another next hop are only counted here
+    (one event per copy would outnumber every other message of a run); ``counters`` maps names
+    such as ``discarded.not_next_hop``, ``held``, ``rejected_messages`` to counts."""
+
+    sat: SatName
+    t_ns: NsTime
+    counters: dict[Annotated[str, Meta(max_length=64)], Count] = {}
+
 MESSAGE_TYPES: tuple[type[msgspec.Struct], ...] = (
     SimStep,
     SimAck,
@@ -306,4 +320,5 @@ MESSAGE_TYPES: tuple[type[msgspec.Struct], ...] = (
     BundleDelivered,
     BundleDropped,
     CopyDiscarded,
+    DtnCounters,
 )

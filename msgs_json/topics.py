@@ -29,6 +29,7 @@ __all__ = [
     "acs_command_topic",
     "acs_state_topic",
     "dtn_events_topic",
+    "dtn_counters_topic",
     "dtn_in_topic",
     "dtn_out_topic",
     "fix_topic",
@@ -77,6 +78,10 @@ def dtn_events_topic(sat: str) -> str:
     return _sat(sat, "dtn/events")
 
 
+def dtn_counters_topic(sat: str) -> str:
+    return _sat(sat, "dtn/counters")
+
+
 def dtn_out_topic(sat: str) -> str:
     return _sat(sat, "dtn/out")
 
@@ -103,6 +108,7 @@ _PER_SAT: dict[str, object] = {
     "schedule": S.Schedule,
     "observations": S.Observation,
     "dtn/events": S.BundleEvent,
+    "dtn/counters": S.DtnCounters,
     "dtn/out": bytes,
     "dtn/in": bytes,
 }

@@ -84,6 +84,18 @@ class LockstepClock:
             from bringup.recording import BagWriter
 
             self.bag = BagWriter(spec.bag_dir, custom={"engine": "ros", "roles": ",".join(self.roles)})
+        # A `constellation run`: its metadata record and the visualisation topics (bringup/viz_feed.py).
+        self.meta = spec.extra.get("meta")
+        self.viz = None
+        if self.bag is not None and self.meta is not None:
+            from msgs_json.envelope import Envelope
+
+            self.bag.write_envelope(Envelope(self.t0_ns, "run", 0, "/run/meta", json.dumps({"meta": self.meta})))
+            if spec.extra.get("world"):
+                from bringup.viz_feed import VizFeed
+                from bringup.world import World
+
+                self.viz = VizFeed(World.load(spec.extra["world"], spec.extra.get("world_key")))
         self.rec_topics: dict[str, object] = {}
         self.rec_counts: dict[str, int] = {}
         self.bad_recorded = 0
@@ -170,6 +182,8 @@ class LockstepClock:
             self.clock_pub.publish(c)
             if self.bag is not None:
                 self.bag.write_raw("/clock", _CLOCK, serialize_message(c), msg.t_ns)
+                if self.viz is not None:
+                    self.viz.write(self.bag, msg.t_ns)
         s = String(data=encode_msg(msg))
         self.step_pub.publish(s)
         if self.bag is not None:
@@ -241,7 +255,15 @@ class LockstepClock:
 
             self._spin_until(recorded, spec.ack_timeout_s, lambda: "recorder is missing envelopes: " + str(
                 {tp: n - self.rec_counts.get(tp, 0) for tp, n in self.totals.items() if self.rec_counts.get(tp, 0) < n}))
-        self._progress(t, time.monotonic() - wall0, done=True)
+        wall = time.monotonic() - wall0
+        if self.bag is not None and self.meta is not None:
+            from msgs_json.envelope import Envelope
+
+            runtime = {"wall_s": wall, "steps": self.steps,
+                       "real_time_factor": ((t - self.t0_ns) / 1e9 / wall) if wall > 0 else None}
+            self.bag.write_envelope(Envelope(t, "run", 1, "/run/meta",
+                                             json.dumps({"meta": self.meta, "runtime": runtime})))
+        self._progress(t, wall, done=True)
         return 0
 
     def stop_hosts(self, reason: str = "") -> None:

@@ -124,7 +124,8 @@ class SatelliteLogic:
             self.agent = BundleAgent(name, world.isl_plan, cfg, store=store)
             self._ev_done = 0
             self._creations: dict[str, tuple[int, int]] = {}
-            self._ev_info: dict[int, dict] = {}
+            self._ev_info: dict[int, dict | None] = {}
+            self.overheard = 0
             self._next_hop: dict[str, str] = {}
 
     # ------------------------------------------------------------------ contract
@@ -156,6 +157,8 @@ class SatelliteLogic:
         emits += self._execute(t_ns)
         if self.mode == "distributed" and self.next_replan_ns is not None and t_ns >= self.next_replan_ns:
             emits += self._replan(t_ns)
+            if self.agent is not None:
+                emits.append(self._counters_emit(t_ns))
         if self.mode == "centralized":
             emits += self._downlink(t_ns)
         if self.agent is not None:
@@ -166,7 +169,14 @@ class SatelliteLogic:
         emits = self._execute(t_ns)
         if self.agent is not None:
             emits += self._radio(t_ns)
+            emits.append(self._counters_emit(t_ns))
         return emits
+
+    def _counters_emit(self, t_ns: int) -> Emit:
+        c = {"discarded.not_next_hop": self.overheard, "held": self.agent.held_count(),
+             "rejected_messages": self.rejected}
+        msg = S.DtnCounters(sat=self.name, t_ns=t_ns, counters=c)
+        return Emit(T.dtn_counters_topic(self.name), codec.encode(msg), t_ns)
 
     # ------------------------------------------------------------------ inputs
     def _on_message(self, env: Envelope, t_ns: int) -> None:
@@ -175,6 +185,12 @@ class SatelliteLogic:
                 raise ValueError("bundle topic carries text")
             n_ev = len(self.agent.events)
             outcome = self.agent.receive(env.data, env.source, env.t_ns)
+            if outcome == "discarded.not_next_hop":
+                # overheard on the broadcast medium: counted (DtnCounters), not one event per copy
+                self.overheard += 1
+                for ev in self.agent.events[n_ev:]:
+                    self._ev_info[id(ev)] = None
+                return
             if outcome == "delivered" or outcome.startswith("discarded"):
                 from sat_node.dtn.bpv7 import BundleError, decode_bundle
 
@@ -211,8 +227,12 @@ class SatelliteLogic:
         ctx = self.world.ctx
         view = OrbitContext(scenario=ctx.scenario, constellation=ctx.constellation, gps=ctx.gps,
                             osse=PersistenceOsse(ctx.osse, t0_ns / _NS), slew=ctx.slew)
-        return instance_from_orbit(view, sat=self.name, t0_s=t0_ns / _NS, window_s=window_s,
-                                   known=self.known, belief=self.belief, init_target_km=self.target_km)
+        t0_s = t0_ns / _NS
+        ids = self.world.candidate_gp_ids(self.name, t0_s, t0_s + window_s)
+        if len(ids) == 0:
+            return None
+        return instance_from_orbit(view, sat=self.name, t0_s=t0_s, window_s=window_s, known=self.known,
+                                   belief=self.belief, init_target_km=self.target_km, gp_ids=ids)
 
     def _replan(self, t_ns: int) -> list[Emit]:
         from sat_node.scheduler import solve_dp
@@ -224,12 +244,12 @@ class SatelliteLogic:
         if window_s <= 0:
             return []
         p = self._instance(t_ns, window_s)
-        plan = solve_dp(p, check=True)
+        plan = solve_dp(p, check=True) if p is not None else None
         self._last_cpu_s = time.process_time() - c0
         self.scheduler_cpu_s += self._last_cpu_s
         self.plan_version += 1
         items = []
-        for (gp, t_s), v in zip(plan.as_list(), plan.values):
+        for (gp, t_s), v in (zip(plan.as_list(), plan.values) if plan is not None else ()):
             items.append(_Item(int(gp), int(round(t_s * _NS)), float(v), self.plan_version))
         self.plan = [it for it in items if it.t_ns > self.last_obs_ns]
         return [self._schedule_emit(t_ns, t_ns)]
@@ -240,12 +260,12 @@ class SatelliteLogic:
         c0 = time.process_time()
         window_s = (self.world.scenario.horizon_ns - t0_ns) / _NS
         p = self._instance(t0_ns, window_s)
-        plan = solve_nonagile(p, self.sc.instrument.footprint_km)
+        plan = solve_nonagile(p, self.sc.instrument.footprint_km) if p is not None else None
         self._last_cpu_s = time.process_time() - c0
         self.scheduler_cpu_s += self._last_cpu_s
         self.plan_version = 1
         self.plan = [_Item(int(gp), int(round(t_s * _NS)), float(v), 1)
-                     for (gp, t_s), v in zip(plan.as_list(), plan.values)]
+                     for (gp, t_s), v in (zip(plan.as_list(), plan.values) if plan is not None else ())]
         return [self._schedule_emit(t0_ns, t0_ns)]
 
     def _schedule_emit(self, t_ns: int, cutoff_ns: int) -> Emit:
@@ -337,6 +357,9 @@ class SatelliteLogic:
 
     def _event_msg(self, ev):
         """The agent's event as a msgs_json bundle event (None when it names no bundle we can tell)."""
+        if id(ev) in self._ev_info and self._ev_info[id(ev)] is None:
+            del self._ev_info[id(ev)]
+            return None
         info = self._ev_info.pop(id(ev), None)
         base = {"sat": self.name, "t_ns": ev.t_ns}
         if info is not None:

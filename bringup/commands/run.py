@@ -67,7 +67,8 @@ def run(args: argparse.Namespace) -> int:
         for n in (a, b):
             if n not in sc.sat_names:
                 raise UserError(f"--cut: {n!r} is not a satellite of the scenario ({sc.sat_names[0]}..)")
-    say = (lambda *a: None) if args.no_progress else (lambda *a: print(*a, file=sys.stderr))
+    def say(*a) -> None:
+        print(*a, file=sys.stderr)
     say(f"run: {sc.name}, {sc.constellation.total_sats} satellites, {sc.scenario.horizon_s / 3600:g} h, "
         f"mode {args.mode}, engine {args.engine} -> {out}")
     t0 = time.perf_counter()
