@@ -1,7 +1,5 @@
 """The DTN-alone discrete-event engine: drawn plans, conservation, the study's inputs."""
 
-import os
-
 import pytest
 
 from dtn_router.des import latency_lower_bounds, run_dtn
@@ -33,7 +31,6 @@ def test_traffic_counts(paper_inputs):
 
 
 @pytest.mark.slow
-@pytest.mark.skipif(not os.environ.get("RUN_SLOW"), reason="slow: the study's whole runs (set RUN_SLOW=1)")
 @pytest.mark.parametrize("case", ["case4", "case1"])
 def test_study_inputs_targets(paper_inputs, case):
     plan = read_contact_plan(paper_inputs / "contact_plan_3p_8s.csv", rate_bps=1000)
