@@ -26,6 +26,7 @@ from msgs_json.schemas import (
     ScheduleItem,
     SimAck,
     SimStep,
+    TransmissionFailed,
 )
 from msgs_json.topics import (
     CLOCK,
@@ -40,6 +41,7 @@ from msgs_json.topics import (
     dtn_events_topic,
     dtn_in_topic,
     dtn_out_topic,
+    dtn_status_topic,
     fix_topic,
     is_bytes_topic,
     is_known_topic,
@@ -56,9 +58,9 @@ __all__ = [
     "AcsCommand", "AcsState", "BundleCreated", "BundleDelivered", "BundleDropped", "BundleEvent",
     "BundleForwarded", "ContactWindow", "CopyDiscarded", "Emit", "Envelope", "GroundDownlink",
     "GroundUplink", "MessageError", "Observation", "Participant", "Schedule", "ScheduleItem", "SimAck",
-    "SimStep", "StepResult", "WireError",
+    "SimStep", "StepResult", "TransmissionFailed", "WireError",
     "acs_command_topic", "acs_state_topic", "decode", "decode_as", "decode_envelope", "dtn_events_topic",
-    "dtn_in_topic", "dtn_out_topic", "encode", "encode_bytes", "encode_envelope", "fix_topic",
+    "dtn_in_topic", "dtn_out_topic", "dtn_status_topic", "encode", "encode_bytes", "encode_envelope", "fix_topic",
     "is_bytes_topic", "is_known_topic", "observations_topic", "sat_of_topic", "schedule_topic",
     "schema_for",
 ]

@@ -26,6 +26,8 @@ topic                  type                          meaning
                        ded | BundleDelivered |       created, forwarded, delivered,
                        BundleDropped | CopyDiscarded dropped(reason), copy_discarded
 /sat_XX/dtn/counters   DtnCounters                   cumulative DTN counters (overheard copies, held)
+/sat_XX/dtn/status     TransmissionFailed            the ISL medium tells the sender a transmission
+                                                     did not get through (bundle goes back to queue)
 /ground/downlink       GroundDownlink                observations a satellite downlinked at a pass
 /ground/uplink         GroundUplink                  a plan uplinked to a satellite at a pass
 =====================  ============================  =============================================
@@ -64,6 +66,7 @@ __all__ = [
     "ScheduleItem",
     "SimAck",
     "SimStep",
+    "TransmissionFailed",
 ]
 
 SCHEMA_VERSION = 1
@@ -305,6 +308,25 @@ class DtnCounters(_Msg, kw_only=True, frozen=True):
     t_ns: NsTime
     counters: dict[Annotated[str, Meta(max_length=64)], Count] = {}
 
+class TransmissionFailed(_Msg, kw_only=True, frozen=True):
+    """The ISL medium (dtn_router) tells sender ``sat`` that its transmission of ``bundle_id`` to
+    ``next_hop`` started at ``start_ns`` did not get through (/sat_XX/dtn/status), stamped ``t_ns``
+    (when the attempt ended). ``reason``: contact_ended (the truth contact closed before the last
+    bit, e.g. an ISL cut), no_contact (no truth contact to the next hop at the start), radio_busy
+    (the sender's radio was still sending). The sender takes the bundle back and re-routes it."""
+
+    sat: SatName
+    t_ns: NsTime
+    bundle_id: BundleId
+    next_hop: NodeName
+    start_ns: NsTime
+    reason: Literal["contact_ended", "no_contact", "radio_busy", "other"]
+
+    def _check(self) -> None:
+        if self.t_ns < self.start_ns:
+            raise ValueError("t_ns must not be before start_ns")
+
+
 MESSAGE_TYPES: tuple[type[msgspec.Struct], ...] = (
     SimStep,
     SimAck,
@@ -321,4 +343,5 @@ MESSAGE_TYPES: tuple[type[msgspec.Struct], ...] = (
     BundleDropped,
     CopyDiscarded,
     DtnCounters,
+    TransmissionFailed,
 )

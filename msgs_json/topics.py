@@ -32,6 +32,7 @@ __all__ = [
     "dtn_counters_topic",
     "dtn_in_topic",
     "dtn_out_topic",
+    "dtn_status_topic",
     "fix_topic",
     "is_bytes_topic",
     "is_known_topic",
@@ -90,6 +91,11 @@ def dtn_in_topic(sat: str) -> str:
     return _sat(sat, "dtn/in")
 
 
+def dtn_status_topic(sat: str) -> str:
+    """The ISL medium's transmission status for sender ``sat`` (TransmissionFailed)."""
+    return _sat(sat, "dtn/status")
+
+
 def fix_topic(sat: str) -> str:
     """sensor_msgs/NavSatFix of the sub-satellite point (visualisation, not an envelope)."""
     return _sat(sat, "fix")
@@ -111,6 +117,7 @@ _PER_SAT: dict[str, object] = {
     "dtn/counters": S.DtnCounters,
     "dtn/out": bytes,
     "dtn/in": bytes,
+    "dtn/status": S.TransmissionFailed,
 }
 _SAT_TOPIC_RE = re.compile(r"^/(sat_[1-9][0-9])/(.+)$")
 

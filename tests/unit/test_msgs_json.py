@@ -38,6 +38,7 @@ TOPIC_OF = {
     S.BundleDropped: T.dtn_events_topic("sat_12"),
     S.CopyDiscarded: T.dtn_events_topic("sat_18"),
     S.DtnCounters: T.dtn_counters_topic("sat_11"),
+    S.TransmissionFailed: T.dtn_status_topic("sat_11"),
 }
 TYPES = list(S.MESSAGE_TYPES)
 
