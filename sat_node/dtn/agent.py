@@ -53,6 +53,10 @@ __all__ = ["BundleAgent", "AgentConfig", "Transmission", "BundleEvent", "PRIORIT
 PRIORITY_BLOCK = 193  # experimental (RFC 9171 9.1): CBOR uint, 1 (highest) .. 15
 DROP_REASONS = ("ttl", "integrity", "no_route", "hop_limit", "other")
 _NS = 1_000_000_000
+# next-hop block of recently heard bytes: a broadcast copy reaches every node in view, and the peek is a
+# pure function of the (immutable) bytes, so each transmission is parsed once per process.
+_PEEK_CACHE: dict[bytes, int | None] = {}
+_MISSING = object()
 
 
 def ttl_s_for_priority(priority: int, ttl_s_by_priority: dict[int, float]) -> float:
@@ -75,6 +79,7 @@ class AgentConfig:
     hop_limit: int = 32
     verify_integrity: bool = True
     hop_tolerance_s: float = 0.0
+    priority_delay_s: tuple | None = None
 
 
 @dataclass(frozen=True)
@@ -220,7 +225,13 @@ class BundleAgent:
         """A copy heard on the medium; returns what happened (delivered, queued, discarded.*, dropped.*)."""
         self._settle(now_ns)
         try:
-            nh = peek_next_hop(bundle_bytes)
+            nh = _PEEK_CACHE.get(bundle_bytes, _MISSING) if isinstance(bundle_bytes, bytes) else _MISSING
+            if nh is _MISSING:
+                nh = peek_next_hop(bundle_bytes)
+                if isinstance(bundle_bytes, bytes):
+                    if len(_PEEK_CACHE) >= 4096:
+                        _PEEK_CACHE.clear()
+                    _PEEK_CACHE[bundle_bytes] = nh
             if nh is not None and nh != self.number:  # a copy for another node: discard unchecked
                 self._emit(now_ns, "discarded", None, "?", reason="not_next_hop")
                 return "discarded.not_next_hop"
@@ -294,13 +305,21 @@ class BundleAgent:
             g.ready_ns = max(g.ready_ns, now_ns)
         h.group = g
         g.n += 1
-        heapq.heappush(g.heap, (h.priority, h.created_ns, next(self._order), bid))
+        heapq.heappush(g.heap, (*self._rank(h), next(self._order), bid))
         if g.parked_c >= 0:
             self._park_add(g.parked_c, h.priority, h.bits)
             g.parked_bits[h.priority] += h.bits
         elif new:  # its own group: if its best route waits for a contact not open yet, park it now
             self._maybe_park(g, r.contacts[0], t)
         return "queued"
+
+    def _rank(self, h: _Held) -> tuple:
+        """Send order: strict priority then creation time, or with ``priority_delay_s`` the earliest
+        virtual deadline (creation + the priority's delay) first, then priority."""
+        d = self.config.priority_delay_s
+        if d is None:
+            return (h.priority, h.created_ns)
+        return (h.created_ns + int(d[h.priority - 1] * _NS), h.priority)
 
     def _maybe_park(self, g: _Group, c: int, s: int) -> bool:
         """Park ``g`` if its best first contact ``c`` is not open at ``s``: until it opens, or until
@@ -347,7 +366,7 @@ class BundleAgent:
     def _park(self, g: _Group, c: int, until_ns: int) -> None:
         g.parked_c = c
         g.ready_ns = until_ns
-        for _p, _cr, _o, bid in g.heap:
+        for *_k, bid in g.heap:
             h = self._held.get(bid)
             if h is not None and h.group is g:
                 g.parked_bits[h.priority] += h.bits
@@ -392,7 +411,7 @@ class BundleAgent:
     # ---------------------------------------------------------------- radio
     def _head(self, g: _Group):
         while g.heap:
-            bid = g.heap[0][3]
+            bid = g.heap[0][-1]
             h = self._held.get(bid)
             if h is not None and h.group is g:
                 return h

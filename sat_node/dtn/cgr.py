@@ -44,7 +44,8 @@ INF = np.inf
 
 @numba.njit(cache=True)
 def _dijkstra(start, end, src, dst, rate, owlt, residual, out_ptr, out_idx, excluded, node_excluded,
-              source, dest, t0, bits, backlog_bits, deadline, arr, pred, first_backlog, hop_tol):
+              source, dest, t0, bits, backlog_bits, deadline, arr, pred, first_backlog, hop_tol,
+              stamp, qid):
     """Label-setting search over (contact, hop count) states with Pareto pruning.
 
     First hop on contact c starts at max(t0 + backlog_bits / rate, start) + first_backlog[c] / rate
@@ -56,7 +57,8 @@ def _dijkstra(start, end, src, dst, rate, owlt, residual, out_ptr, out_idx, excl
     the contact before c on that route (-1 first hop). A label is kept only if no label of the same
     contact with fewer-or-equal hops arrives no later. States pop in (arrival, hops, contact) order,
     so the first one reaching ``dest`` is the SABR choice. Returns (contact, hops) or (-1, 0).
-    dest < 0: no early stop (one-to-all)."""
+    dest < 0: no early stop (one-to-all). arr/pred rows are valid only where stamp[c] == qid (rows are
+    reset on first touch, so the arrays are reused across queries without clearing them)."""
     H = arr.shape[1] - 1
     heap = [(np.inf, 0, 0)]
     heap.pop()
@@ -71,6 +73,10 @@ def _dijkstra(start, end, src, dst, rate, owlt, residual, out_ptr, out_idx, excl
         a = te + owlt[c]
         if a > deadline:
             continue
+        if stamp[c] != qid:
+            stamp[c] = qid
+            arr[c, :] = np.inf
+            pred[c, :] = -1
         arr[c, 1] = a
         pred[c, 1] = -1
         heapq.heappush(heap, (a, 1, c))
@@ -115,6 +121,10 @@ def _dijkstra(start, end, src, dst, rate, owlt, residual, out_ptr, out_idx, excl
             na = te + owlt[e]
             if na > deadline:
                 continue
+            if stamp[e] != qid:
+                stamp[e] = qid
+                arr[e, :] = np.inf
+                pred[e, :] = -1
             dom = False
             for hh in range(1, h + 2):
                 if arr[e, hh] <= na:
@@ -169,6 +179,11 @@ class ContactGraph:
         self._no_exclusion = np.zeros(n, dtype=np.bool_)
         self._no_node_exclusion = np.zeros(len(self.node_names), dtype=np.bool_)
         self._no_backlog = np.zeros(n, dtype=np.float64)
+        H = len(self.node_names)  # a simple path has at most n_nodes - 1 hops
+        self._arr = np.full((n, H + 1), INF)
+        self._pred = np.full((n, H + 1), -1, dtype=np.int64)
+        self._stamp = np.zeros(n, dtype=np.int64)
+        self._qid = 0
         # per node: its outgoing contacts' start times, sorted (when a new first hop appears)
         self.out_starts = {name: np.sort(self.start_s[self.out_idx[self.out_ptr[i]:self.out_ptr[i + 1]]])
                            for i, name in enumerate(self.node_names)}
@@ -179,10 +194,8 @@ class ContactGraph:
 
     def _run(self, source, dest, t_s, bits, backlog_bits, deadline_s, residual, excluded, excluded_nodes,
              first_backlog=None, hop_tol_s=0.0):
-        n = len(self.contacts)
-        H = len(self.node_names)  # a simple path has at most n_nodes - 1 hops
-        arr = np.full((n, H + 1), INF)
-        pred = np.full((n, H + 1), -1, dtype=np.int64)
+        arr, pred, stamp = self._arr, self._pred, self._stamp
+        self._qid += 1
         node_ex = self._no_node_exclusion
         if excluded_nodes:
             node_ex = node_ex.copy()
@@ -194,7 +207,8 @@ class ContactGraph:
                                self._no_exclusion if excluded is None else excluded, node_ex,
                                self.node_index[source], -1 if dest is None else self.node_index[dest],
                                float(t_s), float(bits), float(backlog_bits), float(deadline_s), arr, pred,
-                               self._no_backlog if first_backlog is None else first_backlog, float(hop_tol_s))
+                               self._no_backlog if first_backlog is None else first_backlog, float(hop_tol_s),
+                               stamp, self._qid)
         return best, hops, arr, pred
 
     def route(self, source: str, dest: str, t_s: float, bits: float, *, backlog_bits: float = 0.0,
@@ -229,7 +243,7 @@ class ContactGraph:
     def earliest_arrivals(self, source: str, t_s: float, bits: float) -> dict[str, float]:
         """One-to-all earliest arrival [s] with full volumes and no backlog (lower bounds)."""
         _best, _h, arr2, _pred = self._run(source, None, t_s, bits, 0.0, INF, None, None, ())
-        arr = arr2.min(axis=1)
+        arr = np.where(self._stamp == self._qid, arr2.min(axis=1), INF)
         out: dict[str, float] = {}
         finite = np.isfinite(arr)
         for c in np.nonzero(finite)[0]:
