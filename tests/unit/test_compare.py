@@ -1,0 +1,89 @@
+"""bringup/compare.py: combining seeds, ratios and tables on hand-made reports (values worked out by hand)."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from bringup import compare as C
+
+
+def _rep(mode, value, frac, n, dup, err):
+    return {"mode": mode, "value": {"cumulative": value, "assumed_error_mean": err},
+            "coverage": {"gp_observed_fraction": frac}, "observations": {"count": n, "duplicates_15min": dup}}
+
+
+def test_get_path():
+    r = _rep("distributed", 10.0, 0.5, 3, 0, 0.1)
+    assert C.get_path(r, "value.cumulative") == 10.0
+    assert C.get_path(r, "value.nope") is None
+    assert C.get_path(r, "mode.x") is None
+
+
+def test_combine_first_report_plus_mean_std():
+    a, b = _rep("distributed", 100.0, 0.9, 10, 1, 0.04), _rep("distributed", 300.0, 0.7, 20, 3, None)
+    out = C.combine([a, b], [1, 2])
+    assert out["value"]["cumulative"] == 100.0  # first seed's report unchanged
+    s = out["seeds"]
+    assert s["seeds"] == [1, 2]
+    assert s["mean"]["value.cumulative"] == 200.0
+    assert s["std"]["value.cumulative"] == 100.0  # population std of 100, 300
+    assert s["mean"]["coverage.gp_observed_fraction"] == pytest.approx(0.8)
+    assert s["mean"]["value.assumed_error_mean"] == 0.04  # null in seed 2: mean over the rest
+    assert s["per_seed"]["observations.count"] == [10, 20]
+    assert "seeds" not in a  # inputs not mutated
+
+
+def test_combine_rejects_mismatch():
+    with pytest.raises(ValueError):
+        C.combine([], [])
+    with pytest.raises(ValueError):
+        C.combine([_rep("x", 1, 1, 1, 0, 0)], [1, 2])
+
+
+def test_ratios_per_seed_then_spread():
+    by = {"distributed": [_rep("d", 120.0, 0.95, 100, 0, 0.04), _rep("d", 90.0, 0.9, 90, 0, 0.05)],
+          "centralized": [_rep("c", 100.0, 0.99, 80, 2, 0.7), _rep("c", 100.0, 0.98, 85, 1, 0.5)],
+          "nonagile": [_rep("n", 10.0, 0.08, 8, 0, 0.0), _rep("n", 0.0, 0.0, 0, 0, None)]}
+    r = C.ratios(by, [1, 2])
+    v = r["value.distributed_over_centralized"]
+    assert v["per_seed"] == [pytest.approx(1.2), pytest.approx(0.9)]
+    assert v["mean"] == pytest.approx(1.05) and v["std"] == pytest.approx(0.15)
+    assert v["min"] == pytest.approx(0.9) and v["max"] == pytest.approx(1.2)
+    an = r["value.agile_over_nonagile"]
+    assert an["per_seed"] == [pytest.approx(12.0), None]  # zero denominator -> null for that seed
+    assert an["mean"] == pytest.approx(12.0) and an["std"] == 0.0
+    e = r["assumed_error.distributed_over_centralized"]
+    assert e["per_seed"] == [pytest.approx(0.04 / 0.7), pytest.approx(0.1)]
+
+
+def test_compare_result_shape_and_tables():
+    by = {m: [_rep(m, v, f, 5, 0, 0.1)] for m, v, f in
+          (("distributed", 50.0, 0.9), ("centralized", 40.0, 0.95), ("nonagile", 5.0, 0.1))}
+    res = C.compare_result(by, [7])
+    assert set(res) == {"distributed", "centralized", "nonagile", "ratios"}
+    assert res["ratios"]["value.agile_over_nonagile"]["mean"] == pytest.approx(10.0)
+    t = C.table_markdown(res)
+    assert t.count("\n") == 4 and "| distributed | 50 | 90.0% |" in t
+    assert "±" not in t  # one seed: no spread shown
+    assert "value.distributed_over_centralized | 1.250" in C.ratios_markdown(res)
+
+
+def test_stats_ignores_non_finite():
+    s = C._stats([1.0, None, float("nan"), 3.0])
+    assert s["n"] == 2 and s["mean"] == 2.0 and math.isclose(s["std"], 1.0)
+
+
+def test_scenario_variant_changes_one_parameter(paper_scenario):
+    sc = paper_scenario.with_overrides(sats=12)
+    v = C.scenario_variant(sc, replan_period_s=300.0)
+    assert v.scheduler.replan_period_s == 300.0 and v.isl == sc.isl
+    assert C.scenario_variant(sc, isl_rate_bps=4000.0).isl.rate_bps == 4000.0
+    w = C.scenario_variant(sc, sats_per_plane=2)
+    assert w.constellation.total_sats == 2 * sc.constellation.planes
+    assert [s.name for s in C.scenario_variant(sc, n_stations=1).ground.stations] == [sc.ground.stations[0].name]
+    from bringup.errors import UserError
+
+    with pytest.raises(UserError):
+        C.scenario_variant(sc, n_stations=5)
