@@ -9,6 +9,14 @@ arrival time (start + bits / rate + light time). A delivery waits in the router 
 reaches its arrival time (contract rule 2: nothing is emitted stamped in the future), and the router
 asks to be woken exactly then.
 
+A transmission the truth plan does not carry (the contact ends before its last bit - e.g. an ISL
+cut the agents' predicted plan does not know -, no contact to the next hop, the sender's radio still
+busy) is not delivered to anyone; the sender is told on ``/sat_XX/dtn/status``
+(msgs_json TransmissionFailed) at the time the attempt ended, so its agent takes the bundle back and
+re-routes it (Nag et al. rely on CGR's contact plan; the status path is what a real medium's missing
+acknowledgement gives). Inputs that are not bundles of a known satellite are rejected and counted
+by reason (``rejected_by_reason``).
+
 It also announces contact windows on ``/orbit/contacts`` as they open and close (ISL and ground),
 each stamped with its edge time and emitted at the step covering it (edges do not add steps).
 
@@ -51,7 +59,9 @@ class RouterLogic:
         self.pending: list[tuple[int, str, int, bytes]] = []  # (arrival_ns, receiver, order, bytes)
         self._order = itertools.count()
         self.rejected = 0
+        self.rejected_by_reason: dict[str, int] = {}
         self.failures: dict[str, int] = {}
+        self.status_pending: list[tuple[int, int, str, str]] = []  # (t_ns, order, sender, json text)
         # contact window announcements: (t_ns, order, event, contact, kind)
         edges = []
         for kind, cp in (("isl", plan), ("ground", world.ground_plan)):
@@ -78,6 +88,9 @@ class RouterLogic:
         while self.pending and self.pending[0][0] <= t_ns:
             arrival, receiver, _, data = heapq.heappop(self.pending)
             emits.append(Emit(T.dtn_in_topic(receiver), data, arrival))
+        while self.status_pending and self.status_pending[0][0] <= t_ns:
+            at, _, sender, text = heapq.heappop(self.status_pending)
+            emits.append(Emit(T.dtn_status_topic(sender), text, at))
         return StepResult(emits, self._wakeup(t_ns))
 
     def finish(self, t_ns: int) -> list[Emit]:
@@ -87,24 +100,44 @@ class RouterLogic:
         from sat_node.dtn.bpv7 import BundleError, peek_next_hop
         from orbit_clock.contact_plan import node_name
 
-        if not isinstance(env.data, bytes) or env.source not in self.sats:
-            self.rejected += 1
-            return
+        if not isinstance(env.data, bytes):
+            return self._reject("not_bytes")
+        if env.source not in self.sats or env.topic != T.dtn_out_topic(env.source):
+            return self._reject("unknown_sender")
         try:
             nh = peek_next_hop(env.data)
             next_hop = node_name(nh) if nh is not None else None
         except (BundleError, ValueError):
-            self.rejected += 1
-            return
+            return self._reject("malformed")
         if next_hop is None:
-            self.rejected += 1
-            return
+            return self._reject("no_next_hop")
+        if next_hop not in self.sats:
+            return self._reject("unknown_next_hop")
         out = self.link.transmit(env.source, next_hop, env.t_ns, self.bits)
         if not out.ok:
             self.failures[out.reason] = self.failures.get(out.reason, 0) + 1
+            self._tell_failed(env, next_hop, out)
             return
         for cp in out.copies:
             heapq.heappush(self.pending, (cp.arrival_ns, cp.node, next(self._order), env.data))
+
+    def _reject(self, reason: str) -> None:
+        self.rejected += 1
+        self.rejected_by_reason[reason] = self.rejected_by_reason.get(reason, 0) + 1
+
+    def _tell_failed(self, env: Envelope, next_hop: str, out) -> None:
+        """Queue a TransmissionFailed for the sender, stamped when the attempt ended."""
+        from sat_node.dtn.bpv7 import BundleError, decode_bundle
+
+        try:
+            bid = decode_bundle(env.data).bundle_id
+        except (BundleError, ValueError):
+            return self._reject("malformed")
+        reason = out.reason if out.reason in ("contact_ended", "no_contact", "radio_busy") else "other"
+        at = max(int(out.end_ns), env.t_ns)
+        msg = S.TransmissionFailed(sat=env.source, t_ns=at, bundle_id=bid, next_hop=next_hop,
+                                   start_ns=env.t_ns, reason=reason)
+        heapq.heappush(self.status_pending, (at, next(self._order), env.source, codec.encode(msg)))
 
     def _announce(self, t_ns: int) -> list[Emit]:
         emits = []
@@ -121,6 +154,8 @@ class RouterLogic:
         cands = []
         if self.pending:
             cands.append(self.pending[0][0])
+        if self.status_pending:
+            cands.append(self.status_pending[0][0])
         cands = [c for c in cands if c > t_ns]
         return min(cands) if cands else None
 

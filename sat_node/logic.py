@@ -25,6 +25,15 @@ emitted stamped with their start times, so no figure depends on the step length.
 How we know it is right: tests/unit/test_sat_logic.py (plans obey the slew model and FOR, every
 executed observation is emitted once with its exact time, bundles go to the priority order's
 destinations) and the engine-equivalence system test (local vs ROS, identical traces).
+
+Transmission status (issue 7): the ISL medium (dtn_router) reports a transmission that did not get
+through (contact ended mid-transmission, e.g. an ISL cut; no contact; radio busy) on
+``/sat_XX/dtn/status``; the satellite hands it to its agent (``transmission_failed``) so the bundle
+goes back to its queue, re-routed without that contact. The report may come after the attempt's end,
+when the agent already counted the bundle as gone; the satellite keeps each transmission (and the
+agent's record of it) until it is confirmed, and puts it back first. Oracle: tests/faults/
+test_link_faults.py (a cut ending a contact mid-transmission; conservation created = delivered +
+dropped by reason + held).
 """
 
 from __future__ import annotations
@@ -42,6 +51,8 @@ from sat_node.value import Belief, KnownObservation
 __all__ = ["SatelliteLogic", "PersistenceOsse", "observation_payload", "parse_observation_payload"]
 
 _NS = 1_000_000_000
+# a transmission's status report comes at most a few lockstep steps after its end; keep it this long
+_UNCONFIRMED_KEEP_NS = 3600 * _NS
 
 
 class PersistenceOsse:
@@ -127,12 +138,16 @@ class SatelliteLogic:
             self._ev_info: dict[int, dict | None] = {}
             self.overheard = 0
             self._next_hop: dict[str, str] = {}
+            self._unconfirmed: dict[str, tuple] = {}  # bundle id -> (Transmission, agent record)
+            self.tx_failed: dict[str, int] = {}
+        self.rejected_by_reason: dict[str, int] = {}
 
     # ------------------------------------------------------------------ contract
     def subscriptions(self) -> list[str]:
         subs = []
         if self.dtn:
             subs.append(T.dtn_in_topic(self.name))
+            subs.append(T.dtn_status_topic(self.name))
         if self.mode == "centralized":
             subs.append(T.GROUND_UPLINK)
         return subs
@@ -153,6 +168,8 @@ class SatelliteLogic:
                 self._on_message(env, t_ns)
             except (ValueError, KeyError, TypeError) as exc:  # a bad message never kills the node
                 self.rejected += 1
+                reason = f"{env.topic.rsplit('/', 1)[-1]}.{type(exc).__name__}"
+                self.rejected_by_reason[reason] = self.rejected_by_reason.get(reason, 0) + 1
                 self.last_error = f"{env.topic}: {exc}"
         emits += self._execute(t_ns)
         if self.mode == "distributed" and self.next_replan_ns is not None and t_ns >= self.next_replan_ns:
@@ -175,12 +192,21 @@ class SatelliteLogic:
     def _counters_emit(self, t_ns: int) -> Emit:
         c = {"discarded.not_next_hop": self.overheard, "held": self.agent.held_count(),
              "rejected_messages": self.rejected}
+        for k, v in self.rejected_by_reason.items():
+            c[f"rejected.{k}"[:64]] = v
+        for k, v in self.agent.counters.items():
+            if k.startswith(("dropped.", "discarded.")) and k != "discarded.not_next_hop":
+                c[f"agent.{k}"[:64]] = v
+        for k, v in self.tx_failed.items():
+            c[f"tx_failed.{k}"] = v
         msg = S.DtnCounters(sat=self.name, t_ns=t_ns, counters=c)
         return Emit(T.dtn_counters_topic(self.name), codec.encode(msg), t_ns)
 
     # ------------------------------------------------------------------ inputs
     def _on_message(self, env: Envelope, t_ns: int) -> None:
-        if self.agent is not None and env.topic == T.dtn_in_topic(self.name):
+        if self.agent is not None and env.topic == T.dtn_status_topic(self.name):
+            self._on_status(codec.decode(env.topic, env.data), t_ns)
+        elif self.agent is not None and env.topic == T.dtn_in_topic(self.name):
             if not isinstance(env.data, bytes):
                 raise ValueError("bundle topic carries text")
             n_ev = len(self.agent.events)
@@ -320,9 +346,15 @@ class SatelliteLogic:
     def _radio(self, t_ns: int) -> list[Emit]:
         emits: list[Emit] = []
         self.agent.expire(t_ns)
+        keep_ns = t_ns - _UNCONFIRMED_KEEP_NS
+        if self._unconfirmed and next(iter(self._unconfirmed.values()))[0].end_ns < keep_ns:
+            self._unconfirmed = {b: it for b, it in self._unconfirmed.items() if it[0].end_ns >= keep_ns}
         for tx in self.agent.transmissions_until(t_ns):
             emits.append(Emit(T.dtn_out_topic(self.name), tx.bundle_bytes, tx.start_ns))
             self._next_hop[tx.bundle_id] = tx.next_hop
+            rec = self.agent._in_flight.get(tx.bundle_id)
+            if rec is not None:
+                self._unconfirmed[tx.bundle_id] = rec
         evs = self.agent.events
         topic = T.dtn_events_topic(self.name)
         for ev in evs[self._ev_done:]:
@@ -335,6 +367,24 @@ class SatelliteLogic:
             self._ev_done = 0
             self._ev_info.clear()
         return emits
+
+    def _on_status(self, st, t_ns: int) -> None:
+        """The medium says a transmission failed: give the bundle back to the agent (see module doc)."""
+        if st.sat != self.name:
+            raise ValueError(f"status for {st.sat} on {self.name}'s topic")
+        item = self._unconfirmed.pop(st.bundle_id, None)
+        if item is None or item[0].start_ns != st.start_ns or item[0].next_hop != st.next_hop:
+            raise ValueError(f"status names no transmission of ours: {st.bundle_id} at {st.start_ns}")
+        tx, h = item
+        ag = self.agent
+        if tx.bundle_id not in ag._in_flight:  # already settled by the agent: put it back first
+            ag._in_flight[tx.bundle_id] = item
+            if ag.store is not None:
+                from sat_node.dtn.store import StoredBundle
+
+                ag.store.put(StoredBundle(tx.bundle_id, tx.bundle_bytes, h.priority, h.dest, h.expiry_ns, t_ns))
+        self.tx_failed[st.reason] = self.tx_failed.get(st.reason, 0) + 1
+        ag.transmission_failed(tx, t_ns)
 
     def _bundle_info(self, b) -> dict:
         import cbor2
