@@ -53,14 +53,16 @@ def main() -> int:
               f"{r['dtn.latency_s.p95']:6.1f} {r['dtn.latency_s.max']:6.1f} {r['dtn.dropped.ttl']:8d} "
               f"{r['dtn.dropped.other']:10d} {r['dtn.copies_discarded']:11d} {wall:6.1f}  conservation="
               f"{r['dtn.conservation_ok']}")
-        print("   prio created delivered median_s max_s")
+        print("   drops by reason:", {k.split(".")[-1]: v for k, v in r.items() if k.startswith("dtn.dropped_detail.")},
+              " transmissions:", sum(a.counters["forwarded"] for a in run.agents.values()),
+              " sim wall s:", round(run.wall_s, 1))
+        print("   prio created delivered median_s  p95_s  max_s")
         for p in range(1, 16):
             c = r[f"dtn.latency_s_by_priority.{p}.created"]
             if c:
-                med = r[f"dtn.latency_s_by_priority.{p}.median"]
-                mx = r[f"dtn.latency_s_by_priority.{p}.max"]
+                vals = [r[f"dtn.latency_s_by_priority.{p}.{k}"] for k in ("median", "p95", "max")]
                 print(f"   {p:4d} {c:7d} {r[f'dtn.latency_s_by_priority.{p}.count']:9d} "
-                      f"{med if med is None else round(med, 1)!s:>8s} {mx if mx is None else round(mx, 1)!s:>6s}")
+                      + " ".join(f"{'-' if v is None else round(v, 1)!s:>7s}" for v in vals))
     return 0
 
 

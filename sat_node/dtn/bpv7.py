@@ -152,9 +152,15 @@ class CanonicalBlock:
     flags: int = 0
     crc_type: int = CRC_NONE
     data: bytes = b""
+    # its encoding, made once (the block is immutable; dataclasses.replace does not copy it)
+    _raw: bytes | None = field(default=None, init=False, compare=False, repr=False)
 
     def encode(self) -> bytes:
-        return _encode_with_crc([self.type, self.number, self.flags, self.crc_type, self.data], self.crc_type)
+        raw = self._raw
+        if raw is None:
+            raw = _encode_with_crc([self.type, self.number, self.flags, self.crc_type, self.data], self.crc_type)
+            object.__setattr__(self, "_raw", raw)
+        return raw
 
 
 @dataclass

@@ -73,6 +73,7 @@ def dtn_report(events, *, lower_bound_s: dict[str, float] | None = None, held: i
     for p in range(1, 16):
         xs = by_p.get(p, [])
         out[f"dtn.latency_s_by_priority.{p}.median"] = _pct(xs, 50)
+        out[f"dtn.latency_s_by_priority.{p}.p95"] = _pct(xs, 95)
         out[f"dtn.latency_s_by_priority.{p}.max"] = float(max(xs)) if xs else None
         out[f"dtn.latency_s_by_priority.{p}.count"] = len(xs)
         out[f"dtn.latency_s_by_priority.{p}.created"] = n_by_p.get(p, 0)

@@ -43,3 +43,8 @@ def test_study_inputs_targets(paper_inputs, case):
     for p in (1, 2, 3):
         assert rep[f"dtn.latency_s_by_priority.{p}.count"] == rep[f"dtn.latency_s_by_priority.{p}.created"]
     assert rep["dtn.latency_s.mean"] <= 1.25 * rep["dtn.latency_s.lower_bound_mean"]
+    # latency rises with priority number (by classes: the study's TTL bands)
+    med = [rep[f"dtn.latency_s_by_priority.{p}.median"] for p in range(1, 16)]
+    bands = [[m for m in med[a - 1:b] if m is not None] for a, b in ((1, 1), (2, 3), (4, 7), (8, 15))]
+    means = [sum(x) / len(x) for x in bands if x]
+    assert means == sorted(means), means
