@@ -10,7 +10,16 @@ host never share one) and ``FASTRTPS_DEFAULT_PROFILES_FILE`` = bringup/dds/fastd
 Progress (sim time, real-time factor, steps/s) goes to a callback. Ctrl-C / SIGTERM: the clock is
 asked to stop first (it tells the hosts and closes the bag, which stays readable), then the
 hosts; a child that fails is named in the result's message and the result is non-zero.
-Each child's stderr goes to ``out_dir/logs/<role>.log``.
+Each child's stderr goes to ``out_dir/logs/<role>.log`` (appended across restarts) and its pid to
+``out_dir/logs/<role>.pid``.
+
+Crash and restart (issue 7): when the spec has ``max_restarts > 0`` a host process that dies
+(any exit but 0, e.g. SIGKILL) while the clock runs is started again with the same command, up to
+``max_restarts`` times per role; it resumes from its checkpoint (bringup/ros_host.py) and the clock
+waits for it (``restart_wait_s``). Restarts are counted per role in the result.
+
+Multi-host: ``wrap(role, argv, env) -> (argv, env)`` rewrites each child's command and environment,
+e.g. ``ip netns exec NS ...`` with per-host ``ROS_STATIC_PEERS`` (tests/multihost).
 
 Oracle: tests/ros/test_launcher.py (a toy run completes and its bag equals the local engine's
 envelopes; a killed host is named; SIGINT leaves a readable bag; two leases never share an id).
@@ -121,6 +130,11 @@ class LaunchResult:
     out_dir: Path
     last: LaunchProgress | None
     failed_roles: list[str]
+    restarts: dict[str, int] = None  # type: ignore[assignment]
+
+    def __post_init__(self) -> None:
+        if self.restarts is None:
+            self.restarts = {}
 
     @property
     def ok(self) -> bool:
@@ -153,8 +167,11 @@ def _terminate(children: list[_Child], timeout_s: float) -> None:
             c.proc.wait()
 
 
+Wrap = Callable[[str, list[str], dict[str, str]], tuple[list[str], dict[str, str]]]
+
+
 def launch(spec: RunSpec, out_dir: Path, *, progress: Callable[[LaunchProgress], None] | None = None,
-           domain_id: int | None = None, python: str = sys.executable) -> LaunchResult:
+           domain_id: int | None = None, python: str = sys.executable, wrap: Wrap | None = None) -> LaunchResult:
     """Run the whole ROS-engine run described by ``spec``; returns when every child has exited."""
     spec.check()
     out_dir = Path(out_dir)
@@ -167,13 +184,18 @@ def launch(spec: RunSpec, out_dir: Path, *, progress: Callable[[LaunchProgress],
     last: list[LaunchProgress | None] = [None]
     children: list[_Child] = []
 
+    restarts: dict[str, int] = {}
+
     def start(role: str, **kw) -> _Child:
         log = out_dir / "logs" / f"{role}.log"
-        fh = open(log, "wb")
-        proc = subprocess.Popen(
-            [python, "-m", "bringup.cli", "node", "--run-spec", str(spec_path), "--role", role],
-            env=env, cwd=str(REPO), stderr=fh, stdin=subprocess.DEVNULL, **kw)
+        fh = open(log, "ab")
+        argv = [python, "-m", "bringup.cli", "node", "--run-spec", str(spec_path), "--role", role]
+        cenv = dict(env)
+        if wrap is not None:
+            argv, cenv = wrap(role, argv, cenv)
+        proc = subprocess.Popen(argv, env=cenv, cwd=str(REPO), stderr=fh, stdin=subprocess.DEVNULL, **kw)
         fh.close()
+        (out_dir / "logs" / f"{role}.pid").write_text(f"{proc.pid}\n")
         return _Child(role, proc, log)
 
     def read_progress(stream) -> None:
@@ -208,6 +230,16 @@ def launch(spec: RunSpec, out_dir: Path, *, progress: Callable[[LaunchProgress],
             while True:
                 crc = clock.proc.poll()
                 dead = [h for h in hosts if h.proc.poll() not in (None, 0)]
+                if dead and crc is None and spec.max_restarts > 0:
+                    for h in [h for h in dead if restarts.get(h.role, 0) < spec.max_restarts]:
+                        restarts[h.role] = restarts.get(h.role, 0) + 1
+                        with open(h.log, "a") as fh:
+                            fh.write(f"launcher: {h.role} exited with code {h.proc.returncode}; "
+                                     f"restart {restarts[h.role]} of {spec.max_restarts}\n")
+                        new = start(h.role, stdout=subprocess.DEVNULL)
+                        hosts[hosts.index(h)] = new
+                        children[children.index(h)] = new
+                    dead = [h for h in hosts if h.proc.poll() not in (None, 0)]
                 if dead and crc is None:
                     failed = [h.role for h in dead]
                     message = "; ".join(
@@ -240,7 +272,7 @@ def launch(spec: RunSpec, out_dir: Path, *, progress: Callable[[LaunchProgress],
             _terminate(hosts, 5.0)
             rc, message, failed = 130, "interrupted: every process stopped, bag closed", []
         reader.join(timeout=2.0)
-        return LaunchResult(rc, message, dom, out_dir, last[0], failed)
+        return LaunchResult(rc, message, dom, out_dir, last[0], failed, restarts)
     finally:
         _terminate(children, 5.0)
         if old_term is not None:

@@ -12,6 +12,14 @@ all envelopes of the previous steps, counted from the step message (orbit_clock/
 topic (plus the recorder's), so nothing is lost to discovery. A message that does not decode is
 counted per topic and logged, never fatal.
 
+Crash and restart (issue 7): with ``state_path`` the host checkpoints after every wire step
+(bringup/checkpoint.py; in the participant's own SQLite store when it has one, one transaction per
+step). A host started on an existing checkpoint restores its participants and its lockstep state,
+says hello with ``resume_k``, answers again the step it had finished (its saved ack), ignores older
+steps and re-runs the rest. While its inboxes miss envelopes sent during its outage it repeats the
+hello every ``rejoin_period_s``; the clock answers each with a re-send of what it recorded
+(orbit_clock/lockstep.py ResendMsg); duplicates are dropped by (source, seq).
+
 Oracle: tests/ros/test_lockstep.py: toy participants hosted here, driven by the clock node over
 DDS, emit exactly the envelopes the local engine (bringup/local_engine.py) emits for them.
 """
@@ -38,11 +46,13 @@ from msgs_json.envelope import Emit, Envelope, Participant, StepResult
 from msgs_json.wire import WireError, decode_envelope, encode_envelope
 from orbit_clock.lockstep import (
     ACK_TOPIC,
+    RESEND_TOPIC,
     STEP_TOPIC,
     AckMsg,
     LockstepError,
     StepMsg,
     TopicInbox,
+    decode_resend,
     decode_step,
     encode_msg,
 )
@@ -82,7 +92,8 @@ class ParticipantHost:
     """Hosts ``participants`` in one rclpy context; :meth:`run` follows the clock to the end."""
 
     def __init__(self, role: str, participants: Sequence[Participant], *, ack_timeout_s: float = 10.0,
-                 startup_timeout_s: float = 60.0, idle_timeout_s: float = 300.0):
+                 startup_timeout_s: float = 60.0, idle_timeout_s: float = 300.0,
+                 state_path: str | None = None, rejoin_period_s: float = 2.0):
         names = [p.name for p in participants]
         if not names or len(set(names)) != len(names):
             raise HostError(f"host {role}: participant names must be unique and non-empty: {names}")
@@ -118,18 +129,87 @@ class ParticipantHost:
         self.subs: dict[str, int] = {}
         self.subs_default = 0
         self.decode_errors: dict[str, int] = {}
+        self.duplicates = 0
+        self.rejoin_period_s = rejoin_period_s
+        self.host_node.create_subscription(String, RESEND_TOPIC, self._on_resend, QOS_DATA)
+        # crash/restart: last wire step done (-1 = none), the ack sent for it, the checkpoint store
+        self.done_k = -1
+        self.resume_k = -1
+        self.last_ack: dict | None = None
+        self.ckpt = None
+        if state_path is not None:
+            self._open_checkpoint(state_path)
+
+    # -- checkpoints (bringup/checkpoint.py) --------------------------------------------------------
+    def _open_checkpoint(self, state_path: str) -> None:
+        from bringup.checkpoint import CheckpointDB, persistent_connection, restore_participant
+
+        conns = [c for c in (persistent_connection(s.p) for s in self.slots) if c is not None]
+        if len(conns) > 1:
+            raise HostError(f"host {self.role}: more than one participant has its own store; "
+                            "one checkpoint transaction cannot span them")
+        self.ckpt = CheckpointDB(conn=conns[0]) if conns else CheckpointDB(state_path)
+        row = self.ckpt.load()
+        if row is None:
+            return
+        k, hs, parts = row
+        if len(parts) != len(self.slots) or hs.get("names") != [s.name for s in self.slots]:
+            raise HostError(f"host {self.role}: checkpoint {state_path} holds participants {hs.get('names')}, "
+                            f"not {[s.name for s in self.slots]}")
+        for slot, blob in zip(self.slots, parts, strict=True):
+            restore_participant(slot.p, blob)
+            slot.seq = hs["seq"][slot.name]
+            for box in slot.inboxes:
+                box.expected, box.delivered, consumed = hs["boxes"][f"{slot.name} {box.topic}"]
+                box.consumed = dict(consumed)
+        self.seq_end = dict(hs["seq_end"])
+        self.subs, self.subs_default = dict(hs["subs"]), hs["subs_default"]
+        self.done_k = self.resume_k = k
+        self.last_ack = hs["ack"]
+
+    def _checkpoint(self, k: int, ack: dict) -> None:
+        from bringup.checkpoint import snapshot_participant
+
+        hs = {"names": [s.name for s in self.slots], "seq": {s.name: s.seq for s in self.slots},
+              "boxes": {f"{s.name} {b.topic}": (b.expected, b.delivered, dict(b.consumed))
+                        for s in self.slots for b in s.inboxes},
+              "seq_end": dict(self.seq_end), "subs": dict(self.subs), "subs_default": self.subs_default,
+              "ack": ack}
+        try:
+            parts = [snapshot_participant(s.p) for s in self.slots]
+        except Exception as exc:
+            raise HostError(f"host {self.role}: checkpoint of step {k} failed: {type(exc).__name__}: {exc}") from exc
+        self.ckpt.commit(k, hs, parts)
 
     # -- callbacks: buffer only ---------------------------------------------------------------------
     def _make_cb(self, box: TopicInbox):
         def cb(msg: String) -> None:
             try:
-                box.add(decode_envelope(msg.data, box.topic))
+                if not box.add(decode_envelope(msg.data, box.topic)):
+                    self.duplicates += 1
             except WireError as exc:
                 box.decode_errors += 1
                 n = self.decode_errors[box.topic] = self.decode_errors.get(box.topic, 0) + 1
                 if n == 1 or n % 100 == 0:
                     self.host_node.get_logger().warning(f"{exc} (rejected, {n} so far on {box.topic})")
         return cb
+
+    def _on_resend(self, msg: String) -> None:
+        try:
+            r = decode_resend(msg.data)
+        except LockstepError as exc:
+            self.decode_errors[RESEND_TOPIC] = self.decode_errors.get(RESEND_TOPIC, 0) + 1
+            self.host_node.get_logger().warning(str(exc))
+            return
+        if r.to != self.role:
+            return
+        for box in self.inboxes_by_topic.get(r.topic, ()):
+            for w in r.wires:
+                try:
+                    if not box.add(decode_envelope(w, r.topic)):
+                        self.duplicates += 1
+                except WireError:
+                    box.decode_errors += 1
 
     def _on_step(self, msg: String) -> None:
         try:
@@ -151,6 +231,27 @@ class ParticipantHost:
             if time.monotonic() > deadline:
                 raise HostError(f"host {self.role}: {what} (waited {timeout_s:g} s)")
             spin(timeout_sec=0.05)
+
+    def _wait_envelopes(self, cond, what: str) -> None:
+        """Wait for the previous steps' envelopes; after a restart, ask the clock to re-send them
+        (a hello with ``resume_k``) every ``rejoin_period_s`` while they are missing."""
+        if self.resume_k < 0:
+            self._spin_until(cond, self.ack_timeout_s, what)
+            return
+        deadline = time.monotonic() + self.ack_timeout_s
+        while True:
+            try:
+                self._spin_until(cond, min(self.rejoin_period_s, max(0.0, deadline - time.monotonic())), what)
+                return
+            except HostError:
+                if time.monotonic() >= deadline:
+                    raise
+                self._hello()
+
+    def _hello(self) -> None:
+        subs_count = {topic: len(boxes) for topic, boxes in self.inboxes_by_topic.items()}
+        self._ack(k=0, t_ns=0, hello=True, participants=[s.name for s in self.slots], subscriptions=subs_count,
+                  resume_k=self.resume_k)
 
     def _publisher(self, slot: _Slot, topic: str):
         pub = slot.pubs.get(topic)
@@ -180,6 +281,8 @@ class ParticipantHost:
 
     # -- one wire step ------------------------------------------------------------------------------
     def _run_step(self, m: StepMsg) -> None:
+        if self.ckpt is not None:
+            self.ckpt.begin()
         for topic, n in m.sent.items():
             for box in self.inboxes_by_topic.get(topic, ()):
                 box.expected += n
@@ -203,7 +306,7 @@ class ParticipantHost:
 
             if not all_ready():
                 try:
-                    self._spin_until(all_ready, self.ack_timeout_s, f"step {m.k} at t_ns={t}: envelopes missing")
+                    self._wait_envelopes(all_ready, f"step {m.k} at t_ns={t}: envelopes missing")
                 except HostError as exc:
                     short = {b.topic: b.missing(seq_end) for b in boxes if b.missing(seq_end)}
                     raise HostError(f"{exc}: {short}") from None
@@ -227,8 +330,12 @@ class ParticipantHost:
                     except Exception as exc:
                         raise HostError(f"{slot.name} failed in finish({t}): {type(exc).__name__}: {exc}") from exc
                     self._emit(slot, emits, t, "finish", sent)
-        self._ack(k=m.k, t_ns=t, next_wakeup_ns=min(wakes) if wakes else None, sent=sent,
-                  seq_end={s.name: s.seq for s in self.slots if s.seq})
+        ack = dict(k=m.k, t_ns=t, next_wakeup_ns=min(wakes) if wakes else None, sent=sent,
+                   seq_end={s.name: s.seq for s in self.slots if s.seq})
+        if self.ckpt is not None:
+            self._checkpoint(m.k, ack)
+        self.done_k, self.last_ack = m.k, ack
+        self._ack(**ack)
 
     @staticmethod
     def _call(slot: _Slot, fn, t: int, where: str, *args) -> StepResult:
@@ -246,10 +353,7 @@ class ParticipantHost:
     # -- main loop ----------------------------------------------------------------------------------
     def run(self) -> int:
         """Say hello, run every step the clock sends until ``stop``; 0 on a clean end."""
-        subs_count: dict[str, int] = {}
-        for topic, boxes in self.inboxes_by_topic.items():
-            subs_count[topic] = len(boxes)
-        self._ack(k=0, t_ns=0, hello=True, participants=[s.name for s in self.slots], subscriptions=subs_count)
+        self._hello()
         while True:
             if not self._steps:
                 self._spin_until(lambda: bool(self._steps), self.idle_timeout_s, "no step message from the clock")
@@ -258,6 +362,15 @@ class ParticipantHost:
                 if m.reason:
                     print(f"host {self.role}: stopped by the clock: {m.reason}", file=sys.stderr)
                 return 0
+            if m.k <= self.done_k:
+                # a step already done (the step writer's history, after a restart): answer the one
+                # the clock may still wait for, ignore older ones
+                if m.k == self.done_k and self.last_ack is not None:
+                    self._ack(**self.last_ack)
+                continue
+            if m.k != self.done_k + 1:
+                raise HostError(f"host {self.role}: step {m.k} arrived after step {self.done_k}; "
+                                f"steps {self.done_k + 1}..{m.k - 1} were never received")
             try:
                 self._run_step(m)
             except HostError as exc:
@@ -276,6 +389,8 @@ class ParticipantHost:
 
     def close(self) -> None:
         try:
+            if self.ckpt is not None:
+                self.ckpt.close()
             self.executor.shutdown(timeout_sec=1.0)
             for s in self.slots:
                 s.node.destroy_node()

@@ -41,6 +41,12 @@ class RunSpec(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
     # A host that does not ack a step within this wall time is reported by name.
     ack_timeout_s: float = 10.0
     startup_timeout_s: float = 60.0
+    # Crash/restart (issue 7): > 0 = the clock waits this long (wall s) for a silent host to come
+    # back, the launcher restarts a host that died (at most max_restarts times per role), and hosts
+    # checkpoint every step into state_dir (or their participant's own store).
+    restart_wait_s: float = 0.0
+    max_restarts: int = 0
+    state_dir: str | None = None
     bag_dir: str | None = None
     progress_period_s: float = 0.5
     extra: dict[str, Any] = {}
@@ -66,6 +72,8 @@ class RunSpec(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
             raise UserError(f"{where}: 'roles' must be unique and must not contain '{CLOCK_ROLE}'")
         if ":" not in self.factory:
             raise UserError(f"{where}: 'factory' must be 'module:function', got {self.factory!r}")
+        if self.restart_wait_s < 0 or self.max_restarts < 0:
+            raise UserError(f"{where}: 'restart_wait_s' and 'max_restarts' must be >= 0")
         if self.real_time_factor is not None and self.real_time_factor <= 0:
             raise UserError(f"{where}: 'real_time_factor' must be > 0")
 

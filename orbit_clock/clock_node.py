@@ -15,6 +15,14 @@ String topic that appears on the graph (polled while waiting); hosts publish on 
 the recorder's subscription has matched, so the bag holds every envelope. SIGINT/SIGTERM: the
 clock tells the hosts to stop and closes the bag (readable).
 
+Crash and restart (issue 7): with ``restart_wait_s > 0`` a host that misses the ack deadline is
+reported by name on stderr and waited for (bounded by ``restart_wait_s``) while the launcher
+restarts it; the recorder then always listens (bag or not) and keeps the envelopes of the last
+``_RESEND_STEPS`` wire steps. A hello from a host during the run is a rejoin: the clock re-sends it
+(/_lockstep/resend) what it recorded on its topics; the host drops what it already holds. Acks for
+any step but the current one are ignored (a restarted host repeats its last one); the recorder
+keeps one copy per (topic, source, seq), so a re-run step is recorded once.
+
 Oracle: tests/ros/test_lockstep.py (toy participants over DDS give exactly the local engine's
 envelopes, read back from the bag; a killed host is named within the bounded wait; Ctrl-C leaves
 a readable bag).
@@ -42,9 +50,11 @@ from bringup.run_spec import RunSpec
 from msgs_json.wire import WireError, decode_envelope
 from orbit_clock.lockstep import (
     ACK_TOPIC,
+    RESEND_TOPIC,
     STEP_TOPIC,
     AckMsg,
     LockstepError,
+    ResendMsg,
     StepMsg,
     decode_ack,
     encode_msg,
@@ -56,6 +66,7 @@ __all__ = ["ClockError", "LockstepClock", "run_clock"]
 _STRING = "std_msgs/msg/String"
 _CLOCK = "rosgraph_msgs/msg/Clock"
 _QOS_CLOCK = QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT)
+_RESEND_STEPS = 6
 
 
 class ClockError(RuntimeError):
@@ -102,6 +113,17 @@ class LockstepClock:
         self.totals: dict[str, int] = {}
         self._next_graph_poll = 0.0
         self.steps = 0
+        # crash/restart: current wire step, dedupe keys, recent envelopes per topic, rejoin requests
+        self.restart = spec.restart_wait_s > 0
+        self.cur_k = -1
+        self.running = False
+        self._rec_keys: set[tuple[str, str, int]] = set()
+        self.rec_duplicates = 0
+        self.recent: dict[str, list[tuple[int, str]]] = {}
+        self.rejoins: list[AckMsg] = []
+        self.rejoined: dict[str, int] = {}
+        self.stale_acks = 0
+        self.resend_pub = self.node.create_publisher(String, RESEND_TOPIC, QOS_DATA) if self.restart else None
 
     # -- callbacks ----------------------------------------------------------------------------------
     def _on_ack(self, raw: bytes) -> None:
@@ -116,8 +138,13 @@ class LockstepClock:
             self.node.get_logger().warning(f"{ACK_TOPIC}: ack from unknown host {ack.participant!r} ignored")
             return
         if ack.hello:
+            if self.running:
+                self.rejoins.append(ack)
             self.hellos[ack.participant] = ack
         else:
+            if ack.k != self.cur_k:
+                self.stale_acks += 1
+                return
             self.acks[ack.participant] = ack
             if self.bag is not None:
                 self.bag.write_raw(ACK_TOPIC, _STRING, raw, ack.t_ns)
@@ -126,11 +153,19 @@ class LockstepClock:
         def cb(raw: bytes) -> None:
             from rclpy.serialization import deserialize_message
 
+            text = deserialize_message(raw, String).data
             try:
-                env = decode_envelope(deserialize_message(raw, String).data, topic)
+                env = decode_envelope(text, topic)
             except WireError:
                 self.bad_recorded += 1
                 return
+            key = (topic, env.source, env.seq)
+            if key in self._rec_keys:
+                self.rec_duplicates += 1
+                return
+            self._rec_keys.add(key)
+            if self.restart:
+                self.recent.setdefault(topic, []).append((self.cur_k, text))
             self.rec_counts[topic] = self.rec_counts.get(topic, 0) + 1
             if self.bag is not None:
                 self.bag.write_raw(topic, _STRING, raw, env.t_ns)
@@ -151,6 +186,24 @@ class LockstepClock:
             if _STRING in types and not topic.startswith("/_lockstep"):
                 self._record(topic)
 
+    def _serve_rejoins(self) -> None:
+        """Re-send to each restarted host what was recorded on its topics in the last steps."""
+        while self.rejoins:
+            h = self.rejoins.pop(0)
+            n = self.rejoined[h.participant] = self.rejoined.get(h.participant, 0) + 1
+            if n == 1:
+                print(f"clock: host {h.participant} rejoined at step {self.cur_k} "
+                      f"(resumes after step {h.resume_k})", file=sys.stderr, flush=True)
+            for topic in h.subscriptions:
+                wires = [w for _k, w in self.recent.get(topic, ())]
+                self.resend_pub.publish(String(data=encode_msg(ResendMsg(to=h.participant, topic=topic, wires=wires))))
+
+    def _prune_recent(self) -> None:
+        lo = self.cur_k - _RESEND_STEPS
+        for topic, items in self.recent.items():
+            if items and items[0][0] < lo:
+                self.recent[topic] = [it for it in items if it[0] >= lo]
+
     def request_stop(self, *_args) -> None:
         self._stop_requested = True
 
@@ -165,6 +218,8 @@ class LockstepClock:
                 raise ClockError(on_timeout())
             if self.bag is not None:
                 self._poll_graph()
+            if self.rejoins:
+                self._serve_rejoins()
             spin(timeout_sec=0.02)
 
     def _who(self, roles) -> str:
@@ -198,7 +253,7 @@ class LockstepClock:
         spec = self.spec
         self._spin_until(lambda: len(self.hellos) == len(self.roles), spec.startup_timeout_s,
                          lambda: "hosts not up: " + self._who(r for r in self.roles if r not in self.hellos))
-        rec = 1 if self.bag is not None else 0
+        rec = 1 if (self.bag is not None or self.restart) else 0
         subs: dict[str, int] = {}
         for h in self.hellos.values():
             for topic, n in h.subscriptions.items():
@@ -211,17 +266,17 @@ class LockstepClock:
         next_progress = wall0 + spec.progress_period_s
         k, t = 0, self.t0_ns
         msg = StepMsg(k=0, t_ns=t, start=True, subs=subs, subs_default=rec)
+        self.running = True
         while True:
             self.acks.clear()
+            self.cur_k = k
+            if self.restart and k % _RESEND_STEPS == 0:
+                self._prune_recent()
             if spec.real_time_factor and not msg.start:
                 due = wall0 + (t - self.t0_ns) / 1e9 / spec.real_time_factor
                 self._spin_until(lambda: time.monotonic() >= due, float("inf"), lambda: "")
             self._publish_step(msg)
-            self._spin_until(
-                lambda: len(self.acks) == len(self.roles), spec.ack_timeout_s,
-                lambda: (f"no ack for step {k} (t = {t / 1e9:.3f} s) within {spec.ack_timeout_s:g} s from "
-                         + self._who(r for r in self.roles if r not in self.acks)),
-            )
+            self._wait_acks(k, t)
             failed = [a for a in self.acks.values() if a.error]
             if failed:
                 raise ClockError("; ".join(f"host {a.participant} failed at step {k}: {a.error}" for a in failed))
@@ -265,6 +320,25 @@ class LockstepClock:
                                              json.dumps({"meta": self.meta, "runtime": runtime})))
         self._progress(t, wall, done=True)
         return 0
+
+    def _wait_acks(self, k: int, t: int) -> None:
+        spec = self.spec
+
+        def all_acked() -> bool:
+            return len(self.acks) == len(self.roles)
+
+        def who() -> str:
+            return (f"no ack for step {k} (t = {t / 1e9:.3f} s) within {{:g}} s from "
+                    + self._who(r for r in self.roles if r not in self.acks))
+        try:
+            self._spin_until(all_acked, spec.ack_timeout_s, lambda: who().format(spec.ack_timeout_s))
+        except ClockError as exc:
+            if not self.restart:
+                raise
+            print(f"clock: {exc}; waiting up to {spec.restart_wait_s:g} s for it to restart",
+                  file=sys.stderr, flush=True)
+            self._spin_until(all_acked, spec.restart_wait_s,
+                             lambda: who().format(spec.ack_timeout_s + spec.restart_wait_s) + " (no restart)")
 
     def stop_hosts(self, reason: str = "") -> None:
         try:

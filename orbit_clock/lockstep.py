@@ -15,6 +15,12 @@ msgs_json/envelope.py for participants spread over several OS processes, with on
   each topic before it runs the step, and which early arrivals (``seq >= seq_end[src]``) belong to a
   later step (trap 6).
 * rule 3: :func:`next_step_ns`.
+* crash and restart (issue 7): a host checkpoints after every step (bringup/checkpoint.py) and, when
+  restarted, says hello with ``resume_k`` = the last wire step it committed; the clock then re-sends
+  (on :data:`RESEND_TOPIC`, :class:`ResendMsg`) the envelopes it recorded on that host's topics
+  during the last few steps, and the host re-runs from ``resume_k + 1``. Re-running a step re-emits
+  the same envelopes with the same (source, seq), so every receiver drops what it already holds
+  (:meth:`TopicInbox.add` returns False for a duplicate): delivery stays exactly-once.
 
 Oracle: tests/ros/test_lockstep.py runs toy participants under this protocol over DDS and checks the
 envelopes equal those of the in-process local engine (bringup/local_engine.py) for the same
@@ -32,12 +38,15 @@ from msgs_json.schemas import SimAck, SimStep
 
 __all__ = [
     "ACK_TOPIC",
+    "RESEND_TOPIC",
     "STEP_TOPIC",
     "AckMsg",
     "LockstepError",
+    "ResendMsg",
     "StepMsg",
     "TopicInbox",
     "decode_ack",
+    "decode_resend",
     "decode_step",
     "encode_msg",
     "next_step_ns",
@@ -45,6 +54,8 @@ __all__ = [
 
 STEP_TOPIC = "/sim/step"
 ACK_TOPIC = "/sim/ack"
+# Not recorded (the recorder skips /_lockstep/*): the clock's re-sends to a restarted host.
+RESEND_TOPIC = "/_lockstep/resend"
 
 
 class LockstepError(ValueError):
@@ -75,22 +86,34 @@ class AckMsg(SimAck, kw_only=True, frozen=True):
     ``hello`` (before the start phase): ``participants`` hosted and ``subscriptions`` (topic ->
     number of subscriptions this host holds). Otherwise ``next_wakeup_ns`` is the earliest wakeup of
     the host's participants, ``sent`` its emits per topic and ``seq_end`` its sources' seq counters.
-    ``error`` (non-empty): the host failed this step and says why.
+    ``error`` (non-empty): the host failed this step and says why. ``resume_k`` (hello only): -1 for a
+    fresh start, else the last wire step the host committed to its checkpoint before it restarted.
     """
 
     hello: bool = False
+    resume_k: int = -1
     participants: list[str] = []
     subscriptions: dict[str, int] = {}
     seq_end: dict[str, int] = {}
     error: str = ""
 
 
+class ResendMsg(msgspec.Struct, kw_only=True, frozen=True, forbid_unknown_fields=True):
+    """/_lockstep/resend: envelopes (wire texts, msgs_json/wire.py) the clock recorded on ``topic``,
+    re-sent to the restarted host ``to``."""
+
+    to: str
+    topic: str
+    wires: list[str] = []
+
+
 _enc = msgspec.json.Encoder()
+_resend_dec = msgspec.json.Decoder(ResendMsg)
 _step_dec = msgspec.json.Decoder(StepMsg)
 _ack_dec = msgspec.json.Decoder(AckMsg)
 
 
-def encode_msg(msg: StepMsg | AckMsg) -> str:
+def encode_msg(msg: StepMsg | AckMsg | ResendMsg) -> str:
     return _enc.encode(msg).decode("utf-8")
 
 
@@ -106,6 +129,13 @@ def decode_ack(text: str) -> AckMsg:
         return _ack_dec.decode(text)
     except (msgspec.DecodeError, msgspec.ValidationError, ValueError) as exc:
         raise LockstepError(f"{ACK_TOPIC}: bad ack message: {exc}") from None
+
+
+def decode_resend(text: str) -> ResendMsg:
+    try:
+        return _resend_dec.decode(text)
+    except (msgspec.DecodeError, msgspec.ValidationError, ValueError) as exc:
+        raise LockstepError(f"{RESEND_TOPIC}: bad resend message: {exc}") from None
 
 
 def next_step_ns(t_ns: int, wakeups: list[int | None], max_step_ns: int, horizon_ns: int) -> int:
@@ -126,6 +156,9 @@ class TopicInbox:
     counter at the end of the previous step. The inbox is *ready* when it holds every one of them
     (received count of envelopes with ``seq < seq_end[src]`` equals ``expected``); :meth:`take`
     then hands out those not yet delivered, in (t_ns, source, seq) order, and keeps later ones.
+    ``consumed`` = ``seq_end`` at the last :meth:`take`: an envelope with ``seq < consumed[src]``, or one
+    already pending, is a duplicate (a restarted sender re-running a step, or a re-send) and is
+    dropped by :meth:`add` (counted in ``duplicates``).
     """
 
     topic: str
@@ -133,9 +166,19 @@ class TopicInbox:
     delivered: int = 0
     pending: list[Envelope] = field(default_factory=list)
     decode_errors: int = 0
+    consumed: dict[str, int] = field(default_factory=dict)
+    duplicates: int = 0
+    _keys: set[tuple[str, int]] = field(default_factory=set)
 
-    def add(self, env: Envelope) -> None:
+    def add(self, env: Envelope) -> bool:
+        """Buffer ``env``; False (and counted) when it is a duplicate of one held or delivered."""
+        key = (env.source, env.seq)
+        if env.seq < self.consumed.get(env.source, 0) or key in self._keys:
+            self.duplicates += 1
+            return False
+        self._keys.add(key)
         self.pending.append(env)
+        return True
 
     def ready(self, seq_end: dict[str, int]) -> bool:
         have = self.delivered + sum(1 for e in self.pending if e.seq < seq_end.get(e.source, 0))
@@ -155,5 +198,7 @@ class TopicInbox:
             (now if e.seq < seq_end.get(e.source, 0) else later).append(e)
         self.pending = later
         self.delivered += len(now)
+        self.consumed = dict(seq_end)
+        self._keys = {(e.source, e.seq) for e in later}
         now.sort(key=Envelope.sort_key)
         return now

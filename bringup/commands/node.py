@@ -2,7 +2,9 @@
 
 The launcher (bringup/launcher.py), and later the docker compose files, start every process with
 it: role ``clock`` runs the lockstep clock and recorder (orbit_clock/clock_node.py); any other role
-hosts the participants the run spec's factory returns for it (bringup/ros_host.py).
+hosts the participants the run spec's factory returns for it (bringup/ros_host.py). With the
+spec's ``state_dir`` a host checkpoints every step and, started again after a crash, resumes from
+its checkpoint (bringup/checkpoint.py).
 """
 
 from __future__ import annotations
@@ -36,4 +38,5 @@ def run(args: argparse.Namespace) -> int:
 
     return run_host(args.role, participants, ack_timeout_s=spec.ack_timeout_s,
                     startup_timeout_s=spec.startup_timeout_s,
-                    idle_timeout_s=max(300.0, 10 * spec.ack_timeout_s))
+                    idle_timeout_s=max(300.0, 10 * spec.ack_timeout_s, 2 * spec.restart_wait_s),
+                    state_path=str(Path(spec.state_dir) / f"{args.role}.state.sqlite") if spec.state_dir else None)
