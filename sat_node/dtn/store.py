@@ -1,14 +1,16 @@
 """Persistent bundle store: SQLite in WAL mode (https://sqlite.org/wal.html).
 
 Each accepted bundle is one row (id, encoded bytes, priority, destination, expiry) written before the
-agent acknowledges it to itself, and deleted when it is delivered, forwarded or dropped. A process
+agent acknowledges it to itself, and deleted when it is dropped or when its transmission has
+ended (not when it starts: a process killed mid-transmission keeps it). A process
 killed and restarted opens the same file and gets every bundle back (:meth:`BundleStore.load_all`),
 so the agent re-routes them. ``path=None`` keeps the store in memory (the DTN-only discrete-event
 runs, where persistence buys nothing). ``synchronous=NORMAL`` in WAL mode: a committed row survives
 a process kill (not necessarily a power cut), which is the failure we model.
 
 How we know it is right: tests/unit/test_store.py writes bundles in one process, kills it with
-SIGKILL, reopens the file in another and finds every bundle it had committed.
+SIGKILL, reopens the file in another and finds every bundle it had committed, including one killed
+while on the air.
 """
 
 from __future__ import annotations

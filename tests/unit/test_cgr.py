@@ -95,3 +95,27 @@ def test_study_plan_routes_are_feasible(paper_inputs):
         if r is not None:
             first = g.contacts[r.contacts[0]]
             assert r.arrival_s >= max(t, first.start_s) + 2.0 * r.hops + first.range_light_s - 1e-9
+
+
+def test_hop_tolerance_prefers_fewer_hops_within_it():
+    # via C arrives 7 s (2 hops), direct 53 s (1 hop): a 50 s tolerance takes the direct contact
+    g = ContactGraph(PLAN1)
+    r = g.route("sat_11", "sat_14", 0.0, 2, hop_tolerance_s=50.0)
+    assert _names(g, r) == [("sat_11", "sat_14")] and r.arrival_s == pytest.approx(53.0)
+    r = g.route("sat_11", "sat_14", 0.0, 2, hop_tolerance_s=45.0)
+    assert _names(g, r) == [("sat_11", "sat_13"), ("sat_13", "sat_14")] and r.arrival_s == pytest.approx(7.0)
+
+
+def test_first_hop_backlog_per_contact():
+    # 6 bits already waiting for A->C only: A->C 6-8, at C 9, C->D would end at 11 > 10; A->B is free: 23
+    g = ContactGraph(PLAN1)
+    fb = np.zeros(len(g.contacts))
+    fb[[i for i, c in enumerate(g.contacts) if (c.src, c.dst) == ("sat_11", "sat_13")][0]] = 6.0
+    r = g.route("sat_11", "sat_14", 0.0, 2, first_backlog_bits=fb)
+    assert _names(g, r) == [("sat_11", "sat_12"), ("sat_12", "sat_14")] and r.arrival_s == pytest.approx(23.0)
+    # waiting for a contact that opens later: its backlog is sent after it opens (A->D 50 + 6 + 2 + 1)
+    fb[:] = 0.0
+    fb[[i for i, c in enumerate(g.contacts) if (c.src, c.dst) == ("sat_11", "sat_14")][0]] = 6.0
+    excl = np.array([c.src == "sat_11" and c.dst != "sat_14" for c in g.contacts])
+    r = g.route("sat_11", "sat_14", 0.0, 2, first_backlog_bits=fb, excluded=excl)
+    assert r.arrival_s == pytest.approx(59.0)
