@@ -16,6 +16,12 @@ Definitions:
   |assumed - true| / true, where assumed is what the planner expected (Observation.assumed_value).
 * coverage.gp_observed_fraction - distinct GPs observed / GPs of the scenario.
 * dtn.* - sat_node/dtn/stats.py over the bundle events (first delivery per bundle counts).
+* consensus.* - ISL-delayed implicit consensus (Nag et al. section 4; issue 7), see
+  :func:`consensus_figures`: for each pair of successive passes of different satellites over a
+  region, whether the earlier satellite's observations reached the later one (bundle delivered)
+  before it planned the pass (the ``planned_ns`` of the schedule version its first observation of
+  the pass came from), and how many duplicate observations (same GP within ``revisit_zero_s``) the
+  later satellite made of GPs whose news it did not have when planning ("late news").
 
 Oracle: tests/unit/test_report.py - hand-made observation lists with the value worked out by hand,
 and the round trip run -> bag -> report equals the run's report (tests/system).
@@ -32,7 +38,7 @@ import numpy as np
 from msgs_json import codec, schemas as S
 from msgs_json.envelope import Envelope
 
-__all__ = ["RunMeta", "build_report", "report_from_bag", "flatten", "true_values", "REPORT_TOPIC_SUFFIXES"]
+__all__ = ["RunMeta", "build_report", "consensus_figures", "report_from_bag", "flatten", "true_values", "REPORT_TOPIC_SUFFIXES"]
 
 _NS = 1_000_000_000
 REPORT_TOPIC_SUFFIXES = ("/observations", "/dtn/events", "/dtn/counters", "/schedule", "/ground/uplink")
@@ -91,19 +97,29 @@ def build_report(envelopes, meta: RunMeta, runtime: dict | None = None) -> dict:
     counters: dict[str, dict] = {}
     cpu_by_planner: dict[str, float] = defaultdict(float)
     bad = 0
+    planned: dict[tuple[str, int], int] = {}
+    created: dict[str, tuple] = {}
+    delivered: dict[str, tuple[str, int]] = {}
     for env in envelopes:
         t = env.topic
         try:
             if t.endswith("/observations"):
                 obs.append(codec.decode(t, env.data))
             elif t.endswith("/dtn/events"):
-                events.append(_bundle_event(codec.decode(t, env.data)))
+                m = codec.decode(t, env.data)
+                events.append(_bundle_event(m))
+                if isinstance(m, S.BundleCreated):
+                    created[m.bundle_id] = (m.src, m.gp, m.obs_t_ns, m.dst)
+                elif isinstance(m, S.BundleDelivered) and m.bundle_id not in delivered:
+                    delivered[m.bundle_id] = (m.sat, m.t_ns)
             elif t.endswith("/dtn/counters"):
                 m = codec.decode(t, env.data)
                 counters[m.sat] = m.counters
             elif t.endswith("/schedule"):
                 n_schedules += 1
-                cpu_by_planner[codec.decode(t, env.data).sat] += codec.decode(t, env.data).solve_cpu_s
+                m = codec.decode(t, env.data)
+                cpu_by_planner[m.sat] += m.solve_cpu_s
+                planned[(m.sat, m.version)] = m.planned_ns
             elif t == "/ground/uplink":
                 cpu_by_planner["ground"] += codec.decode(t, env.data).schedule.solve_cpu_s
         except ValueError:
@@ -122,11 +138,137 @@ def build_report(envelopes, meta: RunMeta, runtime: dict | None = None) -> dict:
         det = rep["dtn"].setdefault("copies_discarded_detail", {})
         det["not_next_hop"] = det.get("not_next_hop", 0) + over
         rep["dtn"]["held_at_end"] = sum(c.get("held", 0) for c in counters.values())
+    if meta.mode == "distributed":
+        rep["consensus"] = consensus_figures(obs, created, delivered, planned, meta.revisit_zero_s)
+    if counters:
+        rej: dict[str, int] = defaultdict(int)
+        for c in counters.values():
+            for k, v in c.items():
+                if k.startswith(("rejected.", "tx_failed.", "agent.dropped.", "agent.discarded.")):
+                    rej[k] += v
+        rep["dtn"]["rejections"] = dict(sorted(rej.items()))
     rep["messages_rejected_in_report"] = bad
     rt = dict(runtime or {})
     rt["scheduler_cpu_s_per_sat"] = (sum(cpu_by_planner.values()) / meta.n_sats) if meta.n_sats else None
     rep["runtime"] = rt
     return rep
+
+
+PASS_GAP_S = 120.0  # observations of one satellite closer than this belong to one pass over one area
+
+
+def _regions_from_passes(obs: list, gap_ns: int) -> dict[int, int]:
+    """GP -> area id, from the observations alone: GPs one satellite observes within ``gap_ns`` of
+    each other are in one area (union-find). The study's regions are thousands of km apart (several
+    minutes of flight), a region's pass takes ~2 min, so each area is one region."""
+    parent: dict[int, int] = {}
+
+    def find(x: int) -> int:
+        parent.setdefault(x, x)
+        while parent[x] != x:
+            parent[x] = parent[parent[x]]
+            x = parent[x]
+        return x
+
+    by_sat: dict[str, list] = defaultdict(list)
+    for o in obs:
+        by_sat[o.sat].append(o)
+    for lst in by_sat.values():
+        lst.sort(key=lambda o: o.t_ns)
+        for a, b in zip(lst, lst[1:]):
+            find(a.gp)
+            if b.t_ns - a.t_ns <= gap_ns:
+                ra, rb = find(a.gp), find(b.gp)
+                if ra != rb:
+                    parent[max(ra, rb)] = min(ra, rb)
+        if lst:
+            find(lst[-1].gp)
+    return {g: find(g) for g in parent}
+
+
+def consensus_figures(obs: list, created: dict, delivered: dict, planned: dict, revisit_zero_s: float,
+                      *, pass_gap_s: float = PASS_GAP_S) -> dict:
+    """ISL-delayed consensus figures (module docstring).
+
+    ``created``: bundle id -> (src, gp, obs_t_ns, dst); ``delivered``: bundle id -> (receiver,
+    t_ns) of its first delivery; ``planned``: (sat, schedule version) -> planned_ns.
+    A *pass* is a run of one satellite's observations in one area with gaps <= ``pass_gap_s``.
+    For successive passes (A then B, A != B) over an area, sorted by their first observation:
+    ``informed`` - at least one of A's pass observations was delivered to B at or before B's
+    planning time; ``fully_informed`` - all of them were; ``planned_before_earlier_pass`` - B planned
+    before A's first observation (no network could have told it); ``no_bundle`` - none of A's
+    observations had B as a destination. Duplicates: B's observations of a GP A observed in its pass
+    less than ``revisit_zero_s`` before; ``late_news`` when the bundle for that observation had not
+    reached B by its planning time, ``despite_news`` otherwise.
+    """
+    gap_ns = int(round(pass_gap_s * _NS))
+    zero_ns = int(round(revisit_zero_s * _NS))
+    area = _regions_from_passes(obs, gap_ns)
+    passes: list[dict] = []
+    by_sat: dict[str, list] = defaultdict(list)
+    for o in obs:
+        by_sat[o.sat].append(o)
+    for sat, lst in by_sat.items():
+        lst.sort(key=lambda o: o.t_ns)
+        cur = None
+        for o in lst:
+            a = area[o.gp]
+            if cur is None or cur["area"] != a or o.t_ns - cur["obs"][-1].t_ns > gap_ns:
+                cur = {"sat": sat, "area": a, "obs": []}
+                passes.append(cur)
+            cur["obs"].append(o)
+    news: dict[tuple[str, str, int, int], int] = {}  # (src, dst, gp, obs_t_ns) -> delivery t_ns at dst
+    dests: set[tuple[str, str, int, int]] = set()
+    for bid, (src, gp, obs_ns, dst) in created.items():
+        dests.add((src, dst, gp, obs_ns))
+        d = delivered.get(bid)
+        if d is not None and d[0] == dst:
+            k = (src, dst, gp, obs_ns)
+            news[k] = min(news.get(k, d[1]), d[1])
+    by_area: dict[int, list] = defaultdict(list)
+    for p in passes:
+        by_area[p["area"]].append(p)
+    n = informed = full = before = no_bundle = dup = late = despite = 0
+    margins = []
+    for lst in by_area.values():
+        lst.sort(key=lambda p: (p["obs"][0].t_ns, p["sat"]))
+        for pa, pb in zip(lst, lst[1:]):
+            if pa["sat"] == pb["sat"]:
+                continue
+            n += 1
+            a, b = pa["sat"], pb["sat"]
+            first_b = pb["obs"][0]
+            t_plan = planned.get((b, first_b.schedule_version), first_b.t_ns)
+            keys = [(a, b, o.gp, o.t_ns) for o in pa["obs"]]
+            got = [news[k] for k in keys if k in news and news[k] <= t_plan]
+            if t_plan < pa["obs"][0].t_ns:
+                before += 1
+            if not any(k in dests for k in keys):
+                no_bundle += 1
+            if got:
+                informed += 1
+                margins.append((t_plan - min(got)) / _NS)
+            if len(got) == len(keys):
+                full += 1
+            seen_a = {o.gp: o.t_ns for o in pa["obs"]}
+            for o in pb["obs"]:
+                ta = seen_a.get(o.gp)
+                if ta is None or o.t_ns - ta >= zero_ns:
+                    continue
+                dup += 1
+                k = (a, b, o.gp, ta)
+                if k in news and news[k] <= t_plan:
+                    despite += 1
+                else:
+                    late += 1
+    return {
+        "areas": len(by_area), "passes": len(passes), "pairs": n,
+        "pairs_informed": informed, "pairs_fully_informed": full,
+        "pairs_informed_fraction": (informed / n) if n else None,
+        "pairs_planned_before_earlier_pass": before, "pairs_no_bundle": no_bundle,
+        "news_margin_s_median": float(np.median(margins)) if margins else None,
+        "duplicates": dup, "duplicates_late_news": late, "duplicates_despite_news": despite,
+    }
 
 
 def true_values(obs: list, revisit_zero_s: float) -> list[tuple]:
