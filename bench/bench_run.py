@@ -1,0 +1,97 @@
+"""Benchmark: a whole `constellation run` on each engine - wall time, real-time factor, peak memory, CPU.
+
+Usage::
+
+    .venv/bin/python bench/bench_run.py [--sats 24 --hours 6 --mode distributed --engines local,ros]
+
+Each engine runs as a child process (`python -m bringup.cli run ...`); the process tree's total
+resident memory is sampled every 0.25 s from /proc (peak reported), CPU time is the children's
+rusage after they exit (user + system, every process of the tree), wall time is measured around the
+child. The local engine is the baseline printed beside the ROS engine in the same run, and the two
+runs' headline figures are compared (they must be equal: same observations and deliveries).
+Targets (issue 5): ros >= 60x real time (6 h in <= 6 min), local >= 1000x, total memory <= 4 GiB.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import resource
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+
+def _tree(pid: int) -> list[int]:
+    out, todo = [], [pid]
+    while todo:
+        p = todo.pop()
+        out.append(p)
+        try:
+            with open(f"/proc/{p}/task/{p}/children") as fh:
+                todo += [int(x) for x in fh.read().split()]
+        except OSError:
+            pass
+    return out
+
+
+def _rss_mib(pids: list[int]) -> float:
+    tot = 0
+    for p in pids:
+        try:
+            with open(f"/proc/{p}/statm") as fh:
+                tot += int(fh.read().split()[1])
+        except OSError:
+            pass
+    return tot * os.sysconf("SC_PAGE_SIZE") / 2**20
+
+
+def run_one(engine: str, args, out: Path) -> dict:
+    cmd = [sys.executable, "-m", "bringup.cli", "run", "--engine", engine, "--mode", args.mode, "--sats",
+           str(args.sats), "--hours", str(args.hours), "--out", str(out), "--no-plots", "--no-progress"]
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    t0 = time.perf_counter()
+    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    peak = 0.0
+    while proc.poll() is None:
+        peak = max(peak, _rss_mib(_tree(proc.pid)))
+        time.sleep(0.25)
+    wall = time.perf_counter() - t0
+    err = proc.stderr.read()
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    if proc.returncode != 0:
+        raise SystemExit(f"{engine} run failed: {err[-2000:]}")
+    rep = json.loads((out / "report.json").read_text())
+    cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+    return {"engine": engine, "wall_s": round(wall, 2), "real_time_factor": round(args.hours * 3600 / wall, 1),
+            "peak_rss_mib": round(peak, 1), "cpu_s": round(cpu, 1), "cpu_cores_avg": round(cpu / wall, 2),
+            "value": rep["value"]["cumulative"], "observations": rep["observations"]["count"],
+            "bundles_created": rep["dtn"].get("bundles_created"),
+            "bundles_delivered": rep["dtn"].get("bundles_delivered")}
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--sats", type=int, default=24)
+    ap.add_argument("--hours", type=float, default=6.0)
+    ap.add_argument("--mode", default="distributed")
+    ap.add_argument("--engines", default="local,ros")
+    args = ap.parse_args()
+    rows = []
+    with tempfile.TemporaryDirectory() as d:
+        for eng in args.engines.split(","):
+            rows.append(run_one(eng, args, Path(d) / eng))
+            print(json.dumps(rows[-1]), flush=True)
+    if len(rows) == 2:
+        a, b = rows
+        same = all(a[k] == b[k] for k in ("value", "observations", "bundles_created", "bundles_delivered"))
+        print(f"engines agree on value/observations/bundles: {same}")
+        print(f"{b['engine']} / {a['engine']} wall time: {b['wall_s'] / a['wall_s']:.1f}x")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
