@@ -1,4 +1,7 @@
-"""The plots of one run (PNG, bringup/plots.py), from its bag and world: written to OUT/plots/."""
+"""The plots of one run (PNG, bringup/plots.py), from its bag and world: written to OUT/plots/.
+
+Ground tracks, OSSE snapshot, contact plan, observation Gantt chart, value over time, and for a
+distributed run with bundles the study's Figure 5 (bringup/figure5.py)."""
 
 from __future__ import annotations
 
@@ -45,4 +48,11 @@ def run_plots(out: Path, bag_dir: Path, world, rep: dict) -> list[Path]:
         made.append(plots.plot_value_over_time(
             d / "value_over_time.png", {rep["mode"]: ([o.t_ns / _NS for o, _, _ in tv], [v for _, v, _ in tv])},
             horizon_s=sc.scenario.horizon_s))
+    if rep.get("mode") == "distributed" and (rep.get("dtn") or {}).get("bundles_created"):
+        # the study's Fig. 5: bundle latency vs access gaps by priority (bringup/figure5.py)
+        from bringup.figure5 import bundle_rows_from_bag, figure5_data, plot_figure5
+
+        rows = bundle_rows_from_bag(bag_dir)
+        if rows:
+            made.append(plot_figure5(d / "figure5.png", figure5_data(rows, world.access, world.ctx.gps.region_index)))
     return made
