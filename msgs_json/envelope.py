@@ -23,8 +23,10 @@ Rules, identical in both engines, which is what makes their runs equal:
    recorded).
 4. ``seq`` is a per-source counter starting at 0, assigned by the engine in emission order.
 
-Envelope payloads are JSON text (msgs_json schemas; carried on std_msgs/msg/String) or raw bytes
-(BPv7 bundles; carried on std_msgs/msg/UInt8MultiArray). The topic decides which.
+Envelope payloads are JSON text (msgs_json schemas) or raw bytes (BPv7 bundles); the topic decides
+which (msgs_json/topics.py). On DDS and in the bag both travel as the wire envelope of
+msgs_json/wire.py on std_msgs/msg/String (bytes base64-encoded), so every record carries its
+exact t_ns, source and seq.
 """
 
 from __future__ import annotations
