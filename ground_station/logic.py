@@ -4,7 +4,10 @@ The ground station learns what the satellites observed only when they downlink a
 ground station (``/ground/downlink``), and commands them only at a pass (``/ground/uplink``). At
 each downlink it schedules that satellite with the same DP as onboard
 (sat_node/scheduler) from what the ground knows: every downlinked observation, plus the plans it
-uplinked to the other satellites (so two satellites are not sent to the same GP), and uplinks the
+uplinked to the other satellites, all treated as commitments that outrank the satellite being
+planned (so two satellites are not sent to the same GP within 15 min, whatever their rank: the
+onboard rank rule, where a lower-ranked satellite yields, does not hold here because that satellite
+cannot be told until its own next pass), and uplinks the
 plan covering the time until that satellite's next pass (plus one replan period of overlap). At
 the start it uplinks a first plan to every satellite (as commanded before the run).
 
@@ -28,6 +31,9 @@ from sat_node.value import Belief, KnownObservation
 __all__ = ["GroundLogic", "GROUND_NAME"]
 
 GROUND_NAME = "ground_station"
+# Source of the uplinked plans of other satellites when the ground plans one satellite: sorts before
+# every satellite name, so the rank rule of sat_node.value.prior_state makes them outrank everyone.
+COMMITTED = ""
 _NS = 1_000_000_000
 
 
@@ -105,7 +111,11 @@ class GroundLogic:
             known = list(self.downlinked)
             for other, ks in self.planned.items():
                 if other != sat:
-                    known += ks
+                    # Plans already uplinked are commitments: the other satellite executes them until
+                    # its next pass, whatever its rank. Claimed under COMMITTED (sorts before every
+                    # satellite name), sat_node.value.prior_state makes the GP worth 0 within 15 min
+                    # before or after them for every satellite planned later.
+                    known += [KnownObservation(k.t_s, k.gp, COMMITTED, planned=True) for k in ks]
             ctx = self.world.ctx
             view = OrbitContext(scenario=ctx.scenario, constellation=ctx.constellation, gps=ctx.gps,
                                 osse=PersistenceOsse(ctx.osse, t_ns / _NS), slew=ctx.slew)
