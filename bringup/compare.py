@@ -33,9 +33,21 @@ from pathlib import Path
 
 from bringup.errors import UserError
 
-__all__ = ["MODES", "TABLE_KEYS", "RATIOS", "get_path", "combine", "ratios", "compare_result",
-           "run_one", "run_matrix", "table_markdown", "ratios_markdown", "scenario_variant",
-           "run_in_process"]
+__all__ = [
+    "MODES",
+    "RATIOS",
+    "TABLE_KEYS",
+    "combine",
+    "compare_result",
+    "get_path",
+    "ratios",
+    "ratios_markdown",
+    "run_in_process",
+    "run_matrix",
+    "run_one",
+    "scenario_variant",
+    "table_markdown",
+]
 
 MODES = ("distributed", "centralized", "nonagile")
 
@@ -241,5 +253,5 @@ def run_in_process(sc, mode: str, *, store_dir: Path | None = None) -> dict:
     with tempfile.TemporaryDirectory() as tmp:
         parts = all_participants(world, mode, store_dir=Path(store_dir or tmp))
         res = run_local(parts, horizon_ns=sc.horizon_ns,
-                        max_step_ns=int(round(sc.scenario.lockstep_max_step_s * 1e9)), sink=sink)
+                        max_step_ns=round(sc.scenario.lockstep_max_step_s * 1e9), sink=sink)
     return build_report(envs, meta, {"wall_s": res.wall_s, "real_time_factor": res.real_time_factor})

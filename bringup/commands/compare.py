@@ -59,8 +59,9 @@ def run(args: argparse.Namespace) -> int:
     if not args.no_plots:
         extra_plots = _plots(out, seeds[0], res, sc, args)
     (out / "compare.json").write_text(json.dumps(res, indent=2, sort_keys=True) + "\n")
-    md = [f"# Compare: {sc.name}, {sc.constellation.total_sats if args.sats is None else args.sats} satellites, "
-          f"{(args.hours or sc.scenario.horizon_s / 3600):g} h, seeds {seeds}, engine {args.engine}", "",
+    title = (f"# Compare: {sc.name}, {sc.constellation.total_sats} satellites, {sc.scenario.horizon_s / 3600:g} h, "
+             f"seeds {seeds}, engine {args.engine}")
+    md = [title, "",
           C.table_markdown(res), "", C.ratios_markdown(res), ""]
     md += [f"![{p.stem}](plots/{p.name})" for p in extra_plots]
     (out / "compare.md").write_text("\n".join(md) + "\n")

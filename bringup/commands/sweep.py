@@ -102,10 +102,11 @@ def table_markdown(res: dict) -> str:
     def f(x, fmt):
         return "-" if x is None else fmt.format(x)
 
-    lines = [f"Sweep on {res['scenario']} ({res['sats']} sats baseline, {res['hours']:g} h, seed {res['seed']}); "
-             "* = the scenario's own value", "",
-             "| parameter | value | mode | sats | cumulative value | GPs observed | observations | duplicates | "
-             "assumed error | DTN delivery |", "|---|---|---|---|---|---|---|---|---|---|"]
+    title = (f"Sweep on {res['scenario']} ({res['sats']} sats baseline, {res['hours']:g} h, seed {res['seed']}); "
+             "* = the scenario's own value")
+    head = ("| parameter | value | mode | sats | cumulative value | GPs observed | observations | duplicates | "
+            "assumed error | DTN delivery |")
+    lines = [title, "", head, "|---|---|---|---|---|---|---|---|---|---|"]
     for r in res["rows"]:
         lines.append(f"| {r['parameter']} | {r['value']:g}{' *' if r['baseline'] else ''} | {r['mode']} | {r['n_sats']} | "
                      f"{f(r['value_cumulative'], '{:.0f}')} | {f(r['gp_observed_fraction'], '{:.1%}')} | "
