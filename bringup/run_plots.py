@@ -54,5 +54,7 @@ def run_plots(out: Path, bag_dir: Path, world, rep: dict) -> list[Path]:
 
         rows = bundle_rows_from_bag(bag_dir)
         if rows:
-            made.append(plot_figure5(d / "figure5.png", figure5_data(rows, world.access, world.ctx.gps.region_index)))
+            data = figure5_data(rows, world.access, world.ctx.gps.region_index,
+                                replan_period_s=sc.scheduler.replan_period_s)
+            made.append(plot_figure5(d / "figure5.png", data))
     return made

@@ -99,7 +99,8 @@ def _plots(out: Path, seed: int, res: dict, sc, args) -> list[Path]:
     world = World.cached(run_sc, out / f"distributed-s{seed}" / "cache")
     rows = bundle_rows_from_bag(out / f"distributed-s{seed}" / "bag")
     if rows:
-        data = figure5_data(rows, world.access, world.ctx.gps.region_index)
+        data = figure5_data(rows, world.access, world.ctx.gps.region_index,
+                            replan_period_s=run_sc.scheduler.replan_period_s)
         res["distributed"]["figure5"] = figure5_summary(data)
         made.append(plot_figure5(d / "figure5.png", data))
     return made

@@ -74,3 +74,16 @@ def test_plot_written(tmp_path):
     d = figure5_data(bundle_rows(_events()), _windows(), GP_REGION)
     p = plot_figure5(tmp_path / "f5.png", d)
     assert p.exists() and p.stat().st_size > 1000
+
+
+def test_plan_margin_needs_the_replan_before_the_access():
+    # replans every 60 s: X (created 50, gap 30 -> access 80, last replan 60) arrives at 60: in time;
+    # Y (created 50, access 500, last replan 480) arrives at 600: too late; Z undelivered.
+    d = figure5_data(bundle_rows(_events()), _windows(), GP_REGION, replan_period_s=60.0)
+    p1 = d["by_priority"][1]
+    assert p1["arrived_before_plan"] == 1 and p1["plan_margin_fraction"] == 0.5
+    # replans every 75 s: X's access at 80 s is planned at 75 s, after its arrival at 60 s: in time
+    assert figure5_data(bundle_rows(_events()), _windows(), GP_REGION, 75.0)["by_priority"][1]["arrived_before_plan"] == 1
+    # replans every 100 s: the plan for 80 s was made at 0 s, before X was even created
+    assert figure5_data(bundle_rows(_events()), _windows(), GP_REGION, 100.0)["by_priority"][1]["arrived_before_plan"] == 0
+    assert figure5_data(bundle_rows(_events()), _windows(), GP_REGION)["overall"]["plan_margin_fraction"] is None
