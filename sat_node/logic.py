@@ -52,7 +52,6 @@ __all__ = ["SatelliteLogic", "PersistenceOsse", "observation_payload", "parse_ob
 
 _NS = 1_000_000_000
 # a transmission's status report comes at most a few lockstep steps after its end; keep it this long
-_UNCONFIRMED_KEEP_NS = 3600 * _NS
 
 
 class PersistenceOsse:
@@ -129,8 +128,12 @@ class SatelliteLogic:
         self.agent = None
         if self.dtn:
             i = sc.isl
+            # the router's report of a failed transmission comes a few lockstep steps after it (the
+            # copy reaches the router at the next step, the report the sender at the one after, and
+            # transmissions are computed retroactively up to the step): the agent keeps a sent bundle
+            # for twelve of the longest steps before it forgets it (56 s seen at 10 s steps)
             cfg = AgentConfig(ttl_s_by_priority={1: i.ttl_p1_s, 3: i.ttl_p2_3_s, 15: i.ttl_p4_15_s},
-                              bundle_bits=i.bundle_bits)
+                              bundle_bits=i.bundle_bits, settle_delay_s=12 * sc.scenario.lockstep_max_step_s)
             store = BundleStore(store_path) if store_path else None
             self.agent = BundleAgent(name, world.isl_plan, cfg, store=store)
             self._ev_done = 0
@@ -138,7 +141,6 @@ class SatelliteLogic:
             self._ev_info: dict[int, dict | None] = {}
             self.overheard = 0
             self._next_hop: dict[str, str] = {}
-            self._unconfirmed: dict[str, tuple] = {}  # bundle id -> (Transmission, agent record)
             self.tx_failed: dict[str, int] = {}
         self.rejected_by_reason: dict[str, int] = {}
 
@@ -346,15 +348,9 @@ class SatelliteLogic:
     def _radio(self, t_ns: int) -> list[Emit]:
         emits: list[Emit] = []
         self.agent.expire(t_ns)
-        keep_ns = t_ns - _UNCONFIRMED_KEEP_NS
-        if self._unconfirmed and next(iter(self._unconfirmed.values()))[0].end_ns < keep_ns:
-            self._unconfirmed = {b: it for b, it in self._unconfirmed.items() if it[0].end_ns >= keep_ns}
         for tx in self.agent.transmissions_until(t_ns):
             emits.append(Emit(T.dtn_out_topic(self.name), tx.bundle_bytes, tx.start_ns))
             self._next_hop[tx.bundle_id] = tx.next_hop
-            rec = self.agent._in_flight.get(tx.bundle_id)
-            if rec is not None:
-                self._unconfirmed[tx.bundle_id] = rec
         evs = self.agent.events
         topic = T.dtn_events_topic(self.name)
         for ev in evs[self._ev_done:]:
@@ -372,19 +368,11 @@ class SatelliteLogic:
         """The medium says a transmission failed: give the bundle back to the agent (see module doc)."""
         if st.sat != self.name:
             raise ValueError(f"status for {st.sat} on {self.name}'s topic")
-        item = self._unconfirmed.pop(st.bundle_id, None)
-        if item is None or item[0].start_ns != st.start_ns or item[0].next_hop != st.next_hop:
+        tx = self.agent.in_flight(st.bundle_id)
+        if tx is None or tx.start_ns != st.start_ns or tx.next_hop != st.next_hop:
             raise ValueError(f"status names no transmission of ours: {st.bundle_id} at {st.start_ns}")
-        tx, h = item
-        ag = self.agent
-        if tx.bundle_id not in ag._in_flight:  # already settled by the agent: put it back first
-            ag._in_flight[tx.bundle_id] = item
-            if ag.store is not None:
-                from sat_node.dtn.store import StoredBundle
-
-                ag.store.put(StoredBundle(tx.bundle_id, tx.bundle_bytes, h.priority, h.dest, h.expiry_ns, t_ns))
         self.tx_failed[st.reason] = self.tx_failed.get(st.reason, 0) + 1
-        ag.transmission_failed(tx, t_ns)
+        self.agent.transmission_failed(tx, t_ns)
 
     def _bundle_info(self, b) -> dict:
         import cbor2

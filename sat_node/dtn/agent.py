@@ -92,6 +92,9 @@ class AgentConfig:
     hop_limit: int = 32
     verify_integrity: bool = True
     hop_tolerance_s: float = 0.0
+    # How long after a transmission's end the agent still expects a failure report from the medium
+    # before it forgets the bundle (the lockstep medium reports one or two steps later) [s].
+    settle_delay_s: float = 0.0
     priority_delay_s: tuple | None = None
 
 
@@ -516,10 +519,16 @@ class BundleAgent:
         removed from the persistent store (a process killed mid-transmission still has it)."""
         if not self._in_flight:
             return
-        for bid in [b for b, (tx, _h) in self._in_flight.items() if tx.end_ns <= now_ns]:
+        settle_ns = int(round(self.config.settle_delay_s * 1e9))
+        for bid in [b for b, (tx, _h) in self._in_flight.items() if tx.end_ns + settle_ns <= now_ns]:
             del self._in_flight[bid]
             if self.store is not None:
                 self.store.delete(bid)
+
+    def in_flight(self, bundle_id: str) -> Transmission | None:
+        """The transmission of ``bundle_id`` not yet settled (sent, no verdict from the medium)."""
+        item = self._in_flight.get(bundle_id)
+        return None if item is None else item[0]
 
     def transmission_failed(self, tx: Transmission, now_ns: int) -> None:
         """The medium says ``tx`` did not get through: take the bundle back, re-route without that contact."""
