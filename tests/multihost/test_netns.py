@@ -34,11 +34,21 @@ def _root_links() -> list[str]:
 
 @pytest.fixture
 def root_state_unchanged():
-    """The root namespace's links and the namespace list are the same after the test as before."""
-    links, names = _root_links(), list_netns()
+    """The root namespace's links and this process's namespaces are the same after the test as before.
+
+    Only namespaces named by this process count: another test run on the machine may be creating
+    its own at the same time."""
+    from netns import _NAME_ROOT
+
+    mine = f"{_NAME_ROOT}{os.getpid()}x"
+
+    def own() -> list[str]:
+        return sorted(n for n in list_netns() if n.startswith(mine))
+
+    links, names = _root_links(), own()
     yield
     assert _root_links() == links, "the root namespace's links changed"
-    assert list_netns() == names, f"namespaces left behind: {sorted(set(list_netns()) - set(names))}"
+    assert own() == names, f"namespaces left behind: {sorted(set(own()) - set(names))}"
 
 
 UDP_ECHO = textwrap.dedent(
