@@ -5,7 +5,7 @@ Usage::
     .venv/bin/python bench/bench_run.py [--sats 24 --hours 6 --mode distributed --engines local,ros]
 
 Each engine runs as a child process (`python -m bringup.cli run ...`); the process tree's total
-resident memory is sampled every 0.25 s from /proc (peak reported), CPU time is the children's
+resident memory is sampled every 0.25 s from /proc (peak of the RSS sum and of the PSS sum), and the machine's MemAvailable drop during the run (what the run took, whatever else ran), CPU time is the children's
 rusage after they exit (user + system, every process of the tree), wall time is measured around the
 child. The local engine is the baseline printed beside the ROS engine in the same run, and the two
 runs' headline figures are compared (they must be equal: same observations and deliveries).
@@ -38,15 +38,30 @@ def _tree(pid: int) -> list[int]:
     return out
 
 
-def _rss_mib(pids: list[int]) -> float:
-    tot = 0
+def _mem_mib(pids: list[int]) -> tuple[float, float]:
+    """(sum of RSS, sum of PSS) [MiB] over the processes. RSS counts shared library pages once per
+    process; PSS (proportional set size) splits them between the processes that share them, so
+    the PSS sum is the memory the tree really takes."""
+    rss = pss = 0
     for p in pids:
         try:
-            with open(f"/proc/{p}/statm") as fh:
-                tot += int(fh.read().split()[1])
+            with open(f"/proc/{p}/smaps_rollup") as fh:
+                for line in fh:
+                    if line.startswith("Rss:"):
+                        rss += int(line.split()[1])
+                    elif line.startswith("Pss:"):
+                        pss += int(line.split()[1])
         except OSError:
             pass
-    return tot * os.sysconf("SC_PAGE_SIZE") / 2**20
+    return rss / 1024, pss / 1024
+
+
+def _mem_available_mib() -> float:
+    with open("/proc/meminfo") as fh:
+        for line in fh:
+            if line.startswith("MemAvailable:"):
+                return int(line.split()[1]) / 1024
+    return float("nan")
 
 
 def run_one(engine: str, args, out: Path) -> dict:
@@ -55,9 +70,12 @@ def run_one(engine: str, args, out: Path) -> dict:
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     t0 = time.perf_counter()
     proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
-    peak = 0.0
+    peak_rss = peak_pss = 0.0
+    avail0 = min_avail = _mem_available_mib()
     while proc.poll() is None:
-        peak = max(peak, _rss_mib(_tree(proc.pid)))
+        rss, pss = _mem_mib(_tree(proc.pid))
+        peak_rss, peak_pss = max(peak_rss, rss), max(peak_pss, pss)
+        min_avail = min(min_avail, _mem_available_mib())
         time.sleep(0.25)
     wall = time.perf_counter() - t0
     err = proc.stderr.read()
@@ -67,7 +85,8 @@ def run_one(engine: str, args, out: Path) -> dict:
     rep = json.loads((out / "report.json").read_text())
     cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
     return {"engine": engine, "wall_s": round(wall, 2), "real_time_factor": round(args.hours * 3600 / wall, 1),
-            "peak_rss_mib": round(peak, 1), "cpu_s": round(cpu, 1), "cpu_cores_avg": round(cpu / wall, 2),
+            "peak_rss_sum_mib": round(peak_rss, 1), "peak_pss_mib": round(peak_pss, 1),
+            "peak_mem_taken_mib": round(avail0 - min_avail, 1), "cpu_s": round(cpu, 1), "cpu_cores_avg": round(cpu / wall, 2),
             "value": rep["value"]["cumulative"], "observations": rep["observations"]["count"],
             "bundles_created": rep["dtn"].get("bundles_created"),
             "bundles_delivered": rep["dtn"].get("bundles_delivered")}
