@@ -10,7 +10,6 @@ Typical call (one satellite, one replan)::
 
 from sat_node.scheduler.brute import BruteTooLarge, solve_brute
 from sat_node.scheduler.dp import Plan, ScheduleInvariantError, make_plan, solve_dp
-from sat_node.scheduler.milp import MilpResult, solve_milp
 from sat_node.scheduler.nonagile import nadir_pass_crossings, solve_nonagile
 from sat_node.scheduler.problem import (
     OrbitContext,
@@ -49,3 +48,13 @@ __all__ = [
     "solve_nonagile",
     "square_region_gp_ecef_km",
 ]
+
+
+def __getattr__(name):
+    # The MILP reference pulls in scipy.optimize (~50 MB per process): import it only when asked,
+    # so the flight processes (one per satellite) do not carry it.
+    if name in ("MilpResult", "solve_milp"):
+        from sat_node.scheduler import milp
+
+        return getattr(milp, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
