@@ -36,6 +36,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--isl-delay-s", type=float, default=0.0, help="extra one-way ISL delay [s] added by the router")
     p.add_argument("--cut", action="append", default=[], metavar="A-B@T1-T2",
                    help="cut the ISL between satellites A and B from T1 to T2 [s] (repeatable)")
+    p.add_argument("--restart", type=int, default=0, metavar="N",
+                   help="ros engine: restart a crashed satellite/router process up to N times; every host "
+                        "checkpoints each step and resumes from it (default 0: a crash ends the run)")
 
 
 def parse_cut(text: str) -> tuple[str, str, float, float]:
@@ -166,6 +169,8 @@ def _run_ros(world, world_path: Path, args, meta, bag_dir: Path, out: Path, rout
     spec = RunSpec(factory=FACTORY, roles=roles_for(world, args.mode), scenario=str(Path(sc.source_path).resolve()),
                    overrides={"sats": args.sats, "hours": args.hours, "seed": args.seed}, mode=args.mode,
                    real_time_factor=args.real_time_factor, bag_dir=str(bag_dir.resolve()),
+                   max_restarts=args.restart, restart_wait_s=120.0 if args.restart else 0.0,
+                   state_dir=str((out / "state").resolve()) if args.restart else None,
                    extra={"world": str(world_path.resolve()), "world_key": world.key,
                           "store_dir": str(store_dir.resolve()), "meta": meta.__dict__,
                           "router": router_kw})
@@ -183,11 +188,13 @@ def _run_ros(world, world_path: Path, args, meta, bag_dir: Path, out: Path, rout
         if prog is not None:
             prog.stop()
     wall = time.perf_counter() - t0
+    restarts = getattr(res, "restarts", {}) or {}
     if not res.ok:
         raise UserError(f"ROS run failed: {res.message} (logs in {out / 'logs'})")
     last = res.last
     return {"wall_s": wall, "real_time_factor": (sc.scenario.horizon_s / wall) if wall > 0 else None,
-            "steps": last.steps if last else None, "domain_id": res.domain_id}
+            "steps": last.steps if last else None, "domain_id": res.domain_id,
+            "process_restarts": sum(restarts.values())}
 
 
 def _finish(out: Path, bag_dir: Path, runtime: dict, world, args, say) -> int:
