@@ -35,10 +35,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from msgs_json import codec, schemas as S
+from msgs_json import codec
+from msgs_json import schemas as S
 from msgs_json.envelope import Envelope
 
-__all__ = ["RunMeta", "build_report", "consensus_figures", "report_from_bag", "flatten", "true_values", "REPORT_TOPIC_SUFFIXES"]
+__all__ = ["REPORT_TOPIC_SUFFIXES", "RunMeta", "build_report", "consensus_figures", "flatten", "report_from_bag", "true_values"]
 
 _NS = 1_000_000_000
 REPORT_TOPIC_SUFFIXES = ("/observations", "/dtn/events", "/dtn/counters", "/schedule", "/ground/uplink")
@@ -59,40 +60,29 @@ class RunMeta:
         return json.dumps(self.__dict__, sort_keys=True)
 
     @classmethod
-    def from_json(cls, text: str) -> "RunMeta":
+    def from_json(cls, text: str) -> RunMeta:
         return cls(**json.loads(text))
-
-
-@dataclass
-class _Ev:
-    """Agent-event view of a msgs_json bundle event, as sat_node/dtn/stats.py reads it."""
-
-    t_ns: int
-    kind: str
-    node: str
-    bundle_id: str
-    priority: int
-    dest: str
-    created_ns: int
-    reason: str = ""
 
 
 _KIND = {"created": "created", "forwarded": "forwarded", "delivered": "delivered", "dropped": "dropped",
          "copy_discarded": "discarded"}
 
 
-def _bundle_event(msg) -> _Ev:
+def _bundle_event(msg):
+    """The agent's event record (what sat_node/dtn/stats.py reads) of a msgs_json bundle event."""
+    from sat_node.dtn.agent import BundleEvent
+
     kind = _KIND[type(msg).__struct_config__.tag]
     reason = getattr(msg, "reason", "")
     if kind == "dropped" and getattr(msg, "detail", "") in ("hop_limit",):
         reason = msg.detail
-    return _Ev(msg.t_ns, kind, msg.sat, msg.bundle_id, msg.priority, msg.dst, msg.creation_ns, reason)
+    return BundleEvent(msg.t_ns, kind, msg.sat, msg.bundle_id, msg.priority, msg.dst, msg.creation_ns, reason)
 
 
 def build_report(envelopes, meta: RunMeta, runtime: dict | None = None) -> dict:
     """The report dict (nested, DESIGN.md keys) from envelopes (any iterable of Envelope)."""
     obs: list[S.Observation] = []
-    events: list[_Ev] = []
+    events: list = []
     n_schedules = 0
     counters: dict[str, dict] = {}
     cpu_by_planner: dict[str, float] = defaultdict(float)
@@ -316,7 +306,7 @@ def _value_figures(obs: list, meta: RunMeta) -> dict:
     }
 
 
-def _dtn_figures(events: list[_Ev]) -> dict:
+def _dtn_figures(events: list) -> dict:
     from sat_node.dtn.stats import dtn_report
 
     flat = dtn_report(events)
