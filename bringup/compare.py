@@ -210,7 +210,8 @@ def ratios_markdown(result: dict) -> str:
 def scenario_variant(sc, *, replan_period_s: float | None = None, isl_rate_bps: float | None = None,
                      sats_per_plane: int | None = None, n_stations: int | None = None):
     """A copy of scenario ``sc`` with one study parameter changed, validated like a file.
-    ``n_stations`` keeps the first N ground stations of the scenario."""
+    ``replan_period_s`` also sets the plan lookahead to the period; ``n_stations`` keeps the first
+    N ground stations of the scenario."""
     import msgspec
 
     from bringup.scenario import _validate
@@ -218,7 +219,10 @@ def scenario_variant(sc, *, replan_period_s: float | None = None, isl_rate_bps: 
     raw = msgspec.to_builtins(sc)
     raw.pop("source_path", None)
     if replan_period_s is not None:
+        # a plan must cover the time to the next replan, else the satellite idles in between:
+        # the lookahead follows the period (the study's 10 min / 10 min)
         raw["scheduler"]["replan_period_s"] = float(replan_period_s)
+        raw["scheduler"]["plan_lookahead_s"] = float(replan_period_s)
     if isl_rate_bps is not None:
         raw["isl"]["rate_bps"] = float(isl_rate_bps)
     if sats_per_plane is not None:

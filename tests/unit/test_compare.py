@@ -78,7 +78,7 @@ def test_stats_ignores_non_finite():
 def test_scenario_variant_changes_one_parameter(paper_scenario):
     sc = paper_scenario.with_overrides(sats=12)
     v = C.scenario_variant(sc, replan_period_s=300.0)
-    assert v.scheduler.replan_period_s == 300.0 and v.isl == sc.isl
+    assert v.scheduler.replan_period_s == 300.0 and v.scheduler.plan_lookahead_s == 300.0 and v.isl == sc.isl
     assert C.scenario_variant(sc, isl_rate_bps=4000.0).isl.rate_bps == 4000.0
     w = C.scenario_variant(sc, sats_per_plane=2)
     assert w.constellation.total_sats == 2 * sc.constellation.planes
