@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["run_plots"]
+__all__ = ["run_plots", "shrink_png"]
 
 _NS = 1_000_000_000
 
@@ -57,4 +57,20 @@ def run_plots(out: Path, bag_dir: Path, world, rep: dict) -> list[Path]:
             data = figure5_data(rows, world.access, world.ctx.gps.region_index,
                                 replan_period_s=sc.scheduler.replan_period_s)
             made.append(plot_figure5(d / "figure5.png", data))
+    for p in made:
+        shrink_png(p)
     return made
+
+
+def shrink_png(path: Path, max_bytes: int = 300_000, colors: int = 128) -> Path:
+    """Re-save a PNG larger than ``max_bytes`` with a ``colors``-entry palette (ground tracks with
+    24 anti-aliased colours come out near 1 MB; the palette version looks the same at a third)."""
+    from PIL import Image
+
+    path = Path(path)
+    if path.stat().st_size <= max_bytes:
+        return path
+    with Image.open(path) as im:
+        q = im.convert("RGB").quantize(colors=colors, method=Image.Quantize.MEDIANCUT)
+    q.save(path, format="PNG", optimize=True)
+    return path
