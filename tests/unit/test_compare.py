@@ -87,3 +87,34 @@ def test_scenario_variant_changes_one_parameter(paper_scenario):
 
     with pytest.raises(UserError):
         C.scenario_variant(sc, n_stations=5)
+
+
+def test_cli_rejects_bad_counts_in_one_line(capsys):
+    from bringup.cli import main
+
+    assert main(["compare", "--seeds", "0", "--out", "/nonexistent/never-written"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--seeds 0" in err[0]
+    assert main(["sweep", "--replan-s", "300,abc"]) == 2
+    assert "--replan-s" in capsys.readouterr().err
+
+
+def test_sweep_rows_plan_marks_the_baseline(paper_scenario):
+    import argparse
+
+    from bringup.commands import sweep
+
+    p = argparse.ArgumentParser()
+    sweep.add_arguments(p)
+    args = p.parse_args(["--replan-s", "300,600", "--sats-per-plane", "4,8", "--only", "replan_period_s",
+                         "--only", "sats_per_plane"])
+    rows = sweep._rows_plan(paper_scenario, args)
+    assert [(r[0], r[1], r[2], r[4]) for r in rows] == [
+        ("replan_period_s", 300.0, "distributed", False), ("replan_period_s", 600.0, "distributed", True),
+        ("sats_per_plane", 4, "distributed", False), ("sats_per_plane", 4, "nonagile", False),
+        ("sats_per_plane", 8, "distributed", True), ("sats_per_plane", 8, "nonagile", True)]
+    md = sweep.table_markdown({"scenario": "paper", "sats": 24, "hours": 6.0, "seed": 1, "rows": [
+        {"parameter": "replan_period_s", "value": 600.0, "baseline": True, "mode": "distributed", "n_sats": 24,
+         "value_cumulative": 41050.1, "gp_observed_fraction": 0.994, "observations": 3332, "duplicates_15min": 85,
+         "assumed_error_mean": 0.063, "delivery_ratio": None}]})
+    assert "| replan_period_s | 600 * | distributed | 24 | 41050 | 99.4% | 3332 | 85 | 6.3% | - |" in md
