@@ -119,6 +119,8 @@ class SatelliteLogic:
         self.next_replan_ns: int | None = None
         self.scheduler_cpu_s = 0.0
         self._last_cpu_s = 0.0
+        self._news_conflict = False
+        self.news_replans_due = 0
         self.rejected = 0
         self.dtn = (mode == "distributed") if dtn is None else dtn
         self.pending_downlink: list[S.Observation] = []
@@ -174,9 +176,10 @@ class SatelliteLogic:
                 self.rejected_by_reason[reason] = self.rejected_by_reason.get(reason, 0) + 1
                 self.last_error = f"{env.topic}: {exc}"
         emits += self._execute(t_ns)
-        if self.mode == "distributed" and self.next_replan_ns is not None and t_ns >= self.next_replan_ns:
-            emits += self._replan(t_ns)
-            if self.agent is not None:
+        periodic = self.next_replan_ns is not None and t_ns >= self.next_replan_ns
+        if self.mode == "distributed" and (periodic or self._news_conflict):
+            emits += self._replan(t_ns, periodic=periodic)
+            if self.agent is not None and periodic:
                 emits.append(self._counters_emit(t_ns))
         if self.mode == "centralized":
             emits += self._downlink(t_ns)
@@ -233,6 +236,7 @@ class SatelliteLogic:
                 if outcome == "delivered" and b is not None:
                     src, gp, obs_ns = parse_observation_payload(b.payload)
                     self._learn(gp, obs_ns, src)
+                    self._check_news(gp, obs_ns)
         elif env.topic == T.GROUND_UPLINK:
             up = codec.decode(env.topic, env.data)
             if up.sat != self.name:
@@ -241,6 +245,17 @@ class SatelliteLogic:
             self.plan_version = up.schedule.version
             self.plan = [_Item(it.gp, it.t_ns, it.value, up.schedule.version)
                          for it in up.schedule.items if it.t_ns >= start]
+
+    def _check_news(self, gp: int, obs_ns: int) -> None:
+        """News that makes a look of the current plan worthless (the GP seen by another satellite
+        within revisit_zero_s of it) triggers a replan at this step, before the periodic one: the
+        scheduler "replans as news arrives" (Nag et al., section 4)."""
+        zero_ns = int(round(self.sc.value.revisit_zero_s * _NS))
+        for it in self.plan:
+            if it.gp == gp and it.t_ns > self.last_obs_ns and abs(it.t_ns - obs_ns) < zero_ns:
+                self._news_conflict = True
+                self.news_replans_due += 1
+                return
 
     def _learn(self, gp: int, obs_ns: int, src: str) -> None:
         key = (gp, obs_ns, src)
@@ -262,13 +277,20 @@ class SatelliteLogic:
         return instance_from_orbit(view, sat=self.name, t0_s=t0_s, window_s=window_s, known=self.known,
                                    belief=self.belief, init_target_km=self.target_km, gp_ids=ids)
 
-    def _replan(self, t_ns: int) -> list[Emit]:
+    def _replan(self, t_ns: int, *, periodic: bool = True) -> list[Emit]:
+        """Plan [t_ns, t_ns + lookahead) with what is known now. A periodic replan sets the next
+        one; a replan for news (``periodic=False``) leaves the periodic schedule as it is."""
         from sat_node.scheduler import solve_dp
 
         c0 = time.process_time()
+        self._news_conflict = False
         horizon_ns = self.world.scenario.horizon_ns
-        window_s = min(self.sc.scheduler.plan_lookahead_s, (horizon_ns - t_ns) / _NS)
-        self.next_replan_ns = t_ns + self.replan_ns
+        if periodic:
+            self.next_replan_ns = t_ns + self.replan_ns
+            window_s = min(self.sc.scheduler.plan_lookahead_s, (horizon_ns - t_ns) / _NS)
+        else:  # keep the current plan's end: the next periodic replan takes over from there
+            window_s = (min(horizon_ns, (self.next_replan_ns or t_ns) - self.replan_ns
+                            + int(self.sc.scheduler.plan_lookahead_s * _NS)) - t_ns) / _NS
         if window_s <= 0:
             return []
         p = self._instance(t_ns, window_s)
