@@ -17,6 +17,12 @@ Crash and restart (issue 7): when the spec has ``max_restarts > 0`` a host proce
 (any exit but 0, e.g. SIGKILL) while the clock runs is started again with the same command, up to
 ``max_restarts`` times per role; it resumes from its checkpoint (bringup/ros_host.py) and the clock
 waits for it (``restart_wait_s``). Restarts are counted per role in the result.
+The clock too: with ``restart_wait_s > 0`` and a ``state_dir`` it checkpoints every step
+(orbit_clock/clock_node.py), and when it crashes (killed by a signal we did not send, or an
+unexpected exit code; not its own decisions 0, 2, 3, 130) it is started again, up to
+``max_restarts`` times, with a new progress reader; the hosts wait for it (their idle timeout).
+Checkpoints of an earlier run in ``state_dir`` (``clock.sqlite``, ``<role>.state.sqlite``) are
+removed when a launch starts, so a new run never resumes an old one.
 
 Multi-host: ``wrap(role, argv, env) -> (argv, env)`` rewrites each child's command and environment,
 e.g. ``ip netns exec NS ...`` with per-host ``ROS_STATIC_PEERS`` (tests/multihost).
@@ -167,6 +173,17 @@ def _terminate(children: list[_Child], timeout_s: float) -> None:
             c.proc.wait()
 
 
+# Clock exit codes that are its own decision (ok, user error, a host failed, interrupted): never restarted.
+_CLOCK_DECIDED = (0, 2, 3, 130)
+
+
+def _clear_checkpoints(state_dir: Path, roles: list[str]) -> None:
+    names = ["clock.sqlite", *(f"{r}.state.sqlite" for r in roles)]
+    for name in names:
+        for suffix in ("", "-wal", "-shm"):
+            (state_dir / (name + suffix)).unlink(missing_ok=True)
+
+
 Wrap = Callable[[str, list[str], dict[str, str]], tuple[list[str], dict[str, str]]]
 
 
@@ -178,6 +195,8 @@ def launch(spec: RunSpec, out_dir: Path, *, progress: Callable[[LaunchProgress],
     (out_dir / "logs").mkdir(parents=True, exist_ok=True)
     spec_path = out_dir / "run_spec.json"
     spec.to_file(spec_path)
+    if spec.state_dir:
+        _clear_checkpoints(Path(spec.state_dir), [CLOCK_ROLE, *spec.roles])
     lease = lease_domain_id() if domain_id is None else None
     dom = lease.domain_id if lease else int(domain_id)  # type: ignore[arg-type]
     env = child_env(dom)
@@ -221,6 +240,7 @@ def launch(spec: RunSpec, out_dir: Path, *, progress: Callable[[LaunchProgress],
         clock = start(CLOCK_ROLE, stdout=subprocess.PIPE, text=True)
         reader = threading.Thread(target=read_progress, args=(clock.proc.stdout,), daemon=True)
         reader.start()
+        clock_restartable = spec.max_restarts > 0 and spec.restart_wait_s > 0 and bool(spec.state_dir)
         hosts = [start(r, stdout=subprocess.DEVNULL) for r in spec.roles]
         children = [clock, *hosts]
         failed: list[str] = []
@@ -249,6 +269,19 @@ def launch(spec: RunSpec, out_dir: Path, *, progress: Callable[[LaunchProgress],
                     _terminate([clock], 10.0)
                     _terminate(hosts, 5.0)
                     break
+                if (crc is not None and crc not in _CLOCK_DECIDED and clock_restartable
+                        and restarts.get(CLOCK_ROLE, 0) < spec.max_restarts):
+                    restarts[CLOCK_ROLE] = restarts.get(CLOCK_ROLE, 0) + 1
+                    with open(clock.log, "a") as fh:
+                        fh.write(f"launcher: {CLOCK_ROLE} exited with code {crc}; "
+                                 f"restart {restarts[CLOCK_ROLE]} of {spec.max_restarts}\n")
+                    reader.join(timeout=2.0)
+                    new = start(CLOCK_ROLE, stdout=subprocess.PIPE, text=True)
+                    children[children.index(clock)] = new
+                    clock = new
+                    reader = threading.Thread(target=read_progress, args=(clock.proc.stdout,), daemon=True)
+                    reader.start()
+                    continue
                 if crc is not None:
                     if crc != 0:
                         rc = crc

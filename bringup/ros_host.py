@@ -15,8 +15,11 @@ counted per topic and logged, never fatal.
 Crash and restart (issue 7): with ``state_path`` the host checkpoints after every wire step
 (bringup/checkpoint.py; in the participant's own SQLite store when it has one, one transaction per
 step). A host started on an existing checkpoint restores its participants and its lockstep state,
-says hello with ``resume_k``, answers again the step it had finished (its saved ack), ignores older
-steps and re-runs the rest. While its inboxes miss envelopes sent during its outage it repeats the
+says hello with ``resume_k``, answers again the step it had finished (its saved ack, after
+re-publishing that step's envelopes, kept in memory and in the checkpoint), ignores older steps and
+re-runs the rest. The same answer goes to a restarted clock that publishes again a step the host
+already ran (orbit_clock/clock_node.py): the step is never run twice, and the new recorder gets
+the envelopes it missed (receivers drop them as duplicates by (source, seq)). While its inboxes miss envelopes sent during its outage it repeats the
 hello every ``rejoin_period_s``; the clock answers each with a re-send of what it recorded
 (orbit_clock/lockstep.py ResendMsg); duplicates are dropped by (source, seq).
 
@@ -136,6 +139,10 @@ class ParticipantHost:
         self.done_k = -1
         self.resume_k = -1
         self.last_ack: dict | None = None
+        # envelopes (participant, topic, wire text) emitted in step done_k, re-published with its ack
+        self.last_wires: list[tuple[str, str, str]] = []
+        self._step_wires: list[tuple[str, str, str]] = []
+        self.republished = 0
         self.ckpt = None
         if state_path is not None:
             self._open_checkpoint(state_path)
@@ -166,6 +173,7 @@ class ParticipantHost:
         self.subs, self.subs_default = dict(hs["subs"]), hs["subs_default"]
         self.done_k = self.resume_k = k
         self.last_ack = hs["ack"]
+        self.last_wires = [tuple(w) for w in hs.get("wires", ())]
 
     def _checkpoint(self, k: int, ack: dict) -> None:
         from bringup.checkpoint import snapshot_participant
@@ -174,7 +182,7 @@ class ParticipantHost:
               "boxes": {f"{s.name} {b.topic}": (b.expected, b.delivered, dict(b.consumed))
                         for s in self.slots for b in s.inboxes},
               "seq_end": dict(self.seq_end), "subs": dict(self.subs), "subs_default": self.subs_default,
-              "ack": ack}
+              "ack": ack, "wires": list(self._step_wires)}
         try:
             parts = [snapshot_participant(s.p) for s in self.slots]
         except Exception as exc:
@@ -272,7 +280,9 @@ class ParticipantHost:
             if not isinstance(e.data, (str, bytes)):
                 raise HostError(f"{slot.name} {where}: emit on {e.topic} has {type(e.data).__name__} data")
             env = Envelope(e.t_ns, slot.name, slot.seq, e.topic, e.data)
-            self._publisher(slot, e.topic).publish(String(data=encode_envelope(env)))
+            text = encode_envelope(env)
+            self._publisher(slot, e.topic).publish(String(data=text))
+            self._step_wires.append((slot.name, e.topic, text))
             slot.seq += 1
             sent[e.topic] = sent.get(e.topic, 0) + 1
 
@@ -283,6 +293,7 @@ class ParticipantHost:
     def _run_step(self, m: StepMsg) -> None:
         if self.ckpt is not None:
             self.ckpt.begin()
+        self._step_wires = []
         for topic, n in m.sent.items():
             for box in self.inboxes_by_topic.get(topic, ()):
                 box.expected += n
@@ -334,7 +345,7 @@ class ParticipantHost:
                    seq_end={s.name: s.seq for s in self.slots if s.seq})
         if self.ckpt is not None:
             self._checkpoint(m.k, ack)
-        self.done_k, self.last_ack = m.k, ack
+        self.done_k, self.last_ack, self.last_wires = m.k, ack, self._step_wires
         self._ack(**ack)
 
     @staticmethod
@@ -366,6 +377,7 @@ class ParticipantHost:
                 # a step already done (the step writer's history, after a restart): answer the one
                 # the clock may still wait for, ignore older ones
                 if m.k == self.done_k and self.last_ack is not None:
+                    self._republish_last()
                     self._ack(**self.last_ack)
                 continue
             if m.k != self.done_k + 1:
@@ -378,6 +390,13 @@ class ParticipantHost:
                 self._ack(k=m.k, t_ns=m.t_ns, error=str(exc))
                 self._flush_acks()
                 raise
+
+    def _republish_last(self) -> None:
+        """Publish again the envelopes of step ``done_k`` (same source and seq)."""
+        slots = {s.name: s for s in self.slots}
+        for name, topic, text in self.last_wires:
+            self._publisher(slots[name], topic).publish(String(data=text))
+        self.republished += len(self.last_wires)
 
     def _flush_acks(self) -> None:
         from rclpy.duration import Duration

@@ -23,6 +23,21 @@ restarts it; the recorder then always listens (bag or not) and keeps the envelop
 any step but the current one are ignored (a restarted host repeats its last one); the recorder
 keeps one copy per (topic, source, seq), so a re-run step is recorded once.
 
+Clock restart (issue 7): with ``restart_wait_s > 0`` and a ``state_dir`` the clock itself survives
+SIGKILL. It records into a journal (bringup/recording.py BagJournal, ``state_dir/clock.sqlite``)
+instead of straight into the bag, and before publishing wire step k it commits, in one SQLite
+transaction, everything recorded through step k-1 plus its checkpoint: k, t_ns, the step message
+(which carries the per-source seq_end and per-topic sent counts of step k-1), the running totals,
+the hosts' hellos, the recorded topics and the visualisation cursor. It commits only once the
+recorder holds every envelope the acks of step k-1 counted, so the journal has no gap. The
+launcher restarts a clock that crashed; the new one loads the checkpoint (its dedupe keys, counts
+and re-send buffer come from the journal's rows) and publishes step k again. Hosts that had not run
+step k run it; hosts that had (``k == done_k``) answer with their saved ack and re-publish the
+envelopes of that step (bringup/ros_host.py), which receivers drop as duplicates and the new
+recorder records once; no step runs twice. Envelopes the new recorder still misses after 1 s (its
+subscriptions were not matched yet) are asked for again by re-announcing the step. At the end (also
+on error or Ctrl-C) the journal is exported into ``bag_dir`` (one ordinary bag).
+
 Oracle: tests/ros/test_lockstep.py (toy participants over DDS give exactly the local engine's
 envelopes, read back from the bag; a killed host is named within the bounded wait; Ctrl-C leaves
 a readable bag).
@@ -44,6 +59,9 @@ from rclpy.serialization import serialize_message
 from rclpy.signals import SignalHandlerOptions
 from rosgraph_msgs.msg import Clock
 from std_msgs.msg import String
+
+import pickle
+from pathlib import Path
 
 from bringup.ros_host import QOS_DATA, QOS_SYNC_PUB, QOS_SYNC_SUB
 from bringup.run_spec import RunSpec
@@ -67,6 +85,8 @@ _STRING = "std_msgs/msg/String"
 _CLOCK = "rosgraph_msgs/msg/Clock"
 _QOS_CLOCK = QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT)
 _RESEND_STEPS = 6
+# Wall seconds the clock waits for the recorder before re-announcing the step (clock restart).
+_REANNOUNCE_S = 1.0
 
 
 class ClockError(RuntimeError):
@@ -91,17 +111,32 @@ class LockstepClock:
         self.hellos: dict[str, AckMsg] = {}
         self.node.create_subscription(String, ACK_TOPIC, self._on_ack, QOS_SYNC_SUB, raw=True)
         self.bag = None
-        if spec.bag_dir:
+        self.bag_custom = {"engine": "ros", "roles": ",".join(self.roles)}
+        # clock restart: the journal (bag rows + checkpoint) and the checkpoint found at start, if any
+        self.journal = None
+        self.resumed: tuple[int, dict] | None = None
+        self.reannounces = 0
+        self._incarnation = 0
+        if spec.restart_wait_s > 0 and spec.state_dir:
+            from bringup.recording import BagJournal
+
+            self.journal = self.bag = BagJournal(Path(spec.state_dir) / "clock.sqlite")
+            row = self.journal.load()
+            if row is not None:
+                self.resumed = (row[0], pickle.loads(row[1]))
+        elif spec.bag_dir:
             from bringup.recording import BagWriter
 
-            self.bag = BagWriter(spec.bag_dir, custom={"engine": "ros", "roles": ",".join(self.roles)})
+            self.bag = BagWriter(spec.bag_dir, custom=self.bag_custom)
         # A `constellation run`: its metadata record and the visualisation topics (bringup/viz_feed.py).
         self.meta = spec.extra.get("meta")
         self.viz = None
         if self.bag is not None and self.meta is not None:
             from msgs_json.envelope import Envelope
 
-            self.bag.write_envelope(Envelope(self.t0_ns, "run", 0, "/run/meta", json.dumps({"meta": self.meta})))
+            if self.resumed is None:
+                self.bag.write_envelope(Envelope(self.t0_ns, "run", 0, "/run/meta",
+                                                 json.dumps({"meta": self.meta})))
             if spec.extra.get("world"):
                 from bringup.viz_feed import VizFeed
                 from bringup.world import World
@@ -145,6 +180,8 @@ class LockstepClock:
             if ack.k != self.cur_k:
                 self.stale_acks += 1
                 return
+            if ack.participant in self.acks:  # the same ack again (re-announced step): recorded once
+                return
             self.acks[ack.participant] = ack
             if self.bag is not None:
                 self.bag.write_raw(ACK_TOPIC, _STRING, raw, ack.t_ns)
@@ -167,7 +204,9 @@ class LockstepClock:
             if self.restart:
                 self.recent.setdefault(topic, []).append((self.cur_k, text))
             self.rec_counts[topic] = self.rec_counts.get(topic, 0) + 1
-            if self.bag is not None:
+            if self.journal is not None:
+                self.journal.write_keyed(topic, _STRING, raw, env.t_ns, env.source, env.seq)
+            elif self.bag is not None:
                 self.bag.write_raw(topic, _STRING, raw, env.t_ns)
         return cb
 
@@ -248,28 +287,98 @@ class LockstepClock:
         rec = {"t_ns": t_ns, "horizon_ns": self.horizon_ns, "steps": self.steps, "wall_s": round(wall_s, 4)}
         print(json.dumps({"done" if done else "progress": rec}), flush=True)
 
+    # -- checkpoint (clock restart) -------------------------------------------------------------------
+    def _state(self, k: int, t: int, msg: StepMsg, wall_s: float) -> bytes:
+        return pickle.dumps({
+            "k": k, "t_ns": t, "msg": encode_msg(msg), "totals": dict(self.totals), "steps": self.steps,
+            "hellos": {r: encode_msg(h) for r, h in self.hellos.items()}, "rec_topics": list(self.rec_topics),
+            "wall_s": wall_s, "incarnation": self._incarnation, "rejoined": dict(self.rejoined), "reannounces": self.reannounces,
+            "viz": (self.viz.next_ns, self.viz.written) if self.viz is not None else None,
+        }, protocol=pickle.HIGHEST_PROTOCOL)
+
+    def _restore(self) -> tuple[int, int, StepMsg, float] | None:
+        """State of the checkpoint found at start; the recorder's keys, counts and re-send buffer
+        come back from the journal's rows."""
+        from bringup.recording import string_from_cdr
+        from orbit_clock.lockstep import decode_step
+
+        k, st = self.resumed  # type: ignore[misc]
+        if st.get("done"):
+            print("clock: restarted after the run had finished; exporting the bag", file=sys.stderr, flush=True)
+            return None
+        self.totals = dict(st["totals"])
+        self.steps = int(st["steps"])
+        self.hellos = {r: decode_ack(txt) for r, txt in st["hellos"].items()}
+        self.rejoined = dict(st["rejoined"])
+        self.reannounces = int(st.get("reannounces", 0))
+        self._incarnation = int(st.get("incarnation", 0)) + 1
+        if self.viz is not None and st["viz"] is not None:
+            self.viz.next_ns, self.viz.written = st["viz"]
+        for topic in st["rec_topics"]:
+            self._record(topic)
+        lo = k - _RESEND_STEPS
+        for kk, topic, source, seq, cdr in self.journal.keyed_rows(min_k=lo):
+            self._rec_keys.add((topic, source, seq))
+            self.rec_counts[topic] = self.rec_counts.get(topic, 0) + 1
+            if cdr is not None:
+                self.recent.setdefault(topic, []).append((kk, string_from_cdr(cdr)))
+        print(f"clock: restarted from its checkpoint: resuming at wire step {k} (t = {st['t_ns'] / 1e9:.3f} s), "
+              f"{sum(self.rec_counts.values())} envelopes already recorded", file=sys.stderr, flush=True)
+        return k, int(st["t_ns"]), decode_step(st["msg"]), float(st["wall_s"])
+
+    def _recorded_all(self) -> bool:
+        return all(self.rec_counts.get(tp, 0) >= n for tp, n in self.totals.items())
+
+    def _missing(self) -> dict[str, int]:
+        return {tp: n - self.rec_counts.get(tp, 0) for tp, n in self.totals.items() if self.rec_counts.get(tp, 0) < n}
+
+    def _wait_recorded(self, msg: StepMsg) -> None:
+        """Before checkpointing the next step: the recorder must hold every envelope counted so far.
+        Every ``_REANNOUNCE_S`` without them the step is published again (not recorded): hosts that
+        ran it re-send its envelopes."""
+        spec = self.spec
+        deadline = time.monotonic() + spec.ack_timeout_s + spec.restart_wait_s
+        while not self._recorded_all():
+            try:
+                self._spin_until(self._recorded_all, _REANNOUNCE_S, lambda: "")
+            except ClockError:
+                if time.monotonic() > deadline:
+                    raise ClockError(f"recorder is missing envelopes of step {msg.k}: {self._missing()}") from None
+                self.reannounces += 1
+                self.step_pub.publish(String(data=encode_msg(msg)))
+
     # -- the run ------------------------------------------------------------------------------------
     def run(self) -> int:
         spec = self.spec
-        self._spin_until(lambda: len(self.hellos) == len(self.roles), spec.startup_timeout_s,
-                         lambda: "hosts not up: " + self._who(r for r in self.roles if r not in self.hellos))
-        rec = 1 if (self.bag is not None or self.restart) else 0
-        subs: dict[str, int] = {}
-        for h in self.hellos.values():
-            for topic, n in h.subscriptions.items():
-                subs[topic] = subs.get(topic, 0) + n
-        if rec:
-            for topic in subs:
-                self._record(topic)
-                subs[topic] += 1
-        wall0 = time.monotonic()
-        next_progress = wall0 + spec.progress_period_s
-        k, t = 0, self.t0_ns
-        msg = StepMsg(k=0, t_ns=t, start=True, subs=subs, subs_default=rec)
+        if self.resumed is not None:
+            got = self._restore()
+            if got is None:
+                return 0
+            k, t, msg, wall_done = got
+        else:
+            self._spin_until(lambda: len(self.hellos) == len(self.roles), spec.startup_timeout_s,
+                             lambda: "hosts not up: " + self._who(r for r in self.roles if r not in self.hellos))
+            rec = 1 if (self.bag is not None or self.restart) else 0
+            subs: dict[str, int] = {}
+            for h in self.hellos.values():
+                for topic, n in h.subscriptions.items():
+                    subs[topic] = subs.get(topic, 0) + n
+            if rec:
+                for topic in subs:
+                    self._record(topic)
+                    subs[topic] += 1
+            k, t = 0, self.t0_ns
+            msg = StepMsg(k=0, t_ns=t, start=True, subs=subs, subs_default=rec)
+            wall_done = 0.0
+        wall0 = time.monotonic() - wall_done
+        next_progress = time.monotonic() + spec.progress_period_s
         self.running = True
         while True:
             self.acks.clear()
             self.cur_k = k
+            if self.journal is not None:
+                self.journal.commit(k, self._state(k, t, msg, time.monotonic() - wall0))
+                self.journal.k = k
             if self.restart and k % _RESEND_STEPS == 0:
                 self._prune_recent()
             if spec.real_time_factor and not msg.start:
@@ -291,6 +400,8 @@ class LockstepClock:
                     self.totals[topic] = self.totals.get(topic, 0) + n
                 seq_end.update(a.seq_end)
                 wakes.append(a.next_wakeup_ns)
+            if self.journal is not None:
+                self._wait_recorded(msg)
             now = time.monotonic()
             if now >= next_progress:
                 next_progress = now + spec.progress_period_s
@@ -305,21 +416,26 @@ class LockstepClock:
             msg = StepMsg(k=k, t_ns=t, final=t >= self.horizon_ns, sent=sent, seq_end=seq_end)
         # the recorder must hold everything before the bag closes
         if self.bag is not None:
-            def recorded() -> bool:
-                return all(self.rec_counts.get(tp, 0) >= n for tp, n in self.totals.items())
-
-            self._spin_until(recorded, spec.ack_timeout_s, lambda: "recorder is missing envelopes: " + str(
-                {tp: n - self.rec_counts.get(tp, 0) for tp, n in self.totals.items() if self.rec_counts.get(tp, 0) < n}))
+            self._spin_until(self._recorded_all, spec.ack_timeout_s,
+                             lambda: "recorder is missing envelopes: " + str(self._missing()))
         wall = time.monotonic() - wall0
         if self.bag is not None and self.meta is not None:
             from msgs_json.envelope import Envelope
 
             runtime = {"wall_s": wall, "steps": self.steps,
                        "real_time_factor": ((t - self.t0_ns) / 1e9 / wall) if wall > 0 else None}
+            if self.journal is not None:
+                runtime["clock_restarts"] = self.clock_restarts()
             self.bag.write_envelope(Envelope(t, "run", 1, "/run/meta",
                                              json.dumps({"meta": self.meta, "runtime": runtime})))
+        if self.journal is not None:
+            self.journal.commit(k, pickle.dumps({"done": True}))
         self._progress(t, wall, done=True)
         return 0
+
+    def clock_restarts(self) -> int:
+        """How many times this run's clock was restarted (0 without a journal)."""
+        return self._incarnation
 
     def _wait_acks(self, k: int, t: int) -> None:
         spec = self.spec
@@ -349,7 +465,13 @@ class LockstepClock:
 
     def close(self) -> None:
         try:
-            if self.bag is not None:
+            if self.journal is not None:
+                try:
+                    if self.spec.bag_dir:
+                        self.journal.export(self.spec.bag_dir, custom=self.bag_custom)
+                finally:
+                    self.journal.close()
+            elif self.bag is not None:
                 self.bag.close()
             self.executor.shutdown(timeout_sec=1.0)
             self.node.destroy_node()
