@@ -53,9 +53,9 @@ from msgs_json.wire import WireError, decode_envelope, encode_envelope
 
 __all__ = [
     "CLOCK_TYPE",
-    "BagJournal",
     "STRING",
     "TYPESTORE",
+    "BagJournal",
     "BagReader",
     "BagWriter",
     "RawMessage",

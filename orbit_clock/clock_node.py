@@ -46,9 +46,11 @@ a readable bag).
 from __future__ import annotations
 
 import json
+import pickle
 import signal
 import sys
 import time
+from pathlib import Path
 
 import rclpy
 from rclpy.context import Context
@@ -59,9 +61,6 @@ from rclpy.serialization import serialize_message
 from rclpy.signals import SignalHandlerOptions
 from rosgraph_msgs.msg import Clock
 from std_msgs.msg import String
-
-import pickle
-from pathlib import Path
 
 from bringup.ros_host import QOS_DATA, QOS_SYNC_PUB, QOS_SYNC_SUB
 from bringup.run_spec import RunSpec
