@@ -21,6 +21,11 @@ msgs_json/envelope.py for participants spread over several OS processes, with on
   during the last few steps, and the host re-runs from ``resume_k + 1``. Re-running a step re-emits
   the same envelopes with the same (source, seq), so every receiver drops what it already holds
   (:meth:`TopicInbox.add` returns False for a duplicate): delivery stays exactly-once.
+* clock restart (issue 7): the clock checkpoints before publishing each step; a restarted clock
+  publishes that step again. A host that already ran it (``k == done_k``) does not run it again: it
+  re-publishes that step's envelopes and its saved ack (a duplicate ack is ignored by the clock, a
+  duplicate envelope by every receiver). The clock may also re-announce the current step (same
+  message, not recorded) when its recorder misses envelopes; hosts answer the same way.
 
 Oracle: tests/ros/test_lockstep.py runs toy participants under this protocol over DDS and checks the
 envelopes equal those of the in-process local engine (bringup/local_engine.py) for the same

@@ -1,10 +1,12 @@
-"""Kill -9 and restart under the ROS engine (issue 7 part B): the run completes, nothing is lost.
+"""Kill -9 and restart under the ROS engine (issue 7 part B: a satellite, the router, the clock): the run completes, nothing is lost.
 
 Reduced paper scenario (12 satellites, 1 h, distributed; the same as the engine-equivalence test).
 One process is killed with SIGKILL at a random (seeded) lockstep step while the run goes on; the
 launcher restarts it (``max_restarts``), it resumes from its checkpoint (satellites: their SQLite
 bundle store plus what the scheduler knows, one transaction per step; sat_node/persist.py), the
-clock waits for it by name and re-sends what it missed. Oracles:
+clock waits for it by name and re-sends what it missed. The clock itself is killed too: it restarts
+from its per-step checkpoint and journal (orbit_clock/clock_node.py), the hosts wait, answer again
+the step they had run (never running it twice) and the bag is exported whole. Oracles:
 
 * the uninterrupted local-engine run of the same scenario and seed: observations (sat, gp, t_ns)
   and bundle deliveries (bundle id, receiver, t_ns) must be identical - no observation executed
@@ -109,7 +111,7 @@ def _ros_run_with_kill(reference: Path, out: Path, victim: str, kill_step: int):
     return res, killed, time.monotonic() - t0
 
 
-@pytest.mark.parametrize("victim", ["sat_21", "router"])
+@pytest.mark.parametrize("victim", ["sat_21", "router", "clock"])
 def test_kill9_restart_run_completes_and_equals_uninterrupted(reference, tmp_path, victim):
     kill_step = random.Random(f"kill-{victim}").randrange(20, 200)
     res, killed, wall = _ros_run_with_kill(reference, tmp_path / "ros", victim, kill_step)
