@@ -344,6 +344,8 @@ class LockstepClock:
                 if time.monotonic() > deadline:
                     raise ClockError(f"recorder is missing envelopes of step {msg.k}: {self._missing()}") from None
                 self.reannounces += 1
+                print(f"clock: recorder misses {self._missing()} after step {msg.k}; step re-announced",
+                      file=sys.stderr, flush=True)
                 self.step_pub.publish(String(data=encode_msg(msg)))
 
     # -- the run ------------------------------------------------------------------------------------
