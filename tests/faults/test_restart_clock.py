@@ -92,17 +92,18 @@ def _run_with_clock_kill(tmp_path, kill_steps: list[int]):
 @pytest.mark.faults
 @pytest.mark.ros
 @pytest.mark.timeout(300)
-def test_toy_run_survives_clock_kill9(tmp_path):
+@pytest.mark.parametrize("kill_steps", [[1], [8, 20]], ids=["at-start", "twice"])
+def test_toy_run_survives_clock_kill9(tmp_path, kill_steps):
     from bringup.local_engine import run_local
     from bringup.recording import BagReader, string_from_cdr
     from orbit_clock.lockstep import decode_ack
     from tests.ros import toy_participants as toy
 
-    spec, res, killed = _run_with_clock_kill(tmp_path, [8, 20])
+    spec, res, killed = _run_with_clock_kill(tmp_path, kill_steps)
     logs = {p.name: p.read_text(errors="replace")[-1500:] for p in (tmp_path / "run" / "logs").glob("*.log")}
-    assert len(killed) == 2, (killed, logs)
+    assert len(killed) == len(kill_steps), (killed, logs)
     assert res.ok, (res.message, logs)
-    assert res.restarts == {"clock": 2}, logs
+    assert res.restarts == {"clock": len(kill_steps)}, logs
     assert "restarted from its checkpoint" in logs["clock.log"]
     ref = run_local(toy.all_participants(spec), horizon_ns=spec.horizon_ns, max_step_ns=spec.max_step_ns)
 
