@@ -43,8 +43,10 @@ from pathlib import Path
 from typing import Any, NamedTuple, Self
 
 from rosbags.interfaces import Qos, QosDurability, QosHistory, QosLiveliness, QosReliability, QosTime
+import rosbags.rosbag2.writer as _rosbags_writer
 from rosbags.rosbag2 import Reader, Writer
 from rosbags.rosbag2.enums import CompressionFormat, CompressionMode, StoragePlugin
+from rosbags.rosbag2.storage_mcap import McapWriter
 from rosbags.typesys import Stores, get_typestore
 
 from bringup.errors import UserError
@@ -99,6 +101,63 @@ _TOPIC_QOS = {
 }
 
 
+# -- speed (issue 5: a paper run records ~450k messages) ---------------------------------------------
+# rosbags' Writer.write checks ``connection in self.connections`` (a linear scan of ~200 dataclass
+# compares) and builds each MCAP Message record from five small writes; _fast_write appends the same
+# bytes (MCAP Message record: opcode 0x05, uint64 length, uint16 channel, uint32 sequence 0, uint64
+# log and publish time, data) and keeps the same chunk index/statistics, so the file is byte for byte
+# what rosbags writes (tests/unit/test_recording.py compares the two). Each new connection also
+# dumped its QoS profile through ruamel.yaml (~20 ms each); the dump of an equal profile list is
+# equal, so it is made once per distinct list.
+_MSG_HEADER = struct.Struct("<BQHIQQ")
+_CHUNK_LIMIT = 2**20
+
+
+def _fast_write(st: McapWriter, cid: int, ts: int, data) -> None:
+    if ts < st.message_start_time:
+        st.message_start_time = ts
+    if ts > st.message_end_time:
+        st.message_end_time = ts
+    st.channel_stats[cid] += 1
+    ch = st.chunk
+    if ts < ch.message_start_time:
+        ch.message_start_time = ts
+    if ts > ch.message_end_time:
+        ch.message_end_time = ts
+    bio = ch.bio
+    pos = bio.tell()
+    ch.msgs[cid].append((ts, pos))
+    bio.write(_MSG_HEADER.pack(0x05, 22 + len(data), cid, 0, ts, ts))
+    bio.write(data)
+    if pos + 31 + len(data) > _CHUNK_LIMIT:
+        st.close_chunk()
+
+
+_QOS_DUMPS: dict = {}
+_dump_qos_v9_orig = getattr(_rosbags_writer, "_dump_qos_v9_orig", _rosbags_writer.dump_qos_v9)
+
+
+def _dump_qos_v9_memo(profiles):
+    key = tuple(profiles)
+    out = _QOS_DUMPS.get(key)
+    if out is None:
+        from io import StringIO
+
+        dumped = _dump_qos_v9_orig(list(profiles))
+        if not isinstance(dumped, str):  # what rosbags' Writer.add_connection does with it
+            stream = StringIO()
+            yaml = _rosbags_writer.YAML(typ="safe")
+            yaml.default_flow_style = False
+            yaml.dump(dumped, stream)
+            dumped = stream.getvalue().strip()
+        out = _QOS_DUMPS[key] = dumped
+    return out
+
+
+_rosbags_writer._dump_qos_v9_orig = _dump_qos_v9_orig
+_rosbags_writer.dump_qos_v9 = _dump_qos_v9_memo
+
+
 def string_cdr(text: str) -> bytes:
     """CDR (little endian) of std_msgs/msg/String(data=text), as rclpy serializes it."""
     b = text.encode("utf-8")
@@ -138,7 +197,8 @@ class TopicStats(NamedTuple):
 class BagWriter:
     """Write a rosbag2 MCAP bag (see the module docstring)."""
 
-    def __init__(self, path: str | Path, *, compress: bool = True, custom: dict[str, str] | None = None):
+    def __init__(self, path: str | Path, *, compress: bool = True, custom: dict[str, str] | None = None,
+                 fast_off: bool = False):
         self.path = Path(path)
         if self.path.exists():
             raise UserError(f"bag {self.path}: already exists, not overwriting")
@@ -148,6 +208,10 @@ class BagWriter:
         for k, v in (custom or {}).items():
             self._w.set_custom_data(str(k), str(v))
         self._w.open()
+        st = self._w.storage
+        self._fast = st if (type(st) is McapWriter and not fast_off
+                            and self._w.compression_mode != CompressionMode.MESSAGE) else None
+        self._tmin, self._tmax = 2**63 - 1, 0  # the Writer's own bounds (metadata.yaml), kept here
         self._conns: dict[tuple[str, str], Any] = {}
         self.counts: dict[str, int] = {}
         self._closed = False
@@ -173,7 +237,17 @@ class BagWriter:
             raise ValueError(f"bag {self.path}: closed")
         if log_time_ns < 0:
             raise ValueError(f"bag {self.path}: {topic}: log time must be >= 0, got {log_time_ns}")
-        self._w.write(self._conn(topic, msgtype, qos), int(log_time_ns), cdr)
+        c = self._conn(topic, msgtype, qos)
+        if self._fast is not None:  # byte-identical to self._w.write (see _fast_write)
+            t = int(log_time_ns)
+            _fast_write(self._fast, c.id, t, cdr)
+            self._w.counts[c.id] += 1
+            if t < self._tmin:
+                self._tmin = t
+            if t > self._tmax:
+                self._tmax = t
+        else:
+            self._w.write(c, int(log_time_ns), cdr)
         self.counts[topic] += 1
 
     def write_msg(self, topic: str, msgtype: str, msg: Any, log_time_ns: int, *, qos: Qos | None = None) -> None:
@@ -194,6 +268,9 @@ class BagWriter:
     def close(self) -> None:
         if not self._closed:
             self._closed = True
+            if self._fast is not None:
+                self._w.min_timestamp = min(self._w.min_timestamp, self._tmin)
+                self._w.max_timestamp = max(self._w.max_timestamp, self._tmax)
             self._w.close()
 
     def __enter__(self) -> Self:

@@ -166,6 +166,15 @@ class SatelliteLogic:
         return StepResult(emits, self._wakeup(t0_ns))
 
     def step(self, t_ns: int, inbox: list[Envelope]) -> StepResult:
+        store = self.agent.store if self.agent is not None else None
+        own_tx = store is not None and store.begin()  # one store transaction per step
+        try:
+            return self._step(t_ns, inbox)
+        finally:
+            if own_tx:
+                store.commit()
+
+    def _step(self, t_ns: int, inbox: list[Envelope]) -> StepResult:
         emits: list[Emit] = []
         for env in inbox:
             try:
@@ -188,6 +197,15 @@ class SatelliteLogic:
         return StepResult(emits, self._wakeup(t_ns))
 
     def finish(self, t_ns: int) -> list[Emit]:
+        store = self.agent.store if self.agent is not None else None
+        own_tx = store is not None and store.begin()
+        try:
+            return self._finish(t_ns)
+        finally:
+            if own_tx:
+                store.commit()
+
+    def _finish(self, t_ns: int) -> list[Emit]:
         emits = self._execute(t_ns)
         if self.agent is not None:
             emits += self._radio(t_ns)
@@ -225,10 +243,12 @@ class SatelliteLogic:
             if outcome == "delivered" or outcome.startswith("discarded"):
                 from sat_node.dtn.bpv7 import BundleError, decode_bundle
 
-                try:
-                    b = decode_bundle(env.data)
-                except BundleError:
-                    b = None
+                b = self.agent.last_received  # what receive() decoded from env.data (not altered)
+                if b is None:
+                    try:
+                        b = decode_bundle(env.data)
+                    except BundleError:
+                        b = None
                 if b is not None:
                     info = self._bundle_info(b)
                     for ev in self.agent.events[n_ev:]:

@@ -183,6 +183,7 @@ class BundleAgent:
         self._expiry_heap: list = []
         self._out_starts = self.graph.out_starts.get(node, np.zeros(0))
         self.radio_free_ns = 0
+        self.last_received: Bundle | None = None  # what the last receive() decoded (None: nothing)
         self._seq = 0 if store is None else store.get_meta("seq")
         if store is not None:
             self._resume()
@@ -240,6 +241,7 @@ class BundleAgent:
     def receive(self, bundle_bytes: bytes, from_node: str, now_ns: int) -> str:
         """A copy heard on the medium; returns what happened (delivered, queued, discarded.*, dropped.*)."""
         self._settle(now_ns)
+        self.last_received = None
         try:
             nh = _PEEK_CACHE.get(bundle_bytes, _MISSING) if isinstance(bundle_bytes, bytes) else _MISSING
             if nh is _MISSING:
@@ -252,6 +254,7 @@ class BundleAgent:
                 self._emit(now_ns, "discarded", None, "?", reason="not_next_hop")
                 return "discarded.not_next_hop"
             b = decode_bundle(bundle_bytes)
+            self.last_received = b
         except BundleError as exc:
             self._emit(now_ns, "dropped", None, "?", reason="integrity")
             self.last_error = str(exc)
@@ -520,7 +523,15 @@ class BundleAgent:
         if not self._in_flight:
             return
         settle_ns = int(round(self.config.settle_delay_s * 1e9))
-        for bid in [b for b, (tx, _h) in self._in_flight.items() if tx.end_ns + settle_ns <= now_ns]:
+        # _in_flight is in send order, and the one radio's transmissions end in that order (each starts
+        # after the previous one's end; a failed one leaves and is sent again later, at the end): the
+        # settled ones are a prefix, so stop at the first that is not (this runs on every copy heard).
+        done = []
+        for bid, (tx, _h) in self._in_flight.items():
+            if tx.end_ns + settle_ns > now_ns:
+                break
+            done.append(bid)
+        for bid in done:
             del self._in_flight[bid]
             if self.store is not None:
                 self.store.delete(bid)

@@ -48,6 +48,24 @@ class BundleStore:
                          "received_ns INTEGER NOT NULL)")
         self._db.execute("CREATE TABLE IF NOT EXISTS meta (key TEXT PRIMARY KEY, value INTEGER NOT NULL)")
 
+    @property
+    def in_transaction(self) -> bool:
+        return self._db.in_transaction
+
+    def begin(self) -> bool:
+        """Open a transaction unless one is open already (a caller's, e.g. the ROS host's per-step
+        checkpoint); returns True when this call opened it (then the caller commits it). Rows written
+        inside it reach the file at :meth:`commit` - one WAL commit per lockstep step instead of one
+        per put/delete (measured: about 4 s of the paper run's 45 s went to per-row commits)."""
+        if self._db.in_transaction:
+            return False
+        self._db.execute("BEGIN")
+        return True
+
+    def commit(self) -> None:
+        if self._db.in_transaction:
+            self._db.execute("COMMIT")
+
     def put(self, b: StoredBundle) -> None:
         self._db.execute("INSERT OR REPLACE INTO bundles VALUES (?, ?, ?, ?, ?, ?)",
                          (b.bundle_id, b.data, b.priority, b.dest, b.expiry_ns, b.received_ns))
