@@ -145,6 +145,7 @@ class SatelliteLogic:
             self._next_hop: dict[str, str] = {}
             self.tx_failed: dict[str, int] = {}
         self.rejected_by_reason: dict[str, int] = {}
+        self._topics: tuple[str, str] | None = None  # (status, in) topic names, made on first use
 
     # ------------------------------------------------------------------ contract
     def subscriptions(self) -> list[str]:
@@ -227,11 +228,17 @@ class SatelliteLogic:
 
     # ------------------------------------------------------------------ inputs
     def _on_message(self, env: Envelope, t_ns: int) -> None:
-        if self.agent is not None and env.topic == T.dtn_status_topic(self.name):
+        topics = self._topics
+        if topics is None:
+            topics = self._topics = (T.dtn_status_topic(self.name), T.dtn_in_topic(self.name))
+        if self.agent is not None and env.topic == topics[0]:
             self._on_status(codec.decode(env.topic, env.data), t_ns)
-        elif self.agent is not None and env.topic == T.dtn_in_topic(self.name):
+        elif self.agent is not None and env.topic == topics[1]:
             if not isinstance(env.data, bytes):
                 raise ValueError("bundle topic carries text")
+            if self.agent.overheard(env.data, env.t_ns):  # a copy for another node (broadcast medium)
+                self.overheard += 1
+                return
             n_ev = len(self.agent.events)
             outcome = self.agent.receive(env.data, env.source, env.t_ns)
             if outcome == "discarded.not_next_hop":
