@@ -37,8 +37,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--cut", action="append", default=[], metavar="A-B@T1-T2",
                    help="cut the ISL between satellites A and B from T1 to T2 [s] (repeatable)")
     p.add_argument("--restart", type=int, default=0, metavar="N",
-                   help="ros engine: restart a crashed satellite/router process up to N times; every host "
-                        "checkpoints each step and resumes from it (default 0: a crash ends the run)")
+                   help="ros engine: restart a crashed process (satellite, router, ground or the clock) up to "
+                        "N times; every process checkpoints each step and resumes from it (default 0: a crash "
+                        "ends the run)")
 
 
 def parse_cut(text: str) -> tuple[str, str, float, float]:
