@@ -116,8 +116,23 @@ def navsat_fix(r_ecef_km: Sequence[float], t_ns: int, frame_id: str = FRAME):
     )
 
 
+_COLORS: dict = {}
+_GP_POINTS: dict = {}
+
+
 def value_color(value: float, vmax: float = 256.0, alpha: float = 0.9):
-    """ColorRGBA on a blue (0) -> green -> red (vmax) ramp; 0 or less is grey."""
+    """ColorRGBA on a blue (0) -> green -> red (vmax) ramp; 0 or less is grey. Made once per
+    (value, vmax, alpha): message objects are only read when serialized, so equal colours share one."""
+    key = (float(value), vmax, alpha)
+    c = _COLORS.get(key)
+    if c is None:
+        if len(_COLORS) > 65536:
+            _COLORS.clear()
+        c = _COLORS[key] = _value_color(value, vmax, alpha)
+    return c
+
+
+def _value_color(value: float, vmax: float, alpha: float):
     C = _T["std_msgs/msg/ColorRGBA"]
     if not value > 0:
         return C(r=0.5, g=0.5, b=0.5, a=alpha)
@@ -127,6 +142,16 @@ def value_color(value: float, vmax: float = 256.0, alpha: float = 0.9):
 
 def _point(v):
     return _T["geometry_msgs/msg/Point"](x=float(v[0]) / SCALE_KM, y=float(v[1]) / SCALE_KM, z=float(v[2]) / SCALE_KM)
+
+
+def _gp_points(g: np.ndarray) -> list:
+    """Points of the (static) ground points, made once per distinct array."""
+    key = g.tobytes()
+    pts = _GP_POINTS.get(key)
+    if pts is None:
+        _GP_POINTS.clear()
+        pts = _GP_POINTS[key] = [_point(v) for v in g]
+    return pts
 
 
 def _marker(t_ns, ns, mid, mtype, *, scale, color, points=(), colors=(), text="", position=(0.0, 0.0, 0.0)):
@@ -201,7 +226,7 @@ def constellation_markers(
         if len(vals) != len(g):
             raise ValueError(f"constellation_markers: {len(g)} ground points but {len(vals)} values")
         markers.append(_marker(t_ns, "ground_points", 0, M.CUBE_LIST, scale=(0.008, 0.008, 0.008),
-                               color=C(r=1.0, g=1.0, b=1.0, a=1.0), points=[_point(v) for v in g],
+                               color=C(r=1.0, g=1.0, b=1.0, a=1.0), points=_gp_points(g),
                                colors=[value_color(v, value_max) for v in vals]))
     if labels:
         for i, name in enumerate(sat_names):
