@@ -23,6 +23,7 @@ primary block is given in the RFC) decoding.
 
 from __future__ import annotations
 
+import binascii
 import io
 from dataclasses import dataclass, field, replace
 from datetime import datetime, timezone
@@ -73,7 +74,19 @@ _T16 = _table(0x8408, 16)
 _T32C = _table(0x82F63B78, 32)
 
 
+_REV8 = bytes(int(f"{i:08b}"[::-1], 2) for i in range(256))  # each byte's bits reversed
+
+
 def crc16_x25(data: bytes) -> int:
+    """CRC-16/X-25 (reflected 0x1021, init and xorout 0xFFFF; check value 0x906E). Computed with
+    the C CRC-CCITT of binascii (the same polynomial, not reflected) on the bit-reversed bytes,
+    then the 16-bit result reversed: ~50x faster than the table loop (:func:`_crc16_x25_table`,
+    kept as the reference the tests compare against)."""
+    c = binascii.crc_hqx(bytes(data).translate(_REV8), 0xFFFF)
+    return ((_REV8[c & 0xFF] << 8) | _REV8[c >> 8]) ^ 0xFFFF
+
+
+def _crc16_x25_table(data: bytes) -> int:
     crc = 0xFFFF
     t = _T16
     for b in data:
@@ -182,6 +195,9 @@ class Bundle:
     payload_flags: int = 0
     # the primary block's bytes as received (decode_bundle sets it; BPSec's IPPT reads it)
     primary_raw: bytes | None = field(default=None, compare=False, repr=False)
+    # encodings already made, keyed by every field they depend on (a changed field is a new key):
+    # a bundle is encoded several times on its way (BIB, store, each transmission)
+    _enc: dict = field(default_factory=dict, init=False, compare=False, repr=False)
 
     # -- identity
     @property
@@ -274,6 +290,18 @@ def encode_primary(b: Bundle) -> bytes:
     primary block is immutable in transit, RFC 9171 4.3.1)."""
     if b.primary_raw is not None:
         return b.primary_raw
+    key = ("primary", b.flags, b.crc_type, b.dest, b.src, b.report_to, b.creation_ms, b.seq, b.lifetime_ms,
+           b.fragment)
+    raw = b._enc.get(key)
+    if raw is None:
+        raw = _encode_primary(b)
+        if len(b._enc) > 8:
+            b._enc.clear()
+        b._enc[key] = raw
+    return raw
+
+
+def _encode_primary(b: Bundle) -> bytes:
     prim = [7, b.flags, b.crc_type, _eid_cbor(b.dest), _eid_cbor(b.src), _eid_cbor(b.report_to or b.src),
             [b.creation_ms, b.seq], b.lifetime_ms]
     if b.fragment is not None:
@@ -287,7 +315,14 @@ def encode_bundle(b: Bundle) -> bytes:
         raise BundleError("a bundle without a creation time needs a bundle-age block (RFC 9171 4.2.6)")
     parts = [b"\x9f", encode_primary(b)]
     parts += [blk.encode() for blk in b.blocks]
-    parts.append(CanonicalBlock(PAYLOAD_BLOCK, 1, b.payload_flags, b.payload_crc_type, b.payload).encode())
+    key = ("payload", b.payload_flags, b.payload_crc_type, b.payload)
+    raw = b._enc.get(key)
+    if raw is None:
+        raw = CanonicalBlock(PAYLOAD_BLOCK, 1, b.payload_flags, b.payload_crc_type, b.payload).encode()
+        if len(b._enc) > 8:
+            b._enc.clear()
+        b._enc[key] = raw
+    parts.append(raw)
     parts.append(b"\xff")
     return b"".join(parts)
 

@@ -64,10 +64,36 @@ def test_store_step_transaction(tmp_path):
     from sat_node.dtn.store import BundleStore, StoredBundle
 
     st = BundleStore(tmp_path / "s.sqlite")
-    assert st.begin() is True and st.in_transaction
+    assert st.begin() is True and not st.in_transaction  # BEGIN waits for the first write
     assert st.begin() is False  # nested: the outer opener commits
     st.put(StoredBundle("a", b"1", 1, "sat_12", 5, 0))
+    st.delete("zz")
+    assert st.in_transaction
     st.commit()
     assert not st.in_transaction
     other = BundleStore(tmp_path / "s.sqlite")
     assert [b.bundle_id for b in other.load_all()] == ["a"]
+
+
+def test_crc16_x25_fast_equals_table():
+    import os
+
+    from sat_node.dtn.bpv7 import _crc16_x25_table, crc16_x25
+
+    assert crc16_x25(b"123456789") == 0x906E  # the catalogue's check value for CRC-16/X-25
+    for n in range(0, 300, 7):
+        d = os.urandom(n)
+        assert crc16_x25(d) == _crc16_x25_table(d)
+
+
+def test_bundle_encode_cache_follows_fields():
+    from sat_node.dtn.bpv7 import Bundle, decode_bundle, encode_bundle
+
+    b = Bundle(dest=(12, 1), src=(11, 1), creation_ms=10**9, seq=3, lifetime_ms=900_000, payload=b"abc")
+    e1 = encode_bundle(b)
+    assert encode_bundle(b) == e1 and decode_bundle(e1).payload == b"abc"
+    b.payload = b"abcd"
+    b.lifetime_ms = 1000
+    e2 = encode_bundle(b)
+    fresh = Bundle(dest=(12, 1), src=(11, 1), creation_ms=10**9, seq=3, lifetime_ms=1000, payload=b"abcd")
+    assert e2 == encode_bundle(fresh) != e1
