@@ -122,13 +122,17 @@ class LocalEngine:
         self.counts_by_topic: dict[str, int] = {}
 
     # -- helpers -----------------------------------------------------------------------------------
-    def _stamp(self, name: str, emits, t_max_ns: int, where: str) -> list[Envelope]:
+    def _stamp(self, name: str, emits, t_max_ns: int, where: str | None) -> list[Envelope]:
         """Turn a participant's emits into envelopes (seq assigned), checking the contract."""
         if not emits:
             return []
+        if where is None:
+            where = f"step at {t_max_ns}"  # (made here, not per call: only error messages use it)
         out = []
+        append = out.append
         seq = self._seq[name]
         counts = self.counts_by_topic
+        get = counts.get
         for e in emits:
             if type(e) is not Emit and not isinstance(e, Emit):
                 raise EngineError(f"{name} {where}: emitted {type(e).__name__}, expected Emit")
@@ -136,11 +140,13 @@ class LocalEngine:
             if type(t) is not int or t < 0 or t > t_max_ns:
                 raise EngineError(f"{name} {where}: emit on {e.topic} at t_ns={t!r} outside [0, {t_max_ns}]")
             d = e.data
-            if not isinstance(d, (str, bytes)):
+            td = type(d)
+            if td is not bytes and td is not str and not isinstance(d, (str, bytes)):
                 raise EngineError(f"{name} {where}: emit on {e.topic} has {type(d).__name__} data")
-            out.append(Envelope(t, name, seq, e.topic, d))
+            topic = e.topic
+            append(Envelope(t, name, seq, topic, d))
             seq += 1
-            counts[e.topic] = counts.get(e.topic, 0) + 1
+            counts[topic] = get(topic, 0) + 1
         self._seq[name] = seq
         return out
 
@@ -211,7 +217,7 @@ class LocalEngine:
                     if type(r) is not StepResult:
                         self._result(ps[i].name, r, f"step at {t}")
                     if r.emits:
-                        pending.extend(self._stamp(names[i], r.emits, t, f"step at {t}"))
+                        pending.extend(self._stamp(names[i], r.emits, t, None))
                     w = r.next_wakeup_ns
                     if w is not None and type(w) is not int:
                         self._result(names[i], r, f"step at {t}")
