@@ -230,7 +230,7 @@ class Bundle:
     def set_block(self, btype: int, data: bytes, flags: int = 0, crc_type: int = CRC_NONE) -> None:
         for i, b in enumerate(self.blocks):
             if b.type == btype:
-                self.blocks[i] = replace(b, data=data, flags=flags, crc_type=crc_type)
+                self.blocks[i] = _block(b.type, b.number, flags, crc_type, data)  # = replace(b, ...)
                 return
         used = {b.number for b in self.blocks} | {1}
         num = 2
@@ -440,8 +440,11 @@ def decode_bundle(data: bytes) -> Bundle:
     for i, (blk, raw) in enumerate(raws[1:], start=1):
         if not isinstance(blk, list) or len(blk) not in (5, 6):
             raise BundleError(f"block {i}: not an array of 5 or 6 items")
-        btype, num = _uint(blk[0], f"block {i} type"), _uint(blk[1], f"block {i} number")
-        bflags, bcrc = _uint(blk[2], f"block {i} flags"), _uint(blk[3], f"block {i} CRC type")
+        btype, num, bflags, bcrc = blk[0], blk[1], blk[2], blk[3]
+        if not (type(btype) is int and type(num) is int and type(bflags) is int and type(bcrc) is int
+                and btype >= 0 and num >= 0 and bflags >= 0 and bcrc >= 0):  # else say which (messages
+            btype, num = _uint(blk[0], f"block {i} type"), _uint(blk[1], f"block {i} number")  # made
+            bflags, bcrc = _uint(blk[2], f"block {i} flags"), _uint(blk[3], f"block {i} CRC type")  # here)
         if bcrc not in _CRC_LEN or len(blk) != (6 if bcrc else 5):
             raise BundleError(f"block {i}: CRC type {bcrc} does not match its length")
         if not isinstance(blk[4], bytes):
