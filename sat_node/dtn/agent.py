@@ -9,6 +9,10 @@ agents live in one process:
   node are discarded and counted (broadcast medium), malformed or failing the BIB are dropped
   (``integrity``), duplicates discarded and counted, expired dropped (``ttl``), ours delivered,
   others routed and queued;
+* :meth:`BundleAgent.overheard` - the cheap first look at a heard copy: one whose next-hop block
+  names another node is counted (``counters['discarded.not_next_hop']``) with no event record and
+  True is returned; anything else goes to :meth:`receive` (the satellite does this for the ~200k
+  copies of a paper run);
 * :meth:`BundleAgent.transmissions_until` - what the one radio sends up to ``t_ns``. The next hop is
   chosen at transmission time, not at enqueue time: whenever the radio is free, held bundles are
   taken in send order (priority 1 first, then creation time; or, with ``priority_delay_s``, the
