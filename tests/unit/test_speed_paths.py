@@ -97,3 +97,20 @@ def test_bundle_encode_cache_follows_fields():
     e2 = encode_bundle(b)
     fresh = Bundle(dest=(12, 1), src=(11, 1), creation_ms=10**9, seq=3, lifetime_ms=1000, payload=b"abcd")
     assert e2 == encode_bundle(fresh) != e1
+
+
+def test_fast_chunk_reader_yields_what_rosbags_yields(tmp_path):
+    import rosbags.rosbag2.storage_mcap as sm
+
+    _write(tmp_path / "bag", False)  # several chunks, random (and tied) log times
+    with BagReader(tmp_path / "bag") as r:
+        fast = list(r.messages())
+    fast_fn = sm.msgsrc
+    try:
+        sm.msgsrc = sm._msgsrc_orig
+        with BagReader(tmp_path / "bag") as r:
+            slow = list(r.messages())
+    finally:
+        sm.msgsrc = fast_fn
+    assert fast_fn is not sm._msgsrc_orig
+    assert len(fast) == 30600 and fast == slow
