@@ -36,27 +36,15 @@ SATS, HOURS = 12, 1.0
 
 
 def _observations(bag: Path):
-    from bringup.recording import BagReader
-    from msgs_json import codec
+    from bringup.trace import observations_from_bag
 
-    with BagReader(bag) as b:
-        topics = [t.topic for t in b.topics() if t.topic.endswith("/observations")]
-        return sorted((o.sat, o.gp, o.t_ns) for o in (codec.decode(e.topic, e.data) for e in b.envelopes(topics)))
+    return observations_from_bag(bag)
 
 
 def _deliveries(bag: Path):
-    from bringup.recording import BagReader
-    from msgs_json import codec
-    from msgs_json import schemas as S
+    from bringup.trace import deliveries_from_bag
 
-    out = []
-    with BagReader(bag) as b:
-        topics = [t.topic for t in b.topics() if t.topic.endswith("/dtn/events")]
-        for e in b.envelopes(topics):
-            m = codec.decode(e.topic, e.data)
-            if isinstance(m, S.BundleDelivered):
-                out.append((m.bundle_id, m.sat, m.t_ns))
-    return sorted(out)
+    return deliveries_from_bag(bag)
 
 
 def _accounting(bag: Path) -> dict:

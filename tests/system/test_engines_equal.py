@@ -28,7 +28,7 @@ SATS, HOURS = 12, 1.0
 def _run(engine: str, out: Path) -> Path:
     cmd = [sys.executable, "-m", "bringup.cli", "run", "--engine", engine, "--sats", str(SATS), "--hours",
            str(HOURS), "--out", str(out), "--no-plots", "--no-progress"]
-    r = subprocess.run(cmd, capture_output=True, text=True, timeout=600)
+    r = subprocess.run(cmd, capture_output=True, text=True, timeout=600, check=False)
     assert r.returncode == 0, r.stderr[-3000:]
     return out
 
@@ -40,26 +40,15 @@ def runs(tmp_path_factory):
 
 
 def _observations(bag: Path):
-    from bringup.recording import BagReader
-    from msgs_json import codec
+    from bringup.trace import observations_from_bag
 
-    with BagReader(bag) as b:
-        topics = [t.topic for t in b.topics() if t.topic.endswith("/observations")]
-        return sorted((o.sat, o.gp, o.t_ns) for o in (codec.decode(e.topic, e.data) for e in b.envelopes(topics)))
+    return observations_from_bag(bag)
 
 
 def _deliveries(bag: Path):
-    from bringup.recording import BagReader
-    from msgs_json import codec, schemas as S
+    from bringup.trace import deliveries_from_bag
 
-    out = []
-    with BagReader(bag) as b:
-        topics = [t.topic for t in b.topics() if t.topic.endswith("/dtn/events")]
-        for e in b.envelopes(topics):
-            m = codec.decode(e.topic, e.data)
-            if isinstance(m, S.BundleDelivered):
-                out.append((m.bundle_id, m.sat, m.t_ns))
-    return sorted(out)
+    return deliveries_from_bag(bag)
 
 
 def test_ros_engine_equals_local_engine(runs):
@@ -100,7 +89,7 @@ def test_bag_opens_with_independent_readers(runs, engine):
 def test_report_from_bag_equals_run_report(runs, engine):
     run_rep = json.loads((runs[engine] / "report.json").read_text())
     r = subprocess.run([sys.executable, "-m", "bringup.cli", "report", str(runs[engine] / "bag")],
-                       capture_output=True, text=True, timeout=300)
+                       capture_output=True, text=True, timeout=300, check=False)
     assert r.returncode == 0, r.stderr
     bag_rep = json.loads(r.stdout)
     run_rep.pop("runtime")
