@@ -134,7 +134,7 @@ def build_report(envelopes, meta: RunMeta, runtime: dict | None = None) -> dict:
         rej: dict[str, int] = defaultdict(int)
         for c in counters.values():
             for k, v in c.items():
-                if k.startswith(("rejected.", "tx_failed.", "agent.dropped.", "agent.discarded.")):
+                if k.startswith(("rejected.", "tx_failed.", "agent.dropped.", "agent.discarded.", "host.")):
                     rej[k] += v
         rep["dtn"]["rejections"] = dict(sorted(rej.items()))
     rep["messages_rejected_in_report"] = bad

@@ -336,6 +336,18 @@ class ParticipantHost:
                     wakes.append(r.next_wakeup_ns)
             if m.final:
                 for slot in self.slots:
+                    # what the host rejected for this participant, so the participant can report it:
+                    # wire texts that were no envelope, and envelopes never consumed (a source that is
+                    # no participant of the run, e.g. a rogue publisher)
+                    if hasattr(slot.p, "host_rejected"):
+                        rej = {}
+                        for b in slot.inboxes:
+                            leaf = b.topic.rsplit("/", 1)[-1]
+                            if b.decode_errors:
+                                rej[f"{leaf}.malformed"] = rej.get(f"{leaf}.malformed", 0) + b.decode_errors
+                            if b.pending:
+                                rej[f"{leaf}.unknown_source"] = rej.get(f"{leaf}.unknown_source", 0) + len(b.pending)
+                        slot.p.host_rejected = rej
                     try:
                         emits = slot.p.finish(t)
                     except Exception as exc:

@@ -121,6 +121,7 @@ class SatelliteLogic:
         self._last_cpu_s = 0.0
         self._news_conflict = False
         self.news_replans_due = 0
+        self.host_rejected: dict[str, int] = {}
         self.rejected = 0
         self.dtn = (mode == "distributed") if dtn is None else dtn
         self.pending_downlink: list[S.Observation] = []
@@ -223,6 +224,8 @@ class SatelliteLogic:
                 c[f"agent.{k}"[:64]] = v
         for k, v in self.tx_failed.items():
             c[f"tx_failed.{k}"] = v
+        for k, v in self.host_rejected.items():  # set by the ROS host before finish (bringup/ros_host.py)
+            c[f"host.{k}"[:64]] = v
         msg = S.DtnCounters(sat=self.name, t_ns=t_ns, counters=c)
         return Emit(T.dtn_counters_topic(self.name), codec.encode(msg), t_ns)
 

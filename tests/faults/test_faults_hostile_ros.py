@@ -89,4 +89,10 @@ def test_live_nodes_survive_hostile_input(tmp_path):
         for m in re.finditer(r"rejected, (\d+) so far", log.read_text(errors="replace")):
             rejected = max(rejected, int(m.group(1)))
     assert rejected > 0, "no host logged a rejected message"
-    print(f"rogue sent {sent}; largest per-topic rejection count logged {rejected}")
+    # the rejections reach the report too (satellites' DtnCounters, counted by the ROS hosts)
+    rep = json.loads((out / "report.json").read_text())
+    rej = rep["dtn"].get("rejections", {})
+    host_malformed = sum(v for k, v in rej.items() if k.startswith("host.") and k.endswith(".malformed"))
+    host_unknown = sum(v for k, v in rej.items() if k.startswith("host.") and k.endswith(".unknown_source"))
+    assert host_malformed > 0 and host_unknown > 0, rej
+    print(f"rogue sent {sent}; largest per-topic rejection count logged {rejected}; report: {rej}")
