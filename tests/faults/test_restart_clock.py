@@ -25,6 +25,7 @@ REPO = Path(__file__).resolve().parents[2]
 S = 10**9
 
 
+@pytest.mark.faults
 def test_journal_keeps_the_last_commit_under_sigkill_and_exports_a_bag(tmp_path):
     db = tmp_path / "clock.sqlite"
     code = f"""
