@@ -6,19 +6,7 @@ import numpy as np
 import pytest
 
 from ground_station import OsseError, load_value_grid, osse_from_scenario, write_value_grid
-
-
-def grid_gps(sc):
-    """Plain GP arrays: an n x n grid per region at the scenario's spacing (as in test_osse.py)."""
-    lat, lon, reg = [], [], []
-    for r, R in enumerate(sc.regions.list):
-        n = int(round(R.size_km / sc.gp_spacing_km))
-        off = (np.arange(n) - (n - 1) / 2) * sc.gp_spacing_km
-        dy, dx = np.meshgrid(off, off, indexing="ij")
-        lat.append(R.lat_deg + dy.ravel() / 110.574)
-        lon.append(R.lon_deg + dx.ravel() / (111.320 * np.cos(np.radians(R.lat_deg))))
-        reg.append(np.full(n * n, r))
-    return np.concatenate(lat), np.concatenate(lon), np.concatenate(reg)
+from tests.unit.test_osse import grid_gps  # the same plain GP grid as the generator tests
 
 
 @pytest.fixture(scope="module")
