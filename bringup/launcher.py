@@ -7,9 +7,10 @@ what a role hosts comes from the spec's participant factory). Every child gets
 ``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST`` (no packet leaves loopback), a run-unique
 ``ROS_DOMAIN_ID`` (1..101, held by an fcntl lock file for the whole run so parallel runs on one
 host never share one) and ``FASTRTPS_DEFAULT_PROFILES_FILE`` = bringup/dds/fastdds_profile.xml.
-Progress (sim time, real-time factor, steps/s) goes to a callback. Ctrl-C / SIGTERM: the clock is
-asked to stop first (it tells the hosts and closes the bag, which stays readable), then the
-hosts; a child that fails is named in the result's message and the result is non-zero.
+Progress (sim time, real-time factor, steps/s, bundles in flight in the router) goes to a
+callback. Ctrl-C / SIGTERM: the clock is asked to stop first (it tells the hosts and closes the
+bag, which stays readable), then the hosts; a child that fails is named in the result's message
+and the result is non-zero.
 Each child's stderr goes to ``out_dir/logs/<role>.log`` (appended across restarts) and its pid to
 ``out_dir/logs/<role>.pid``.
 
@@ -21,6 +22,9 @@ The clock too: with ``restart_wait_s > 0`` and a ``state_dir`` it checkpoints ev
 (orbit_clock/clock_node.py), and when it crashes (killed by a signal we did not send, or an
 unexpected exit code; not its own decisions 0, 2, 3, 130) it is started again, up to
 ``max_restarts`` times, with a new progress reader; the hosts wait for it (their idle timeout).
+When the clock crashes once more than ``max_restarts`` allows, the launcher exports its journal
+(``state_dir/clock.sqlite``: every step committed before the crash) into ``bag_dir`` itself, the
+same export a clock does at its end, and the result's message says where that partial bag is.
 Checkpoints of an earlier run in ``state_dir`` (``clock.sqlite``, ``<role>.state.sqlite``) are
 removed when a launch starts, so a new run never resumes an old one.
 
@@ -28,7 +32,10 @@ Multi-host: ``wrap(role, argv, env) -> (argv, env)`` rewrites each child's comma
 e.g. ``ip netns exec NS ...`` with per-host ``ROS_STATIC_PEERS`` (tests/multihost).
 
 Oracle: tests/ros/test_launcher.py (a toy run completes and its bag equals the local engine's
-envelopes; a killed host is named; SIGINT leaves a readable bag; two leases never share an id).
+envelopes; a killed host is named; SIGINT leaves a readable bag; two leases never share an id;
+progress carries the router's bundles in flight, equal step by step to the local engine's figure,
+tests/ros/test_progress_in_flight.py); tests/faults/test_restart_clock.py (a clock killed more
+often than allowed leaves a partial bag that equals the local engine's run up to its last step).
 """
 
 from __future__ import annotations
@@ -118,6 +125,8 @@ class LaunchProgress:
     horizon_ns: int
     steps: int
     wall_s: float
+    # bundle copies in flight in the DTN router after step t_ns (None: the run has no router)
+    in_flight: int | None = None
 
     @property
     def real_time_factor(self) -> float:
@@ -173,8 +182,42 @@ def _terminate(children: list[_Child], timeout_s: float) -> None:
             c.proc.wait()
 
 
+def _signame(sig: int) -> str:
+    try:
+        return signal.Signals(sig).name
+    except ValueError:
+        return f"signal {sig}"
+
+
 # Clock exit codes that are its own decision (ok, user error, a host failed, interrupted): never restarted.
 _CLOCK_DECIDED = (0, 2, 3, 130)
+
+
+def _partial_bag(spec: RunSpec) -> str:
+    """The clock crashed for good: export what its journal committed (every step before the one it
+    died in; bringup/recording.py BagJournal, the same export a restarted clock ends with) into
+    ``spec.bag_dir``. Returns the clause for the run's one-line error."""
+    import pickle
+
+    from bringup.recording import BagJournal
+
+    path = Path(spec.state_dir) / "clock.sqlite"  # type: ignore[arg-type]
+    if not path.exists():
+        return "no bag: the clock recorded nothing"
+    try:
+        j = BagJournal(path)
+        try:
+            row = j.load()
+            state = pickle.loads(row[1]) if row is not None else {}
+            n = j.export(spec.bag_dir, custom={"engine": "ros", "roles": ",".join(spec.roles),  # type: ignore[arg-type]
+                                               "partial": "clock crashed; exported from its journal by the launcher"})
+        finally:
+            j.close()
+    except Exception as exc:  # noqa: BLE001 - the run has failed already; say why there is no bag
+        return f"no bag: exporting the clock's journal {path} failed: {type(exc).__name__}: {exc}"
+    # the checkpoint of step k holds every step before it (k's own messages were rolled back)
+    upto = f"steps before t = {state['t_ns'] / 1e9:g} s, " if "t_ns" in state else ""
+    return f"partial bag ({upto}{n} messages) in {spec.bag_dir}"
 
 
 def _clear_checkpoints(state_dir: Path, roles: list[str]) -> None:
@@ -226,7 +269,9 @@ def launch(spec: RunSpec, out_dir: Path, *, progress: Callable[[LaunchProgress],
             body = rec.get("progress") or rec.get("done")
             if not isinstance(body, dict):
                 continue
-            p = LaunchProgress(int(body["t_ns"]), int(body["horizon_ns"]), int(body["steps"]), float(body["wall_s"]))
+            fl = body.get("in_flight")
+            p = LaunchProgress(int(body["t_ns"]), int(body["horizon_ns"]), int(body["steps"]), float(body["wall_s"]),
+                               None if fl is None else int(fl))
             last[0] = p
             if progress is not None:
                 progress(p)
@@ -283,10 +328,15 @@ def launch(spec: RunSpec, out_dir: Path, *, progress: Callable[[LaunchProgress],
                     reader.start()
                     continue
                 if crc is not None:
+                    crashed = crc not in _CLOCK_DECIDED and clock_restartable
                     if crc != 0:
                         rc = crc
                         failed = [CLOCK_ROLE] + [h.role for h in hosts if h.proc.poll() not in (None, 0)]
                         message = clock.last_error() or f"clock exited with code {crc}"
+                        if crashed:
+                            how = f"killed by {_signame(-crc)}" if crc < 0 else f"exited with code {crc}"
+                            message = (f"clock {how} and was restarted {restarts.get(CLOCK_ROLE, 0)} of "
+                                       f"{spec.max_restarts} times")
                     # hosts leave on the clock's stop message; give them a moment, then insist
                     deadline = time.monotonic() + 10.0
                     while time.monotonic() < deadline and any(h.proc.poll() is None for h in hosts):
@@ -298,6 +348,8 @@ def launch(spec: RunSpec, out_dir: Path, *, progress: Callable[[LaunchProgress],
                         failed = [h.role for h in bad]
                         message = "; ".join(f"process '{h.role}' failed (exit code {h.proc.returncode}): "
                                             f"{h.last_error() or 'no message'}" for h in bad)
+                    if crashed and spec.bag_dir:
+                        message += "; " + _partial_bag(spec)
                     break
                 time.sleep(0.05)
         except KeyboardInterrupt:

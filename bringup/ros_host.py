@@ -23,6 +23,11 @@ the envelopes it missed (receivers drop them as duplicates by (source, seq)). Wh
 hello every ``rejoin_period_s``; the clock answers each with a re-send of what it recorded
 (orbit_clock/lockstep.py ResendMsg); duplicates are dropped by (source, seq).
 
+Progress: a host that holds the DTN router (dtn_router/logic.py) puts in each ack the number of
+bundle copies the router holds after the step (``in_flight``, ``len(router.pending)``: accepted,
+arrival still ahead), the figure the local engine's progress display shows; the clock sums it into
+its progress records.
+
 Oracle: tests/ros/test_lockstep.py: toy participants hosted here, driven by the clock node over
 DDS, emit exactly the envelopes the local engine (bringup/local_engine.py) emits for them.
 """
@@ -73,6 +78,7 @@ QOS_SYNC_SUB = QoSProfile(history=HistoryPolicy.KEEP_ALL, reliability=Reliabilit
 _CLOCK_REMAP = ["--ros-args", "-r", "/clock:=/_lockstep/unused_clock"]
 # Fewer entities per node = smaller wait sets per spin (no parameter services, no /rosout writer).
 _LEAN = {"start_parameter_services": False, "enable_rosout": False}
+_ROUTER_NAME = "dtn_router"
 
 
 class HostError(RuntimeError):
@@ -146,6 +152,10 @@ class ParticipantHost:
         self.ckpt = None
         if state_path is not None:
             self._open_checkpoint(state_path)
+        # the DTN router's in-flight copies go into every ack (progress display; no extra message).
+        # Its name is dtn_router.logic.ROUTER_NAME, not imported: that package costs a toy host 0.3 s.
+        self._routers = [s.p for s in self.slots
+                         if s.name == _ROUTER_NAME and isinstance(getattr(s.p, "pending", None), list)]
 
     # -- checkpoints (bringup/checkpoint.py) --------------------------------------------------------
     def _open_checkpoint(self, state_path: str) -> None:
@@ -355,6 +365,8 @@ class ParticipantHost:
                     self._emit(slot, emits, t, "finish", sent)
         ack = dict(k=m.k, t_ns=t, next_wakeup_ns=min(wakes) if wakes else None, sent=sent,
                    seq_end={s.name: s.seq for s in self.slots if s.seq})
+        if self._routers:
+            ack["in_flight"] = sum(len(p.pending) for p in self._routers)
         if self.ckpt is not None:
             self._checkpoint(m.k, ack)
         self.done_k, self.last_ack, self.last_wires = m.k, ack, self._step_wires

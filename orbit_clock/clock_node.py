@@ -5,8 +5,11 @@ picks the next step with rule 3 of msgs_json/envelope.py (orbit_clock/lockstep.p
 protocol). A step ends when every registered host acked it; what was sent in it is counted in the
 acks and the next step message carries the counts, so receivers run the next step only once they
 hold all of it (ROS2_NOTES trap 5). Pacing: as fast as possible, or ``real_time_factor`` sim
-seconds per wall second. A host that does not ack within ``ack_timeout_s`` wall seconds is
-reported by name (with its participants) and the run stops; so does a host that acks an error.
+seconds per wall second. Progress: a JSON line on stdout every ``progress_period_s`` (sim time,
+steps, wall time and, when a host holds the DTN router, ``in_flight``: the bundle copies the router
+holds after that step, summed from the acks; bringup/launcher.py reads them). A host that does not
+ack within ``ack_timeout_s`` wall seconds is reported by name (with its participants) and the run
+stops; so does a host that acks an error.
 
 The same process records every topic into a rosbag2 MCAP bag (bringup/recording.py BagWriter):
 /clock and /sim/step as written, /sim/ack and every data topic from raw (CDR) subscriptions, log
@@ -147,6 +150,8 @@ class LockstepClock:
         self.totals: dict[str, int] = {}
         self._next_graph_poll = 0.0
         self.steps = 0
+        # bundle copies in flight in the DTN router after the last step (from the acks; None: no router)
+        self.in_flight: int | None = None
         # crash/restart: current wire step, dedupe keys, recent envelopes per topic, rejoin requests
         self.restart = spec.restart_wait_s > 0
         self.cur_k = -1
@@ -284,6 +289,8 @@ class LockstepClock:
 
     def _progress(self, t_ns: int, wall_s: float, done: bool = False) -> None:
         rec = {"t_ns": t_ns, "horizon_ns": self.horizon_ns, "steps": self.steps, "wall_s": round(wall_s, 4)}
+        if self.in_flight is not None:
+            rec["in_flight"] = self.in_flight
         print(json.dumps({"done" if done else "progress": rec}), flush=True)
 
     # -- checkpoint (clock restart) -------------------------------------------------------------------
@@ -395,12 +402,16 @@ class LockstepClock:
             sent: dict[str, int] = {}
             seq_end: dict[str, int] = {}
             wakes = []
+            in_flight = None
             for a in self.acks.values():
                 for topic, n in a.sent.items():
                     sent[topic] = sent.get(topic, 0) + n
                     self.totals[topic] = self.totals.get(topic, 0) + n
                 seq_end.update(a.seq_end)
                 wakes.append(a.next_wakeup_ns)
+                if a.in_flight is not None:
+                    in_flight = (in_flight or 0) + a.in_flight
+            self.in_flight = in_flight
             if self.journal is not None:
                 self._wait_recorded(msg)
             now = time.monotonic()

@@ -93,6 +93,9 @@ class AckMsg(SimAck, kw_only=True, frozen=True):
     the host's participants, ``sent`` its emits per topic and ``seq_end`` its sources' seq counters.
     ``error`` (non-empty): the host failed this step and says why. ``resume_k`` (hello only): -1 for a
     fresh start, else the last wire step the host committed to its checkpoint before it restarted.
+    ``in_flight``: bundle copies the host's DTN router holds after this step (accepted, arrival
+    still ahead: what the local engine's progress shows), None for a host without a router; the
+    clock passes the sum on in its progress records.
     """
 
     hello: bool = False
@@ -101,6 +104,7 @@ class AckMsg(SimAck, kw_only=True, frozen=True):
     subscriptions: dict[str, int] = {}
     seq_end: dict[str, int] = {}
     error: str = ""
+    in_flight: int | None = None
 
 
 class ResendMsg(msgspec.Struct, kw_only=True, frozen=True, forbid_unknown_fields=True):

@@ -178,7 +178,10 @@ def _run_ros(world, world_path: Path, args, meta, bag_dir: Path, out: Path, rout
     prog, update = _progress_display(show, sc.horizon_ns)
 
     def progress(p) -> None:
-        update(t_ns=p.t_ns, rtf=p.real_time_factor, extra=f"{p.steps:,} steps, {p.steps_per_s:,.0f} steps/s")
+        extra = f"{p.steps:,} steps, {p.steps_per_s:,.0f} steps/s"
+        if p.in_flight is not None:  # the router's count, from its acks (bringup/ros_host.py)
+            extra += f", {p.in_flight} bundles in flight"
+        update(t_ns=p.t_ns, rtf=p.real_time_factor, extra=extra)
 
     if prog is not None:
         prog.start()

@@ -8,7 +8,11 @@ Oracles:
 * toy run over DDS (tests/ros/toy_participants.py): the clock is killed mid-run, the launcher
   restarts it, the run completes and the bag's envelopes equal those of the in-process local
   engine (bringup/local_engine.py) for the same participants; every step is on /clock once and
-  every host acked each step once (no duplicate execution).
+  every host acked each step once (no duplicate execution);
+* toy run whose clock is killed once more than ``max_restarts`` allows: the run fails, its message
+  says where the partial bag is, and that bag (exported by the launcher from the clock's journal)
+  opens with both readers and holds exactly what the local engine's run emits through the last
+  step on its /clock, each step once.
 """
 
 from __future__ import annotations
@@ -66,14 +70,16 @@ os.kill(os.getpid(), signal.SIGKILL)
         assert sorted(m.log_time for _s, _c, m in make_reader(fh).iter_messages()) == [5, 10, 11, 12]
 
 
-def _run_with_clock_kill(tmp_path, kill_steps: list[int]):
+def _run_with_clock_kill(tmp_path, kill_steps: list[int], max_restarts: int | None = None):
     from bringup.launcher import launch
     from bringup.run_spec import RunSpec
     from tests.ros import toy_participants as toy
 
     spec = RunSpec(factory="tests.ros.toy_participants:make", roles=toy.roles(3), horizon_ns=600 * S,
                    max_step_ns=10 * S, real_time_factor=40.0, bag_dir=str(tmp_path / "bag"), ack_timeout_s=5.0,
-                   restart_wait_s=60.0, max_restarts=len(kill_steps), state_dir=str(tmp_path / "state"),
+                   restart_wait_s=60.0,
+                   max_restarts=len(kill_steps) if max_restarts is None else max_restarts,
+                   state_dir=str(tmp_path / "state"),
                    progress_period_s=0.1, extra={"n_counters": 3})
     todo, killed = list(kill_steps), []
 
@@ -126,3 +132,50 @@ def test_toy_run_survives_clock_kill9(tmp_path, kill_steps):
     pairs = [(a.participant, a.k) for a in acks if not a.hello]
     assert len(pairs) == len(set(pairs)) == len(spec.roles) * (ref.steps + 1)  # one ack per host per step
     assert res.last.t_ns == spec.horizon_ns
+
+
+@pytest.mark.faults
+@pytest.mark.ros
+@pytest.mark.timeout(300)
+def test_clock_killed_beyond_its_restarts_leaves_a_partial_bag(tmp_path):
+    from bringup.local_engine import LocalEngine
+    from bringup.recording import BagReader
+    from tests.ros import toy_participants as toy
+
+    spec, res, killed = _run_with_clock_kill(tmp_path, [8, 20], max_restarts=1)
+    logs = {p.name: p.read_text(errors="replace")[-1500:] for p in (tmp_path / "run" / "logs").glob("*.log")}
+    assert len(killed) == 2, (killed, logs)
+    assert not res.ok and res.restarts == {"clock": 1}, (res.message, logs)
+    assert "clock" in res.failed_roles
+    bag_dir = tmp_path / "bag"
+    assert "\n" not in res.message
+    assert "killed by SIGKILL" in res.message and "partial bag (steps before t = " in res.message, res.message
+    assert res.message.endswith(f"in {bag_dir}"), res.message
+    # the reference: what the local engine emits, tagged with the step (sim time) that emitted it
+    cur, steps = [None], []
+    tagged: list[tuple[int | None, tuple]] = []
+
+    def key(e):
+        return (e.t_ns, e.source, e.seq, e.topic, e.data)
+
+    eng = LocalEngine(toy.all_participants(spec), horizon_ns=spec.horizon_ns, max_step_ns=spec.max_step_ns,
+                      sink=lambda e: tagged.append((cur[0], key(e))),
+                      on_step=lambda t: (cur.__setitem__(0, t), steps.append(t)))
+    eng.run()
+    with BagReader(bag_dir) as bag:
+        topics = {t.topic: t.count for t in bag.topics()}
+        clocks = [m.log_time_ns for m in bag.messages(["/clock"])]
+        got = list(bag.envelopes([t for t in topics if t.startswith("/toy/")]))
+    from mcap.reader import make_reader
+
+    with open(next(bag_dir.glob("*.mcap")), "rb") as fh:
+        n_mcap = sum(1 for _ in make_reader(fh).iter_messages(topics=[t for t in topics if t.startswith("/toy/")]))
+    assert n_mcap == len(got)
+    assert len(clocks) == len(set(clocks)) >= 8  # each step once; at least the steps before the first kill
+    last = max(clocks)
+    assert last < spec.horizon_ns
+    nxt = steps[steps.index(last) + 1]  # the step the clock died in (its checkpoint)
+    assert f"steps before t = {nxt / 1e9:g} s" in res.message, res.message
+    want = [k for t, k in tagged if t is None or t <= last]  # start phase (untagged) and steps through `last`
+    assert len(want) > 10 and len(want) < len(tagged)
+    assert sorted(map(key, got)) == sorted(want)  # nothing lost, nothing twice, nothing later
