@@ -52,7 +52,7 @@ from rosbags.typesys import Stores, get_typestore
 
 from bringup.errors import UserError
 from msgs_json.envelope import Envelope
-from msgs_json.wire import WireError, decode_envelope, encode_envelope
+from msgs_json.wire import WireError, decode_envelope, encode_envelope, encode_envelope_bytes
 
 __all__ = [
     "CLOCK_TYPE",
@@ -262,6 +262,7 @@ class BagWriter:
                             and self._w.compression_mode != CompressionMode.MESSAGE) else None
         self._tmin, self._tmax = 2**63 - 1, 0  # the Writer's own bounds (metadata.yaml), kept here
         self._conns: dict[tuple[str, str], Any] = {}
+        self._env_conns: dict[str, Any] = {}  # topic -> its std_msgs/String connection (write_envelope)
         self.counts: dict[str, int] = {}
         self._closed = False
 
@@ -305,7 +306,22 @@ class BagWriter:
 
     def write_envelope(self, env: Envelope) -> None:
         """Record an envelope's wire text as std_msgs/String on its topic at log time ``env.t_ns``."""
-        self.write_raw(env.topic, STRING, string_cdr(encode_envelope(env)), env.t_ns)
+        t = env.t_ns
+        c = self._env_conns.get(env.topic) if self._fast is not None else None
+        if c is None or type(t) is not int or t < 0 or self._closed:
+            self.write_raw(env.topic, STRING, string_cdr(encode_envelope(env)), t)
+            if self._fast is not None and not self._closed:
+                self._env_conns[env.topic] = self._conns[(env.topic, STRING)]
+            return
+        # what write_raw(topic, STRING, string_cdr(encode_envelope(env)), t) does, in one call
+        j = encode_envelope_bytes(env)
+        _fast_write(self._fast, c.id, t, b"".join((_CDR_LE, _U32.pack(len(j) + 1), j, b"\x00")))
+        self._w.counts[c.id] += 1
+        if t < self._tmin:
+            self._tmin = t
+        if t > self._tmax:
+            self._tmax = t
+        self.counts[env.topic] += 1
 
     def write_envelopes(self, envs: Iterable[Envelope]) -> None:
         for e in envs:

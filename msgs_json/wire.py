@@ -22,7 +22,7 @@ import msgspec
 
 from msgs_json.envelope import Envelope
 
-__all__ = ["WireError", "encode_envelope", "decode_envelope"]
+__all__ = ["WireError", "encode_envelope", "encode_envelope_bytes", "decode_envelope"]
 
 
 class WireError(ValueError):
@@ -47,6 +47,18 @@ def encode_envelope(env: Envelope) -> str:
     else:
         w = _Wire(env.t_ns, env.source, env.seq, body=env.data)
     return _enc.encode(w).decode("utf-8")
+
+
+def encode_envelope_bytes(env: Envelope) -> bytes:
+    """``encode_envelope(env).encode("utf-8")`` without the round trip through str (the bag writer's
+    path: ~450k envelopes per paper run)."""
+    d = env.data
+    if type(d) is bytes or isinstance(d, bytes):
+        return _enc.encode(_Wire(env.t_ns, env.source, env.seq, b64=_b64(d).decode("ascii")))
+    return _enc.encode(_Wire(env.t_ns, env.source, env.seq, body=d))
+
+
+_b64 = base64.b64encode
 
 
 def decode_envelope(text: str | bytes, topic: str) -> Envelope:

@@ -44,16 +44,25 @@ def _target(b: Bundle, number: int) -> tuple[int, int, int, bytes]:
     raise IntegrityError(f"BIB target block {number} is not in the bundle")
 
 
+# CBOR encodings of the small unsigned ints the IPPT is made of (0..255, the same bytes as cbor2.dumps)
+_UINT = {i: cbor2.dumps(i) for i in range(256)}
+
+
+def _u(x) -> bytes:
+    e = _UINT.get(x) if type(x) is int else None
+    return e if e is not None else cbor2.dumps(x)
+
+
 def ippt(b: Bundle, target_number: int, scope: int, bib_header: tuple[int, int, int]) -> bytes:
     """Integrity-Protected Plaintext of RFC 9173 3.7."""
     ttype, tnum, tflags, tdata = _target(b, target_number)
-    out = [cbor2.dumps(scope)]
+    out = [_u(scope)]
     if scope & 1:
         out.append(encode_primary(b))
     if scope & 2:
-        out += [cbor2.dumps(ttype), cbor2.dumps(tnum), cbor2.dumps(tflags)]
+        out += [_u(ttype), _u(tnum), _u(tflags)]
     if scope & 4:
-        out += [cbor2.dumps(x) for x in bib_header]
+        out += [_u(x) for x in bib_header]
     out.append(cbor2.dumps(tdata))
     return b"".join(out)
 
@@ -77,7 +86,7 @@ def add_bib(b: Bundle, key: bytes, security_source: tuple[int, int], *, sha_vari
         params.append([3, scope])
     results = []
     for t in targets:
-        mac = hmac.new(key, ippt(b, t, scope, header), SHA_VARIANTS[sha_variant]).digest()
+        mac = hmac.digest(key, ippt(b, t, scope, header), SHA_VARIANTS[sha_variant])
         results.append([[1, mac]])
     seq = [list(targets), BIB_HMAC_SHA2, 1 if params else 0, _eid_cbor(security_source)]
     if params:
@@ -87,7 +96,23 @@ def add_bib(b: Bundle, key: bytes, security_source: tuple[int, int], *, sha_vari
     return b
 
 
+# BIB block-type-specific data -> its parse (a pure function of the bytes; a bundle's BIB is the same at
+# every hop, so a process parses it once). Only successful parses are kept; nobody mutates them.
+_ASB: dict = {}
+
+
 def _parse_asb(data: bytes):
+    got = _ASB.get(data) if type(data) is bytes else None
+    if got is None:
+        got = _parse_asb_plain(data)
+        if type(data) is bytes:
+            if len(_ASB) >= 4096:
+                _ASB.clear()
+            _ASB[data] = got
+    return got
+
+
+def _parse_asb_plain(data: bytes):
     fp = io.BytesIO(data)
     dec = cbor2.CBORDecoder(fp)
     try:
@@ -121,7 +146,7 @@ def verify_bib(b: Bundle, key: bytes, *, required_targets: tuple[int, ...] = (1,
             macs = [r[1] for r in res if isinstance(r, list) and len(r) == 2 and r[0] == 1]
             if len(macs) != 1:
                 raise IntegrityError(f"BIB: no HMAC result for target {t}")
-            want = hmac.new(key, ippt(b, t, scope, (blk.type, blk.number, blk.flags)), SHA_VARIANTS[variant]).digest()
+            want = hmac.digest(key, ippt(b, t, scope, (blk.type, blk.number, blk.flags)), SHA_VARIANTS[variant])
             if not hmac.compare_digest(want, macs[0]):
                 raise IntegrityError(f"BIB: HMAC mismatch on block {t}")
             covered.add(t)

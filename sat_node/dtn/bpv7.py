@@ -171,9 +171,25 @@ class CanonicalBlock:
     def encode(self) -> bytes:
         raw = self._raw
         if raw is None:
-            raw = _encode_with_crc([self.type, self.number, self.flags, self.crc_type, self.data], self.crc_type)
+            t, n, f, c, d = self.type, self.number, self.flags, self.crc_type, self.data
+            if type(t) is int and type(n) is int and type(f) is int and c == 0 and type(c) is int \
+                    and type(d) is bytes:  # plain fields without CRC: the encoding depends on them only
+                key = (t, n, f, d)
+                raw = _BLOCK_RAW.get(key)
+                if raw is None:
+                    raw = cbor2.dumps([t, n, f, c, d])
+                    if len(_BLOCK_RAW) >= 8192:
+                        _BLOCK_RAW.clear()
+                    _BLOCK_RAW[key] = raw
+            else:
+                raw = _encode_with_crc([t, n, f, c, d], c)
             object.__setattr__(self, "_raw", raw)
         return raw
+
+
+# (type, number, flags, data) of a CRC-less block -> its encoding: a bundle's blocks are encoded again
+# at every hop (and most blocks - priority, BIB, previous node, next hop - take few distinct values)
+_BLOCK_RAW: dict = {}
 
 
 _new_block = object.__new__
@@ -241,20 +257,26 @@ class Bundle:
     @property
     def previous_node(self) -> tuple[int, int] | None:
         b = self.block(PREVIOUS_NODE_BLOCK)
-        return None if b is None else _eid_from(_loads(b.data, "previous-node block"), "previous-node block")
+        if b is None:
+            return None
+        eid = _EID_OF.get(b.data)
+        return eid if eid is not None else _eid_from(_loads(b.data, "previous-node block"), "previous-node block")
 
     @previous_node.setter
     def previous_node(self, eid: tuple[int, int]) -> None:
-        self.set_block(PREVIOUS_NODE_BLOCK, cbor2.dumps(_eid_cbor(eid)))
+        self.set_block(PREVIOUS_NODE_BLOCK, _eid_bytes(eid))
 
     @property
     def next_hop(self) -> int | None:
         b = self.block(NEXT_HOP_BLOCK)
-        return None if b is None else _eid_from(_loads(b.data, "next-hop block"), "next-hop block")[0]
+        if b is None:
+            return None
+        eid = _EID_OF.get(b.data)
+        return (eid if eid is not None else _eid_from(_loads(b.data, "next-hop block"), "next-hop block"))[0]
 
     @next_hop.setter
     def next_hop(self, node: int) -> None:
-        self.set_block(NEXT_HOP_BLOCK, cbor2.dumps(_eid_cbor((node, 0))))
+        self.set_block(NEXT_HOP_BLOCK, _eid_bytes((node, 0)))
 
     @property
     def hop_count(self) -> tuple[int, int] | None:
@@ -262,6 +284,9 @@ class Bundle:
         b = self.block(HOP_COUNT_BLOCK)
         if b is None:
             return None
+        hc = _HOP_OF.get(b.data)
+        if hc is not None:
+            return hc
         v = _loads(b.data, "hop-count block")
         if not (isinstance(v, list) and len(v) == 2 and all(isinstance(x, int) and x >= 0 for x in v)):
             raise BundleError(f"hop-count block: not [limit, count]: {v!r}")
@@ -269,7 +294,7 @@ class Bundle:
 
     @hop_count.setter
     def hop_count(self, limit_count: tuple[int, int]) -> None:
-        self.set_block(HOP_COUNT_BLOCK, cbor2.dumps(list(limit_count)))
+        self.set_block(HOP_COUNT_BLOCK, _hop_bytes(limit_count))
 
     @property
     def age_ms(self) -> int | None:
@@ -287,6 +312,45 @@ class Bundle:
 
     def copy(self) -> "Bundle":
         return replace(self, blocks=list(self.blocks))
+
+
+# Known extension blocks' data bytes -> the value their getter parses from them (a handful of distinct
+# values per run; filled only with the encoder's own output for plain ints, so a hit returns exactly
+# what parsing would).
+_EID_OF: dict[bytes, tuple[int, int]] = {}
+_EID_BYTES: dict[tuple[int, int], bytes] = {}
+_HOP_OF: dict[bytes, tuple[int, int]] = {}
+_HOP_BYTES: dict[tuple[int, int], bytes] = {}
+
+
+def _eid_bytes(eid) -> bytes:
+    """``cbor2.dumps(_eid_cbor(eid))``, made once per EID (of plain non-negative ints)."""
+    if type(eid) is tuple and len(eid) == 2:
+        n, sv = eid
+        if type(n) is int and type(sv) is int and n >= 0 and sv >= 0:
+            data = _EID_BYTES.get(eid)
+            if data is None:
+                data = cbor2.dumps(_eid_cbor(eid))
+                if len(_EID_BYTES) < 4096:
+                    _EID_BYTES[eid] = data
+                    _EID_OF[data] = DTN_NONE if eid == DTN_NONE else eid
+            return data
+    return cbor2.dumps(_eid_cbor(eid))
+
+
+def _hop_bytes(limit_count) -> bytes:
+    """``cbor2.dumps(list(limit_count))``, made once per (limit, count) of plain non-negative ints."""
+    if type(limit_count) is tuple and len(limit_count) == 2:
+        lim, cnt = limit_count
+        if type(lim) is int and type(cnt) is int and lim >= 0 and cnt >= 0:
+            data = _HOP_BYTES.get(limit_count)
+            if data is None:
+                data = cbor2.dumps([lim, cnt])
+                if len(_HOP_BYTES) < 4096:
+                    _HOP_BYTES[limit_count] = data
+                    _HOP_OF[data] = limit_count
+            return data
+    return cbor2.dumps(list(limit_count))
 
 
 def _loads(data: bytes, what: str):
@@ -317,7 +381,17 @@ def _encode_primary(b: Bundle) -> bytes:
             [b.creation_ms, b.seq], b.lifetime_ms]
     if b.fragment is not None:
         prim += [b.fragment[0], b.fragment[1]]
-    return _encode_with_crc(prim, b.crc_type)
+    raw = _encode_with_crc(prim, b.crc_type)
+    if b.fragment is None and b.crc_type in (CRC_16, CRC_32C):
+        rpt = b.report_to or b.src
+        _remember_primary((b.flags, b.crc_type, _ipn_key(b.dest), _ipn_key(b.src), _ipn_key(rpt), b.creation_ms,
+                           b.seq, b.lifetime_ms, raw[-_CRC_LEN[b.crc_type]:]), raw)
+    return raw
+
+
+def _ipn_key(eid) -> tuple[int, int]:
+    """What :func:`_ipn_fast` reads back from ``_eid_cbor(eid)``."""
+    return DTN_NONE if eid is None or eid == DTN_NONE else (eid[0], eid[1])
 
 
 def encode_bundle(b: Bundle) -> bytes:
@@ -335,7 +409,19 @@ def encode_bundle(b: Bundle) -> bytes:
         b._enc[key] = raw
     parts.append(raw)
     parts.append(b"\xff")
-    return b"".join(parts)
+    data = b"".join(parts)
+    # what peek_next_hop will find in these bytes: the first next-hop block's EID (blocks' fields as
+    # encoded: plain ints and bytes, the EID one this module encoded), or None without one
+    for blk in b.blocks:
+        if blk.type == NEXT_HOP_BLOCK and type(blk.type) is int:
+            eid = _EID_OF.get(blk.data) if type(blk.data) is bytes else None
+            if eid is not None:
+                _remember_peek(data, eid[0])
+            break
+    else:
+        if all(type(blk.type) is int for blk in b.blocks):
+            _remember_peek(data, None)
+    return data
 
 
 def _uint(x, what: str) -> int:
@@ -387,9 +473,34 @@ def _split_blocks(data: bytes) -> list[tuple[object, bytes]]:
     return raws
 
 
+# bundle bytes -> their next-hop node (what peek_next_hop returns): a transmission's bytes are peeked
+# by the medium and by every node that hears the copy, and encode_bundle knows the answer already
+_PEEK: dict[bytes, int | None] = {}
+
+
+def _remember_peek(data: bytes, nh: int | None) -> None:
+    if len(_PEEK) >= 4096:
+        _PEEK.clear()
+    _PEEK[data] = nh
+
+
 def peek_next_hop(data: bytes) -> int | None:
     """The next-hop block's node number without checking the rest (for copies on a broadcast medium).
     Raises BundleError if the bytes are not a bundle-shaped CBOR array."""
+    if type(data) is bytes:
+        nh = _PEEK.get(data, _MISSING)
+        if nh is not _MISSING:
+            return nh
+        nh = _peek_plain(data)
+        _remember_peek(data, nh)
+        return nh
+    return _peek_plain(data)
+
+
+_MISSING = object()
+
+
+def _peek_plain(data: bytes) -> int | None:
     try:
         items = cbor2.loads(data)
     except Exception as exc:
@@ -403,7 +514,140 @@ def peek_next_hop(data: bytes) -> int | None:
 
 
 def decode_bundle(data: bytes) -> Bundle:
-    """Parse and check bundle bytes; any defect raises :class:`BundleError` with the reason."""
+    """Parse and check bundle bytes; any defect raises :class:`BundleError` with the reason.
+
+    The common shape (CRC on the primary block only, no fragment, every field a plain CBOR int or
+    byte string) takes :func:`_decode_fast`; whatever it does not vouch for goes through the plain
+    checks of :func:`_decode_plain`, which give the reason of any defect."""
+    if type(data) is bytes:
+        b = _decode_fast(data)
+        if b is not None:
+            return b
+    return _decode_plain(data)
+
+
+# (block type, block-type-specific data) of known extension blocks whose data parsed (a handful of
+# distinct values in a run: the 24 previous-node and next-hop EIDs, hop counts 0..limit)
+_EXT_OK: set = set()
+_EXT_KNOWN = frozenset((PREVIOUS_NODE_BLOCK, HOP_COUNT_BLOCK, NEXT_HOP_BLOCK, BUNDLE_AGE_BLOCK))
+_new_bundle = object.__new__
+_CHECK = {CRC_16: lambda raw: crc16_x25(raw[:-2] + b"\0\0").to_bytes(2, "big") == raw[-2:],
+          CRC_32C: lambda raw: crc32c(raw[:-4] + b"\0\0\0\0").to_bytes(4, "big") == raw[-4:]}
+
+
+def _ipn_fast(e):
+    """(node, service) of a well-formed ipn EID item, DTN_NONE for [1, 0], else None (then the
+    plain path decides)."""
+    if type(e) is list and len(e) == 2:
+        s, v = e
+        if type(s) is int:
+            if s == 2 and type(v) is list and len(v) == 2:
+                n, x = v
+                if type(n) is int and type(x) is int and n >= 0 and x >= 0:
+                    return (n, x)
+            elif s == 1 and type(v) is int and v == 0:
+                return DTN_NONE
+    return None
+
+
+def _decode_fast(data: bytes) -> Bundle | None:
+    """The bundle :func:`_decode_plain` would return for ``data``, or None when ``data`` is not of
+    the common shape (then the plain path decides, errors included). It accepts a subset of what
+    the plain path accepts, and builds the same Bundle (tests/unit/test_speed_paths.py compares the
+    two on random bundles and on every one-byte corruption)."""
+    if len(data) < 3 or data[0] != 0x9F or data[-1] != 0xFF:
+        return None
+    try:
+        items = cbor2.loads(data)
+    except Exception:
+        return None
+    if type(items) is not list or len(items) < 2:
+        return None
+    prim = items[0]
+    if type(prim) is not list or len(prim) != 9:
+        return None
+    v, flags, crc_type, dest, src, rpt, ts, life, crc = prim
+    if not (v == 7 and type(v) is int and type(flags) is int and flags >= 0 and not flags & 1
+            and type(crc_type) is int and (crc_type == CRC_16 or crc_type == CRC_32C) and type(crc) is bytes
+            and len(crc) == _CRC_LEN[crc_type] and type(ts) is list and len(ts) == 2 and type(life) is int
+            and life >= 0):
+        return None
+    cms, seq = ts
+    if not (type(cms) is int and type(seq) is int and cms >= 0 and seq >= 0):
+        return None
+    dest, src, rpt = _ipn_fast(dest), _ipn_fast(src), _ipn_fast(rpt)
+    if dest is None or src is None or rpt is None:
+        return None
+    # blocks without CRCs (the plain path's _split_blocks then re-encodes only the primary block)
+    last = len(items) - 1
+    numbers = set()
+    blocks = []
+    seen_ext = set()
+    for i in range(1, last + 1):
+        blk = items[i]
+        if type(blk) is not list or len(blk) != 5:
+            return None
+        btype, num, bflags, bcrc, bd = blk
+        if not (type(btype) is int and type(num) is int and type(bflags) is int and bcrc == 0
+                and type(bcrc) is int and type(bd) is bytes and btype >= 0 and num > 0 and bflags >= 0
+                and num not in numbers):
+            return None
+        numbers.add(num)
+        if i == last:
+            if btype != PAYLOAD_BLOCK or num != 1:
+                return None
+        else:
+            if btype == PAYLOAD_BLOCK:
+                return None
+            if btype in _EXT_KNOWN:
+                if btype in seen_ext:
+                    return None
+                seen_ext.add(btype)
+                if (btype, bd) not in _EXT_OK:
+                    return None
+            blocks.append(_block(btype, num, bflags, 0, bd))
+    if cms == 0 and BUNDLE_AGE_BLOCK not in seen_ext:
+        return None
+    key = (flags, crc_type, dest, src, rpt, cms, seq, life, crc)
+    raw = _PRIM_RAW.get(key)
+    if raw is None:
+        raw = cbor2.dumps(prim)
+        if not _CHECK[crc_type](raw):
+            return None
+        _remember_primary(key, raw)
+    if data[1:1 + len(raw)] != raw:
+        return None
+    b = _new_bundle(Bundle)
+    pblk = items[last]
+    b.__dict__.update(dest=dest, src=src, creation_ms=cms, seq=seq, lifetime_ms=life, payload=pblk[4],
+                      report_to=rpt, flags=flags, crc_type=crc_type, fragment=None, blocks=blocks,
+                      payload_crc_type=0, payload_flags=pblk[2], primary_raw=raw, _enc={})
+    return b
+
+
+# primary block fields (as _decode_fast reads them, CRC bytes included) -> cbor2.dumps of that primary
+# block, its CRC checked: a bundle's primary block never changes on its way (RFC 9171 4.3.1), so a
+# process that made or saw it once does not encode it again. A hit is only taken when these bytes
+# are exactly the received ones.
+_PRIM_RAW: dict = {}
+
+
+def _remember_primary(key: tuple, raw: bytes) -> None:
+    if len(_PRIM_RAW) >= 8192:
+        _PRIM_RAW.clear()
+    _PRIM_RAW[key] = raw
+
+
+def _remember_ext(b: Bundle) -> None:
+    """Note the known extension blocks of ``b`` (the plain path has just parsed each of them)."""
+    if len(_EXT_OK) > 4096:
+        _EXT_OK.clear()
+    for blk in b.blocks:
+        if blk.type in _EXT_KNOWN and blk.crc_type == CRC_NONE:
+            _EXT_OK.add((blk.type, blk.data))
+
+
+def _decode_plain(data: bytes) -> Bundle:
     if not isinstance(data, (bytes, bytearray, memoryview)):
         raise BundleError(f"bundle is {type(data).__name__}, not bytes")
     data = bytes(data)
@@ -469,4 +713,5 @@ def decode_bundle(data: bytes) -> Bundle:
         raise BundleError("no creation time and no bundle-age block (RFC 9171 4.2.6)")
     # the known extension blocks must parse
     b.previous_node, b.hop_count, b.next_hop, b.age_ms  # noqa: B018 (validation by access)
+    _remember_ext(b)
     return b

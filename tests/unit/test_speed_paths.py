@@ -114,3 +114,109 @@ def test_fast_chunk_reader_yields_what_rosbags_yields(tmp_path):
         sm.msgsrc = fast_fn
     assert fast_fn is not sm._msgsrc_orig
     assert len(fast) == 30600 and fast == slow
+
+
+def _random_bundles(n: int, seed: int):
+    """Bundles of every shape decode_bundle meets: the agent's (priority, hop count, BIB, previous node,
+    next hop) and others (CRC-32C or no CRC, fragments, CRCs on blocks, unknown blocks, bundle age,
+    creation time 0, report-to, dtn:none)."""
+    import cbor2
+
+    from sat_node.dtn.bpsec import add_bib
+    from sat_node.dtn.bpv7 import CRC_16, CRC_32C, CRC_NONE, Bundle, CanonicalBlock
+
+    rng = random.Random(seed)
+    out = []
+    for i in range(n):
+        b = Bundle(dest=(rng.randrange(0, 40), rng.choice([0, 1])), src=(rng.randrange(1, 40), 1),
+                   creation_ms=rng.choice([0, rng.randrange(1, 2**40)]), seq=rng.randrange(0, 300),
+                   lifetime_ms=rng.randrange(0, 10**7), payload=bytes(rng.randrange(256) for _ in range(rng.randrange(0, 90))),
+                   crc_type=rng.choice([CRC_16, CRC_16, CRC_32C, CRC_NONE]),
+                   report_to=rng.choice([None, None, (0, 0), (7, 2)]))
+        if rng.random() < 0.1:
+            b.flags, b.fragment = 1, (rng.randrange(0, 50), rng.randrange(50, 500))
+        if b.creation_ms == 0 or rng.random() < 0.2:
+            b.age_ms = rng.randrange(0, 10**6)
+        if rng.random() < 0.8:
+            b.set_block(193, cbor2.dumps(rng.randrange(1, 16)))
+            b.hop_count = (32, rng.randrange(0, 5))
+            add_bib(b, b"k" * 32, (b.src[0], 0))
+        if rng.random() < 0.7:
+            b.previous_node = (rng.randrange(0, 40), 0)
+        if rng.random() < 0.8:
+            b.next_hop = rng.randrange(0, 40)
+        if rng.random() < 0.15:
+            b.blocks.append(CanonicalBlock(200 + i % 3, 40 + i % 5, i % 2, rng.choice([CRC_NONE, CRC_16, CRC_32C]), b"\x01\x02"))
+        if rng.random() < 0.1:
+            b.payload_crc_type = CRC_32C
+        out.append(b)
+    return out
+
+
+def _decode_outcome(fn, data):
+    from sat_node.dtn.bpv7 import BundleError
+
+    try:
+        b = fn(data)
+    except BundleError as exc:
+        return ("error", str(exc))
+    # repr tells 1 from True; primary_raw is not part of Bundle equality
+    return ("ok", repr(b), b.primary_raw)
+
+
+def test_fast_decode_equals_plain_decode_on_random_bundles_and_corruptions():
+    from sat_node.dtn import bpv7
+
+    rng = random.Random(3)
+    n_fast = 0
+    for b in _random_bundles(300, 11):
+        raw = bpv7.encode_bundle(b)
+        want = _decode_outcome(bpv7._decode_plain, raw)
+        assert want[0] == "ok"
+        assert _decode_outcome(bpv7.decode_bundle, raw) == want
+        n_fast += bpv7._decode_fast(raw) is not None
+        assert bpv7.peek_next_hop(raw) == bpv7._peek_plain(raw)  # encode_bundle's remembered answer
+        for _ in range(12):  # corruptions: the fast path must never accept what the plain one rejects
+            bad = bytearray(raw)
+            i = rng.randrange(len(bad))
+            bad[i] ^= rng.choice([1, 2, 0x20, 0x80, 0xFF])
+            bad = bytes(bad)
+            assert _decode_outcome(bpv7.decode_bundle, bad) == _decode_outcome(bpv7._decode_plain, bad), (raw.hex(), i)
+    assert n_fast > 100  # the fast path is really taken on the common shape
+
+
+def test_block_and_primary_encodings_from_caches_equal_fresh_ones():
+    import cbor2
+
+    from sat_node.dtn import bpv7
+
+    for b in _random_bundles(100, 5):
+        raw = bpv7.encode_bundle(b)
+        items = cbor2.loads(raw)
+        assert raw[1:1 + len(cbor2.dumps(items[0]))] == cbor2.dumps(items[0])
+        fresh = bpv7.Bundle(**{f: getattr(b, f) for f in ("dest", "src", "creation_ms", "seq", "lifetime_ms",
+                                                           "payload", "report_to", "flags", "crc_type", "fragment",
+                                                           "payload_crc_type", "payload_flags")})
+        fresh.blocks = [bpv7.CanonicalBlock(x.type, x.number, x.flags, x.crc_type, x.data) for x in b.blocks]
+        bpv7._BLOCK_RAW.clear()
+        bpv7._PRIM_RAW.clear()
+        assert bpv7.encode_bundle(fresh) == raw
+
+
+def test_bib_verify_with_parse_cache_still_rejects():
+    import pytest
+
+    from sat_node.dtn.bpsec import IntegrityError, add_bib, verify_bib
+    from sat_node.dtn.bpv7 import decode_bundle, encode_bundle
+
+    for b in _random_bundles(40, 9):
+        if b.block(11) is None:
+            add_bib(b, b"k" * 32, (b.src[0], 0))
+        raw = encode_bundle(b)
+        verify_bib(decode_bundle(raw), b"k" * 32)  # parse cached now
+        with pytest.raises(IntegrityError):
+            verify_bib(decode_bundle(raw), b"x" * 32)
+        c = decode_bundle(raw)
+        c.payload = c.payload + b"!"
+        with pytest.raises(IntegrityError):
+            verify_bib(c, b"k" * 32)
