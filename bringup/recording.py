@@ -33,6 +33,9 @@ Reader API::
 Oracle: tests/unit/test_recording.py writes a bag in tmp_path and reads it back with BOTH the
 ``mcap`` reader (+ mcap-ros2-support decoding, an independent implementation) and ``rosbags``;
 the hand-written std_msgs/String CDR is checked byte for byte against rosbags' serializer.
+The speed paths (issue 5: one-call envelope writes, chunk reads, memoised QoS YAML dumps and
+parses) give byte-identical bags and the same messages as rosbags' own paths
+(tests/unit/test_speed_paths.py).
 """
 
 from __future__ import annotations
@@ -43,6 +46,8 @@ from pathlib import Path
 from typing import Any, NamedTuple, Self
 
 from rosbags.interfaces import Qos, QosDurability, QosHistory, QosLiveliness, QosReliability, QosTime
+import rosbags.rosbag2.metadata as _rosbags_metadata
+import rosbags.rosbag2.reader as _rosbags_reader
 import rosbags.rosbag2.storage_mcap as _rosbags_mcap
 import rosbags.rosbag2.writer as _rosbags_writer
 from rosbags.rosbag2 import Reader, Writer
@@ -205,6 +210,27 @@ def _timestamp(m):
 
 _rosbags_mcap._msgsrc_orig = _msgsrc_orig
 _rosbags_mcap.msgsrc = _fast_msgsrc
+
+# Opening a bag: rosbags parses each connection's offered_qos_profiles YAML text with a new ruamel
+# parser (~7 ms each, ~400 connections in a paper run's bag: ~2.5 s per open). The parse is a pure
+# function of the text and gives immutable Qos tuples, so each distinct text is parsed once (a
+# failure is not remembered: it raises again as before).
+_parse_qos_orig = getattr(_rosbags_metadata, "_parse_qos_orig", _rosbags_metadata.parse_qos)
+_QOS_PARSED: dict[str, tuple] = {}
+
+
+def _parse_qos_memo(dcts):
+    if type(dcts) is not str:
+        return _parse_qos_orig(dcts)
+    got = _QOS_PARSED.get(dcts)
+    if got is None:
+        got = _QOS_PARSED[dcts] = tuple(_parse_qos_orig(dcts))
+    return list(got)
+
+
+_rosbags_metadata._parse_qos_orig = _parse_qos_orig
+for _m in (_rosbags_metadata, _rosbags_reader, _rosbags_mcap):
+    _m.parse_qos = _parse_qos_memo
 
 
 def string_cdr(text: str) -> bytes:

@@ -17,7 +17,9 @@ ended fails with ``radio_busy``. Receiver-side collisions (two senders heard at 
 modelled (the study's link budget does not either).
 
 How we know it is right: tests/unit/test_link.py on drawn plans (copies to every node in view,
-arrival = end + light time, a contact ending mid-transmission fails, a cut contact fails).
+arrival = end + light time, a contact ending mid-transmission fails, a cut contact fails), and
+tests/unit/test_speed_paths.py (open_contacts, which skips contacts that started more than the
+longest contact ago, equals the full scan on a random plan).
 """
 
 from __future__ import annotations
@@ -53,13 +55,18 @@ class LinkModel:
         for c in truth.contacts:
             self._by_src.setdefault(c.src, []).append(c)
         self._starts = {s: [c.start_s for c in cs] for s, cs in self._by_src.items()}
+        # contacts that started more than the longest contact (+1 s against rounding) before t have
+        # ended by t: open_contacts scans only the starts after that
+        self._span_s = max((c.end_s - c.start_s for c in truth.contacts), default=0.0) + 1.0
         self._busy_until_ns: dict[str, int] = {}
         self.counters = {"tx": 0, "ok": 0, "no_contact": 0, "contact_ended": 0, "radio_busy": 0, "copies": 0}
 
     def open_contacts(self, sender: str, t_s: float) -> list[Contact]:
         cs = self._by_src.get(sender, [])
-        k = bisect.bisect_right(self._starts.get(sender, []), t_s)
-        return [c for c in cs[:k] if c.end_s > t_s]
+        starts = self._starts.get(sender, [])
+        k = bisect.bisect_right(starts, t_s)
+        lo = bisect.bisect_left(starts, t_s - self._span_s, 0, k)
+        return [c for c in cs[lo:k] if c.end_s > t_s]
 
     def transmit(self, sender: str, next_hop: str, start_ns: int, bits: int) -> LinkOutcome:
         self.counters["tx"] += 1

@@ -31,6 +31,8 @@ import itertools
 
 from msgs_json import codec, schemas as S, topics as T
 from msgs_json.envelope import Emit, Envelope, StepResult
+from orbit_clock.contact_plan import node_name
+from sat_node.dtn.bpv7 import BundleError, peek_next_hop
 
 __all__ = ["RouterLogic", "ROUTER_NAME"]
 
@@ -48,6 +50,7 @@ class RouterLogic:
 
         self.world = world
         self.sats = list(world.sat_names)
+        self._sat_set = frozenset(self.sats)
         self.bits = int(bundle_bits or world.scenario.isl.bundle_bits)
         plan = truth_plan or world.isl_plan
         if cuts:
@@ -101,9 +104,6 @@ class RouterLogic:
         return []
 
     def _transmit(self, env: Envelope) -> None:
-        from sat_node.dtn.bpv7 import BundleError, peek_next_hop
-        from orbit_clock.contact_plan import node_name
-
         if not isinstance(env.data, bytes):
             return self._reject("not_bytes")
         if env.topic != self._out_topic.get(env.source):
@@ -115,7 +115,7 @@ class RouterLogic:
             return self._reject("malformed")
         if next_hop is None:
             return self._reject("no_next_hop")
-        if next_hop not in self.sats:
+        if next_hop not in self._sat_set:
             return self._reject("unknown_next_hop")
         out = self.link.transmit(env.source, next_hop, env.t_ns, self.bits)
         if not out.ok:

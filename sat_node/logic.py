@@ -51,6 +51,7 @@ from sat_node.value import Belief, KnownObservation
 __all__ = ["SatelliteLogic", "PersistenceOsse", "observation_payload", "parse_observation_payload"]
 
 _NS = 1_000_000_000
+_NO_INFO = object()  # sentinel: no _ev_info entry for an event
 # a transmission's status report comes at most a few lockstep steps after its end; keep it this long
 
 
@@ -147,6 +148,7 @@ class SatelliteLogic:
             self.tx_failed: dict[str, int] = {}
         self.rejected_by_reason: dict[str, int] = {}
         self._topics: tuple[str, str] | None = None  # (status, in) topic names, made on first use
+        self._radio_topics: tuple[str, str] | None = None  # (dtn out, dtn events), made on first use
 
     # ------------------------------------------------------------------ contract
     def subscriptions(self) -> list[str]:
@@ -400,15 +402,20 @@ class SatelliteLogic:
     def _radio(self, t_ns: int) -> list[Emit]:
         emits: list[Emit] = []
         self.agent.expire(t_ns)
+        radio_topics = self._radio_topics
+        if radio_topics is None:
+            radio_topics = self._radio_topics = (T.dtn_out_topic(self.name), T.dtn_events_topic(self.name))
+        out_topic, topic = radio_topics
         for tx in self.agent.transmissions_until(t_ns):
-            emits.append(Emit(T.dtn_out_topic(self.name), tx.bundle_bytes, tx.start_ns))
+            emits.append(Emit(out_topic, tx.bundle_bytes, tx.start_ns))
             self._next_hop[tx.bundle_id] = tx.next_hop
         evs = self.agent.events
-        topic = T.dtn_events_topic(self.name)
-        for ev in evs[self._ev_done:]:
-            msg = self._event_msg(ev)
-            if msg is not None:
-                emits.append(Emit(topic, codec.encode(msg), min(ev.t_ns, t_ns)))
+        if len(evs) > self._ev_done:
+            encode = codec.encode
+            for ev in evs[self._ev_done:]:
+                msg = self._event_msg(ev)
+                if msg is not None:
+                    emits.append(Emit(topic, encode(msg), min(ev.t_ns, t_ns)))
         self._ev_done = len(evs)
         if len(evs) > 4096:  # keep memory flat over long runs
             del evs[:]
@@ -447,10 +454,11 @@ class SatelliteLogic:
 
     def _event_msg(self, ev):
         """The agent's event as a msgs_json bundle event (None when it names no bundle we can tell)."""
-        if id(ev) in self._ev_info and self._ev_info[id(ev)] is None:
-            del self._ev_info[id(ev)]
+        info = self._ev_info.pop(id(ev), _NO_INFO)
+        if info is None:  # marked: an overheard copy's event, reported as a counter only
             return None
-        info = self._ev_info.pop(id(ev), None)
+        if info is _NO_INFO:
+            info = None
         base = {"sat": self.name, "t_ns": ev.t_ns}
         if info is not None:
             bid, src, dst, prio, created = (info["bundle_id"], info["src"], info["dst"], info["priority"],

@@ -12,7 +12,8 @@ constellation's shared key, given to :func:`add_bib` / :func:`verify_bib`.
 
 How we know it is right: RFC 9173 appendix A.1 (key 1a2b...1a2b, HMAC 512, scope 0, payload "Ready to
 generate a 32-byte payload"): same IPPT bytes and the same 64-byte MAC as the RFC
-(tests/unit/test_bpsec.py); a flipped payload bit, a wrong key and a truncated BIB all fail.
+(tests/unit/test_bpsec.py); a flipped payload bit, a wrong key and a truncated BIB all fail, also
+after the same BIB bytes were parsed once and cached (tests/unit/test_speed_paths.py).
 """
 
 from __future__ import annotations

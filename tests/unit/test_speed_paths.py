@@ -220,3 +220,40 @@ def test_bib_verify_with_parse_cache_still_rejects():
         c.payload = c.payload + b"!"
         with pytest.raises(IntegrityError):
             verify_bib(c, b"k" * 32)
+
+
+def test_open_contacts_window_equals_full_scan():
+    from dtn_router.link import LinkModel
+    from orbit_clock.contact_plan import Contact, ContactPlan
+
+    rng = random.Random(4)
+    cs = []
+    for _ in range(400):
+        s = rng.uniform(0, 20000)
+        a, b = rng.sample(["sat_11", "sat_12", "sat_13", "sat_14"], 2)
+        cs.append(Contact(s, s + rng.choice([1.0, rng.uniform(1, 3000)]), a, b, 1e4, 0.01))
+    lm = LinkModel(ContactPlan(cs))
+    for _ in range(3000):
+        t = rng.choice([rng.uniform(-10, 24000), rng.choice(cs).start_s, rng.choice(cs).end_s])
+        sender = rng.choice(["sat_11", "sat_12", "sat_13", "sat_14", "sat_99"])
+        full = [c for c in lm._by_src.get(sender, []) if c.start_s <= t and c.end_s > t]
+        assert lm.open_contacts(sender, t) == full
+
+
+def test_memoised_qos_parse_equals_rosbags_parse(tmp_path):
+    import rosbags.rosbag2.metadata as md
+
+    _write(tmp_path / "bag", False)
+    with BagReader(tmp_path / "bag") as r:
+        fast = [(c.topic, c.ext.offered_qos_profiles) for c in r._r.connections]
+    import bringup.recording as rec
+
+    for m in (md, rec._rosbags_reader, rec._rosbags_mcap):
+        m.parse_qos = md._parse_qos_orig
+    try:
+        with BagReader(tmp_path / "bag") as r:
+            slow = [(c.topic, c.ext.offered_qos_profiles) for c in r._r.connections]
+    finally:
+        for m in (md, rec._rosbags_reader, rec._rosbags_mcap):
+            m.parse_qos = rec._parse_qos_memo
+    assert len(fast) >= 8 and fast == slow and any(q for _t, q in fast)
