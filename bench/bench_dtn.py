@@ -17,6 +17,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from dtn_router.des import latency_lower_bounds, run_dtn  # noqa: E402
 from orbit_clock.contact_plan import read_contact_plan  # noqa: E402
+from sat_node.dtn.agent import AgentConfig, deadline_delays  # noqa: E402
 from sat_node.dtn.cgr import ContactGraph  # noqa: E402
 from sat_node.dtn.stats import dtn_report  # noqa: E402
 from sat_node.dtn.traffic import read_traffic  # noqa: E402
@@ -27,6 +28,8 @@ INPUTS = Path(os.environ.get("PAPER_INPUTS", Path(__file__).resolve().parents[2]
 def main() -> int:
     ap = argparse.ArgumentParser()
     ap.add_argument("--cases", nargs="+", default=["case4", "case1"])
+    ap.add_argument("--queue", choices=["priority", "deadline"], default="priority",
+                    help="send order (constellation dtn --queue)")
     args = ap.parse_args()
     plan = read_contact_plan(INPUTS / "contact_plan_3p_8s.csv", rate_bps=1000)
     g = ContactGraph(plan)
@@ -43,7 +46,9 @@ def main() -> int:
     for case in args.cases:
         traffic = read_traffic(INPUTS / f"traffic_{case}.csv")
         t0 = time.perf_counter()
-        run = run_dtn(plan, traffic)
+        cfg = AgentConfig(priority_delay_s=deadline_delays(AgentConfig().ttl_s_by_priority)) \
+            if args.queue == "deadline" else None
+        run = run_dtn(plan, traffic, config=cfg)
         lb = latency_lower_bounds(plan, traffic, 2000, run.created_ids)
         wall = time.perf_counter() - t0
         r = dtn_report(run.events, held=run.held(), lower_bound_s=lb)

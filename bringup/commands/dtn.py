@@ -24,6 +24,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--bundle-bits", type=int, default=2000, help="bundle size on the link [bit] (default: 2000)")
     p.add_argument("--ttl-s", default="1:900,3:1800,15:3000",
                    help="TTL by priority as 'maxprio:seconds,...' (default: the study's 1:900,3:1800,15:3000)")
+    p.add_argument("--queue", choices=["priority", "deadline"], default="priority",
+                   help="send order: 'priority' (strict, 1 first; the study's) or 'deadline' (earliest expiry "
+                        "first: no bundle is left to its TTL while younger high-priority ones go, at the cost "
+                        "of mean latency)")
     p.add_argument("--json", action="store_true", help="print the figures as one JSON object")
     p.add_argument("--dump-bundles", type=Path, default=None, metavar="DIR",
                    help="write the encoded bytes of the first 100 bundles created, one <id>.bpv7 file each")
@@ -43,7 +47,7 @@ def _parse_ttl(text: str) -> dict[int, float]:
 def run(args: argparse.Namespace) -> int:
     from dtn_router.des import latency_lower_bounds, run_dtn
     from orbit_clock.contact_plan import ContactPlanError, read_contact_plan
-    from sat_node.dtn.agent import AgentConfig
+    from sat_node.dtn.agent import AgentConfig, deadline_delays
     from sat_node.dtn.stats import dtn_report
     from sat_node.dtn.traffic import TrafficError, read_traffic
 
@@ -58,7 +62,9 @@ def run(args: argparse.Namespace) -> int:
     unknown = sorted({t.source for t in traffic} - set(plan.nodes))
     if unknown:
         raise UserError(f"{args.traffic}: sources {unknown[:5]} have no contact in {args.contact_plan}")
-    config = AgentConfig(ttl_s_by_priority=_parse_ttl(args.ttl_s), bundle_bits=args.bundle_bits)
+    ttl = _parse_ttl(args.ttl_s)
+    config = AgentConfig(ttl_s_by_priority=ttl, bundle_bits=args.bundle_bits,
+                         priority_delay_s=deadline_delays(ttl) if args.queue == "deadline" else None)
     dump = None
     if args.dump_bundles is not None:
         args.dump_bundles.mkdir(parents=True, exist_ok=True)

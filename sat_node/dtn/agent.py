@@ -16,7 +16,8 @@ agents live in one process:
 * :meth:`BundleAgent.transmissions_until` - what the one radio sends up to ``t_ns``. The next hop is
   chosen at transmission time, not at enqueue time: whenever the radio is free, held bundles are
   taken in send order (priority 1 first, then creation time; or, with ``priority_delay_s``, the
-  earliest virtual deadline creation + delay(priority)), each routed by CGR from that instant; the
+  earliest virtual deadline creation + delay(priority); :func:`deadline_delays` makes that the
+  earliest expiry), each routed by CGR from that instant; the
   first whose best route leaves on a contact open now is sent. Bundles that route alike (same
   destination, excluded previous node and excluded contacts) form a group; a group whose best route
   waits for a contact not open yet is parked until that contact - or any other outgoing contact of
@@ -65,7 +66,7 @@ from .cgr import ContactGraph
 from .store import BundleStore, StoredBundle
 
 __all__ = ["BundleAgent", "AgentConfig", "Transmission", "BundleEvent", "PRIORITY_BLOCK", "ttl_s_for_priority",
-           "DROP_REASONS"]
+           "DROP_REASONS", "deadline_delays"]
 
 PRIORITY_BLOCK = 193  # experimental (RFC 9171 9.1): CBOR uint, 1 (highest) .. 15
 DROP_REASONS = ("ttl", "integrity", "no_route", "hop_limit", "other")
@@ -74,6 +75,20 @@ _NS = 1_000_000_000
 # pure function of the (immutable) bytes, so each transmission is parsed once per process.
 _PEEK_CACHE: dict[bytes, int | None] = {}
 _MISSING = object()
+
+
+def deadline_delays(ttl_s_by_priority: dict[int, float]) -> tuple[float, ...]:
+    """``AgentConfig.priority_delay_s`` for earliest-expiry-first sending (each priority's TTL)."""
+    return tuple(ttl_s_for_priority(p, ttl_s_by_priority) for p in range(1, 16))
+
+
+def _priority_of(data: bytes) -> int:
+    """The priority block's CBOR uint (the 15 one-byte encodings are looked up, not parsed)."""
+    p = _PRIORITY_BYTES.get(data)
+    return p if p is not None else int(cbor2.loads(data))
+
+
+_PRIORITY_BYTES = {cbor2.dumps(p): p for p in range(0, 24)}
 
 
 def ttl_s_for_priority(priority: int, ttl_s_by_priority: dict[int, float]) -> float:
@@ -187,6 +202,7 @@ class BundleAgent:
         self._expiry_heap: list = []
         self._out_starts = self.graph.out_starts.get(node, np.zeros(0))
         self.radio_free_ns = 0
+        self._settle_ns = int(round(self.config.settle_delay_s * 1e9))
         self.last_received: Bundle | None = None  # what the last receive() decoded (None: nothing)
         self._seq = 0 if store is None else store.get_meta("seq")
         if store is not None:
@@ -291,7 +307,7 @@ class BundleAgent:
             if self.config.verify_integrity:
                 verify_bib(b, self.config.key)
             prio_blk = b.block(PRIORITY_BLOCK)
-            priority = int(cbor2.loads(prio_blk.data)) if prio_blk is not None else 15
+            priority = _priority_of(prio_blk.data) if prio_blk is not None else 15
             if not 1 <= priority <= 15:
                 raise ValueError(f"priority block holds {priority}, not 1..15")
             dest = node_name(b.dest[0])
@@ -550,10 +566,13 @@ class BundleAgent:
         removed from the persistent store (a process killed mid-transmission still has it)."""
         if not self._in_flight:
             return
-        settle_ns = int(round(self.config.settle_delay_s * 1e9))
+        settle_ns = self._settle_ns
         # _in_flight is in send order, and the one radio's transmissions end in that order (each starts
         # after the previous one's end; a failed one leaves and is sent again later, at the end): the
         # settled ones are a prefix, so stop at the first that is not (this runs on every copy heard).
+        first = next(iter(self._in_flight.values()))[0]
+        if first.end_ns + settle_ns > now_ns:
+            return
         done = []
         for bid, (tx, _h) in self._in_flight.items():
             if tx.end_ns + settle_ns > now_ns:

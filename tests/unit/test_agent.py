@@ -79,3 +79,21 @@ def test_missed_contact_reroutes_and_failed_transmission_returns():
     # the only contact to sat_12 was excluded after the failure: nothing else reaches it
     assert a["sat_11"].counters["tx_failed"] == 1 and a["sat_11"].counters["dropped.no_route"] == 1
     assert b1 == tx.bundle_id
+
+
+def test_deadline_queue_sends_the_earliest_expiry_first():
+    """Strict priority sends a new P1 before an older P9; earliest-expiry-first ('deadline' queue:
+    priority_delay_s = each priority's TTL) sends the P9 first when it expires sooner, and the P1
+    first when the P1 expires sooner."""
+    from sat_node.dtn.agent import deadline_delays
+    assert deadline_delays({1: 900.0, 3: 1800.0, 15: 3000.0}) == (900.0, 1800.0, 1800.0) + (3000.0,) * 12
+    ttl = {1: 30.0, 3: 60.0, 15: 100.0}
+    for delays, p1_created_s, first in ((None, 75, "new"), (deadline_delays(ttl), 75, "old"),
+                                        (deadline_delays(ttl), 65, "new")):
+        a = agents(ttl_s_by_priority=ttl, priority_delay_s=delays)
+        a["sat_12"].radio_free_ns = 80 * S  # busy until 80 s: both wait for the same decision
+        ids = {"old": a["sat_12"].originate(b"old", "sat_11", 9, 0),  # expires at 100 s
+               "new": a["sat_12"].originate(b"new", "sat_11", 1, p1_created_s * S)}  # at 105 s or 95 s
+        order = [t.bundle_id for t in a["sat_12"].transmissions_until(90 * S)]
+        other = "old" if first == "new" else "new"
+        assert order == [ids[first], ids[other]], (delays, p1_created_s)
