@@ -19,7 +19,6 @@ from dtn_router.des import latency_lower_bounds, run_dtn  # noqa: E402
 from orbit_clock.contact_plan import read_contact_plan  # noqa: E402
 from sat_node.dtn.agent import AgentConfig, deadline_delays  # noqa: E402
 from sat_node.dtn.cgr import ContactGraph  # noqa: E402
-from sat_node.dtn.stats import dtn_report  # noqa: E402
 from sat_node.dtn.traffic import read_traffic  # noqa: E402
 
 INPUTS = Path(os.environ.get("PAPER_INPUTS", Path(__file__).resolve().parents[2] / "shared" / "paper_inputs"))
@@ -51,7 +50,7 @@ def main() -> int:
         run = run_dtn(plan, traffic, config=cfg)
         lb = latency_lower_bounds(plan, traffic, 2000, run.created_ids)
         wall = time.perf_counter() - t0
-        r = dtn_report(run.events, held=run.held(), lower_bound_s=lb)
+        r = run.report(lb)
         print(f"{case:6s} {r['dtn.bundles_created']:7d} {r['dtn.bundles_delivered']:9d} {r['dtn.delivery_ratio']:.4f} "
               f"{r['dtn.latency_s.mean']:7.1f} {r['dtn.latency_s.lower_bound_mean']:8.1f} "
               f"{r['dtn.latency_s.mean'] / r['dtn.latency_s.lower_bound_mean']:14.2f} {r['dtn.latency_s.median']:8.1f} "

@@ -47,6 +47,15 @@ class DtnRun:
     def held(self) -> int:
         return sum(a.held_count() for a in self.agents.values())
 
+    def discarded(self) -> dict[str, int]:
+        """Copies discarded by :meth:`BundleAgent.overheard` (no event record), by reason."""
+        return {"not_next_hop": sum(a.counters["discarded.not_next_hop"] for a in self.agents.values())}
+
+    def report(self, lower_bound_s: dict[str, float] | None = None) -> dict:
+        """The dtn.* figures of this run (:func:`sat_node.dtn.stats.dtn_report`)."""
+        from sat_node.dtn.stats import dtn_report
+        return dtn_report(self.events, held=self.held(), lower_bound_s=lower_bound_s, discarded=self.discarded())
+
 
 def _payload(item: TrafficItem, size: int) -> bytes:
     head = f'{{"packet_id":"{item.packet_id}","region":"{item.region}","t_s":{item.t_s}}}'.encode()
@@ -109,8 +118,9 @@ def run_dtn(plan: ContactPlan, traffic: list[TrafficItem], *, config: AgentConfi
             service(item.source, t)
         elif kind == _ARRIVE:
             node, raw, sender = data
-            if node in agents:
-                status = agents[node].receive(raw, sender, t)
+            a = agents.get(node)
+            if a is not None and not a.overheard(raw, t):  # a copy for another node is only counted
+                status = a.receive(raw, sender, t)
                 if status == "queued":  # nothing else changes what the agent's radio does
                     service(node, t)
         else:

@@ -48,7 +48,6 @@ def run(args: argparse.Namespace) -> int:
     from dtn_router.des import latency_lower_bounds, run_dtn
     from orbit_clock.contact_plan import ContactPlanError, read_contact_plan
     from sat_node.dtn.agent import AgentConfig, deadline_delays
-    from sat_node.dtn.stats import dtn_report
     from sat_node.dtn.traffic import TrafficError, read_traffic
 
     t0 = time.perf_counter()
@@ -70,9 +69,8 @@ def run(args: argparse.Namespace) -> int:
         args.dump_bundles.mkdir(parents=True, exist_ok=True)
         dump = args.dump_bundles
     run_ = run_dtn(plan, traffic, config=config, dump_dir=dump, dump_count=100)
-    report = dtn_report(run_.events, held=run_.held(),
-                        lower_bound_s=None if args.no_lower_bound else
-                        latency_lower_bounds(plan, traffic, args.bundle_bits, run_.created_ids))
+    report = run_.report(None if args.no_lower_bound else
+                         latency_lower_bounds(plan, traffic, args.bundle_bits, run_.created_ids))
     report["dtn.sim_wall_s"] = run_.wall_s
     report["runtime.wall_s"] = time.perf_counter() - t0
     if args.json:

@@ -23,14 +23,16 @@ def _pct(x, q):
     return float(np.percentile(np.asarray(x, dtype=float), q)) if len(x) else None
 
 
-def dtn_report(events, *, lower_bound_s: dict[str, float] | None = None, held: int | None = None) -> dict:
+def dtn_report(events, *, lower_bound_s: dict[str, float] | None = None, held: int | None = None,
+               discarded: dict[str, int] | None = None) -> dict:
     """Flat dict of dtn.* figures. ``lower_bound_s``: bundle id -> latency bound [s]; ``held``: bundles
-    still held by agents at the end (for the conservation figure)."""
+    still held by agents at the end (for the conservation figure); ``discarded``: copies discarded
+    without an event record, by reason (the agents' ``overheard`` counters)."""
     created: dict[str, object] = {}
     delivered: dict[str, object] = {}
     drops: Counter = Counter()
     dropped_ids = set()
-    discarded = Counter()
+    discarded = Counter(discarded or {})
     for ev in events:
         if ev.kind == "created":
             created[ev.bundle_id] = ev

@@ -4,7 +4,6 @@ import pytest
 
 from dtn_router.des import latency_lower_bounds, run_dtn
 from orbit_clock.contact_plan import Contact, ContactPlan, read_contact_plan
-from sat_node.dtn.stats import dtn_report
 from sat_node.dtn.traffic import TrafficItem, read_traffic
 
 #   sat_11 --[0;1000] owlt 0.5--> sat_12 --[0;1000] owlt 0.5--> sat_13   (and reverse)
@@ -15,7 +14,7 @@ PLAN = ContactPlan([Contact(0.0, 1000.0, a, b, 1000.0, 0.5) for a, b in
 def test_chain_hand_worked_latencies():
     traffic = [TrafficItem(10.0, "sat_11", "sat_12", 1, "p1", "r", 2), TrafficItem(10.0, "sat_11", "sat_13", 2, "p1", "r", 2)]
     run = run_dtn(PLAN, traffic)
-    rep = dtn_report(run.events, held=run.held(), lower_bound_s=latency_lower_bounds(PLAN, traffic, 2000, run.created_ids))
+    rep = run.report(latency_lower_bounds(PLAN, traffic, 2000, run.created_ids))
     # P1 to sat_12: 10-12 on air, +0.5 -> 2.5 s. P2 to sat_13: waits 12, 12-14, +0.5, 14.5-16.5, +0.5 -> 7 s
     assert rep["dtn.latency_s_by_priority.1.median"] == pytest.approx(2.5)
     assert rep["dtn.latency_s_by_priority.2.median"] == pytest.approx(7.0)
@@ -37,8 +36,7 @@ def test_study_inputs_targets(paper_inputs, case):
     plan = read_contact_plan(paper_inputs / "contact_plan_3p_8s.csv", rate_bps=1000)
     traffic = read_traffic(paper_inputs / f"traffic_{case}.csv")
     run = run_dtn(plan, traffic)
-    rep = dtn_report(run.events, held=run.held(),
-                     lower_bound_s=latency_lower_bounds(plan, traffic, 2000, run.created_ids))
+    rep = run.report(latency_lower_bounds(plan, traffic, 2000, run.created_ids))
     assert rep["dtn.conservation_ok"]
     assert rep["dtn.delivery_ratio"] >= 0.99
     for p in (1, 2, 3):
