@@ -326,34 +326,30 @@ _HOP_OF: dict[bytes, tuple[int, int]] = {}
 _HOP_BYTES: dict[tuple[int, int], bytes] = {}
 
 
-def _eid_bytes(eid) -> bytes:
-    """``cbor2.dumps(_eid_cbor(eid))``, made once per EID (of plain non-negative ints)."""
-    if type(eid) is tuple and len(eid) == 2:
-        n, sv = eid
-        if type(n) is int and type(sv) is int and n >= 0 and sv >= 0:
-            data = _EID_BYTES.get(eid)
+def _pair_bytes(pair, cbor_of, made: dict, parsed: dict) -> bytes:
+    """``cbor2.dumps(cbor_of(pair))``, made once per pair of plain non-negative ints (and remembered
+    both ways: ``made[pair]`` -> bytes, ``parsed[bytes]`` -> pair)."""
+    if type(pair) is tuple and len(pair) == 2:
+        a, b = pair
+        if type(a) is int and type(b) is int and a >= 0 and b >= 0:
+            data = made.get(pair)
             if data is None:
-                data = cbor2.dumps(_eid_cbor(eid))
-                if len(_EID_BYTES) < 4096:
-                    _EID_BYTES[eid] = data
-                    _EID_OF[data] = DTN_NONE if eid == DTN_NONE else eid
+                data = cbor2.dumps(cbor_of(pair))
+                if len(made) < 4096:
+                    made[pair] = data
+                    parsed[data] = pair
             return data
-    return cbor2.dumps(_eid_cbor(eid))
+    return cbor2.dumps(cbor_of(pair))
+
+
+def _eid_bytes(eid) -> bytes:
+    """``cbor2.dumps(_eid_cbor(eid))``."""
+    return _pair_bytes(eid, _eid_cbor, _EID_BYTES, _EID_OF)
 
 
 def _hop_bytes(limit_count) -> bytes:
-    """``cbor2.dumps(list(limit_count))``, made once per (limit, count) of plain non-negative ints."""
-    if type(limit_count) is tuple and len(limit_count) == 2:
-        lim, cnt = limit_count
-        if type(lim) is int and type(cnt) is int and lim >= 0 and cnt >= 0:
-            data = _HOP_BYTES.get(limit_count)
-            if data is None:
-                data = cbor2.dumps([lim, cnt])
-                if len(_HOP_BYTES) < 4096:
-                    _HOP_BYTES[limit_count] = data
-                    _HOP_OF[data] = limit_count
-            return data
-    return cbor2.dumps(list(limit_count))
+    """``cbor2.dumps(list(limit_count))``."""
+    return _pair_bytes(limit_count, list, _HOP_BYTES, _HOP_OF)
 
 
 def _loads(data: bytes, what: str):
