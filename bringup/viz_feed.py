@@ -10,7 +10,9 @@ The ground-point marker (500 cubes coloured by value; ~90 % of the feed's cost: 
 each point and colour in Python) goes out only when its colours change (the OSSE field is piecewise
 constant, 15-min slots in the paper scenario) and at least every ``gp_keyframe_s``: a marker with
 lifetime 0 stays shown until replaced (visualization_msgs/Marker), so the picture is the same.
-Measured on the paper run: 361 frames, the GP marker in ~25 of them; viz 3.8 s -> ~0.6 s.
+Measured on the paper run: 361 frames, the GP marker in ~25 of them; viz 3.8 s -> ~0.6 s. The links
+open at a frame come from arrays of contact start/end times (the same test as a scan of the 1380
+contacts, in the same order; tests/unit/test_speed_paths.py).
 """
 
 from __future__ import annotations
@@ -32,6 +34,15 @@ class VizFeed:
         self.next_ns = 0
         self.written = 0
         self._contacts = sorted(world.isl_plan.contacts, key=lambda c: c.start_s)
+        # the open-link test on arrays (the same comparisons as a scan of the contact list)
+        self._starts = np.array([c.start_s for c in self._contacts], dtype=np.float64)
+        self._ends = np.array([c.end_s for c in self._contacts], dtype=np.float64)
+        self._pairs = [(c.src, c.dst) for c in self._contacts]
+
+    def links_at(self, t_s: float) -> list[tuple[str, str]]:
+        """(src, dst) of the ISL contacts open at ``t_s`` (start <= t_s < end), by start time."""
+        pairs = self._pairs
+        return [pairs[i] for i in np.flatnonzero((self._starts <= t_s) & (t_s < self._ends)).tolist()]
 
     def due(self, t_ns: int) -> bool:
         return t_ns >= self.next_ns
@@ -46,7 +57,7 @@ class VizFeed:
         w = self.world
         t_s = t_ns / _NS
         r = w.sat_positions_ecef_km(t_s)
-        links = [(c.src, c.dst) for c in self._contacts if c.start_s <= t_s < c.end_s]
+        links = self.links_at(t_s)
         vals = w.osse.value_at(np.arange(w.n_gp), np.full(w.n_gp, min(t_s, w.osse.horizon_s - 1e-6)))
         if (self._gp_vals is None or t_ns - self._gp_ns >= self.gp_keyframe_ns
                 or not np.array_equal(vals, self._gp_vals)):

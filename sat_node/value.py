@@ -27,7 +27,9 @@ process, draw the same numbers. (Python's ``hash`` is salted per process and is 
 How we know it is right (tests/unit/test_value.py): Eq. 1 against a hand-written scalar loop over
 random histories; the 15-min zero at the boundary (899.999 s -> 0, 900 s -> absval/2); belief noise
 reproducible across calls and processes, different across satellites, and its sample standard
-deviation of (belief/absval - 1) within 3 standard errors of sigma_s.
+deviation of (belief/absval - 1) within 3 standard errors of sigma_s; :func:`prior_state` (runs found by
+binary search) equal to the pairwise definition on random histories with observations exactly on the
+grid times and on grid times +- revisit_zero_s, on unsorted and repeated times.
 
 Not done: the optional spatial-diversity term of the issue.
 """
@@ -137,31 +139,76 @@ def prior_state(known: Iterable[KnownObservation], gp_ids: np.ndarray, times_s: 
 
     Returns ``(count, recent)``, both shape (len(times_s), len(gp_ids)): ``count`` = number of known
     observations of that GP before the time (same-time ones count when their source sorts before
-    ``me``); ``recent`` = True when one of those is less than ``revisit_zero_s`` before. Own
+    ``me``); ``recent`` = True when one of those is less than ``revisit_zero_s`` before, or (a plan
+    of a satellite that outranks ``me``) less than ``revisit_zero_s`` before or after. Own
     observations (source == me) at the same time count as before.
+
+    Each observation covers a run of consecutive times once the times are sorted (every test below
+    is monotone in the time: ``ts < t``, ``fl(t - ts) < r``, ``fl(t - ts) > -r``), so it is found by
+    binary search and the runs are summed with a difference array: O(N log T + T G) instead of one
+    (T, N) comparison per GP column, and the same booleans as the pairwise tests.
     """
     gp_ids = np.asarray(gp_ids, dtype=np.int64)
     times_s = np.asarray(times_s, dtype=np.float64)
     T, G = len(times_s), len(gp_ids)
-    count = np.zeros((T, G), dtype=np.int64)
-    recent = np.zeros((T, G), dtype=bool)
-    col = {int(g): j for j, g in enumerate(gp_ids)}
-    by_col: dict[int, list[tuple[float, bool, bool]]] = {}
+    col = {int(g): j for j, g in enumerate(gp_ids.tolist())}
+    rows = []
     for ob in known:
         j = col.get(int(ob.gp))
         if j is None:
             continue
         if ob.planned and ob.source >= me:
             continue  # own plan or a lower-ranked satellite's: it yields to us
-        by_col.setdefault(j, []).append((float(ob.t_s), ob.source <= me, bool(ob.planned)))
-    for j, obs in by_col.items():
-        ts = np.array([o[0] for o in obs])
-        wins = np.array([o[1] for o in obs])  # counts at equal time
-        planned = np.array([o[2] for o in obs])
-        # before[t, k]: observation k precedes time t
-        before = (ts[None, :] < times_s[:, None]) | ((ts[None, :] == times_s[:, None]) & wins[None, :])
-        count[:, j] = before.sum(axis=1)
-        rec = before & ((times_s[:, None] - ts[None, :]) < revisit_zero_s)
-        rec |= planned[None, :] & (np.abs(times_s[:, None] - ts[None, :]) < revisit_zero_s)
-        recent[:, j] = rec.any(axis=1)
+        rows.append((j, float(ob.t_s), ob.source <= me, bool(ob.planned)))
+    if not rows or T == 0:
+        return np.zeros((T, G), dtype=np.int64), np.zeros((T, G), dtype=bool)
+    order = None
+    if T > 1 and not np.all(times_s[1:] >= times_s[:-1]):
+        order = np.argsort(times_s, kind="stable")
+        times_s = times_s[order]
+    cols = np.fromiter((r[0] for r in rows), np.int64, len(rows))
+    ts = np.fromiter((r[1] for r in rows), np.float64, len(rows))
+    wins = np.fromiter((r[2] for r in rows), bool, len(rows))  # counts at equal time
+    planned = np.fromiter((r[3] for r in rows), bool, len(rows))
+    r = float(revisit_zero_s)
+    # first time the observation is "before": t > ts, or t == ts when it wins the tie
+    start = np.where(wins, np.searchsorted(times_s, ts, "left"), np.searchsorted(times_s, ts, "right"))
+    # first time with fl(t - ts) >= r (recent ends), and, for plans, first with fl(t - ts) > -r
+    end = _first_index(times_s, ts, r, lambda d: d >= r, np.searchsorted(times_s, ts + r, "left"))
+    lo = _first_index(times_s, ts, r, lambda d: d > -r, np.searchsorted(times_s, ts - r, "right"))
+    rec_lo = np.where(planned, lo, start)
+    rec_hi = np.maximum(end, rec_lo)
+    count = _runs(cols, start, np.full(len(rows), T), T, G)
+    recent = _runs(cols, rec_lo, rec_hi, T, G) > 0
+    if order is not None:
+        c2, r2 = np.empty_like(count), np.empty_like(recent)
+        c2[order], r2[order] = count, recent
+        count, recent = c2, r2
     return count, recent
+
+
+def _first_index(times: np.ndarray, ts: np.ndarray, r: float, ok, guess: np.ndarray) -> np.ndarray:
+    """Per observation, the first index i of sorted ``times`` with ``ok(fl(times[i] - ts))`` (len(times)
+    when none), for a test ``ok`` that is monotone in the time; ``guess`` is a binary search on
+    ``ts +- r``, moved until it is exact (it is off by at most a rounding step)."""
+    T = len(times)
+    i = guess.astype(np.int64)
+    while True:  # step back while the previous time passes too
+        m = i > 0
+        m[m] = ok(times[i[m] - 1] - ts[m])
+        if not m.any():
+            break
+        i[m] -= 1
+    while True:  # step forward while this time fails
+        m = i < T
+        m[m] = ~ok(times[i[m]] - ts[m])
+        if not m.any():
+            break
+        i[m] += 1
+    return i
+
+
+def _runs(cols: np.ndarray, lo: np.ndarray, hi: np.ndarray, T: int, G: int) -> np.ndarray:
+    """(T, G) number of runs [lo, hi) of column ``cols`` covering each time (difference array)."""
+    diff = np.bincount(lo * G + cols, minlength=(T + 1) * G) - np.bincount(hi * G + cols, minlength=(T + 1) * G)
+    return np.cumsum(diff.reshape(T + 1, G)[:T], axis=0)

@@ -10,6 +10,14 @@ steps earlier (always reachable: ``w_steps`` covers the largest possible slew), 
 slew window whose pointing vector is within ``acos(cos_thr[dk])`` of this one. Within a step,
 states are visited in decreasing accumulated value (``order``), so the scan stops as soon as no
 remaining candidate can beat the best found (branch and bound on the sorted lists).
+
+Path tables: the gain of a GP after a path depends only on how many times the path observed it and
+when it last did (a repeat within the revisit window is worth 0 exactly when the latest one is), so
+when ``seen_n`` has one row per state the kernel keeps, for each state, those two numbers for every
+GP column of its best path (copied from the predecessor's row, then its own GP added) and the gain
+is a table look-up (:func:`table_gain`). The same numbers as walking the back-pointers
+(:func:`path_gain`), which is what the kernel does when the caller gives no table (too many states
+times GPs for memory).
 """
 
 from __future__ import annotations
@@ -17,7 +25,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-__all__ = ["dp_forward", "path_gain"]
+__all__ = ["dp_forward", "path_gain", "table_gain"]
 
 
 @njit(cache=True)
@@ -41,13 +49,28 @@ def path_gain(q, g, k, vf, n1, st_k, st_g, bp, revisit_steps):
 
 
 @njit(cache=True)
+def table_gain(q, g, k, vf, n1, seen_n, seen_k, revisit_steps):
+    """:func:`path_gain` from the path table: seen_n[q, g] = observations of GP column g on the path
+    ending in q, seen_k[q, g] = the step of the latest one."""
+    cnt = seen_n[q, g]
+    if cnt == 0:
+        return vf
+    if (k - seen_k[q, g]) < revisit_steps:
+        return 0.0
+    return vf * n1 / (n1 + cnt)
+
+
+@njit(cache=True)
 def dp_forward(k_lo, k_hi, t_off, st_k, st_g, st_u, st_vf, st_n1, root_ok, cos_thr, w_steps,
-               revisit_steps, V, bp, order, pref):
-    """Process steps k_lo..k_hi-1 in place (V, bp, order, pref); earlier steps must be done.
+               revisit_steps, V, bp, order, pref, seen_n, seen_k):
+    """Process steps k_lo..k_hi-1 in place (V, bp, order, pref, seen_n, seen_k); earlier steps must be done.
 
     pref[0] = best state among steps folded so far (-1 none), pref[1] = next step to fold.
     V = -inf and bp = -2 for unreachable states; bp = -1 for paths starting at the root.
+    seen_n, seen_k: (S, G) int32 path tables, zeros on entry (see the module docstring), or (0, 0)
+    arrays to walk the back-pointers instead.
     """
+    table = seen_n.shape[0] > 0
     ninf = -np.inf
     for k in range(k_lo, k_hi):
         while pref[1] <= k - w_steps:
@@ -71,7 +94,10 @@ def dp_forward(k_lo, k_hi, t_off, st_k, st_g, st_u, st_vf, st_n1, root_ok, cos_t
                 b = -1
             p = pref[0]
             if p >= 0:
-                gain = path_gain(p, g, k, vf, n1, st_k, st_g, bp, revisit_steps)
+                if table:
+                    gain = table_gain(p, g, k, vf, n1, seen_n, seen_k, revisit_steps)
+                else:
+                    gain = path_gain(p, g, k, vf, n1, st_k, st_g, bp, revisit_steps)
                 if V[p] + gain > best:
                     best = V[p] + gain
                     b = p
@@ -90,7 +116,10 @@ def dp_forward(k_lo, k_hi, t_off, st_k, st_g, st_u, st_vf, st_n1, root_ok, cos_t
                     dot = ux * st_u[q, 0] + uy * st_u[q, 1] + uz * st_u[q, 2]
                     if dot < thr:
                         continue
-                    gain = path_gain(q, g, k, vf, n1, st_k, st_g, bp, revisit_steps)
+                    if table:
+                        gain = table_gain(q, g, k, vf, n1, seen_n, seen_k, revisit_steps)
+                    else:
+                        gain = path_gain(q, g, k, vf, n1, st_k, st_g, bp, revisit_steps)
                     if vq + gain > best:
                         best = vq + gain
                         b = q
@@ -98,6 +127,12 @@ def dp_forward(k_lo, k_hi, t_off, st_k, st_g, st_u, st_vf, st_n1, root_ok, cos_t
                         break
             V[s] = best
             bp[s] = b
+            if table and b > -2:
+                if b >= 0:
+                    seen_n[s, :] = seen_n[b, :]
+                    seen_k[s, :] = seen_k[b, :]
+                seen_n[s, g] += 1
+                seen_k[s, g] = k
         lo = t_off[k]
         hi = t_off[k + 1]
         if hi > lo:

@@ -91,3 +91,58 @@ def test_prior_state_counts_and_tie_break():
     # me = sat_11 sorts before sat_12: the same-time claim is not before mine
     count2, _ = prior_state(known, np.array([7]), times, "sat_11", 900.0)
     assert count2[1, 0] == 0 and count2[2, 0] == 1
+
+
+def _prior_state_pairwise(known, gp_ids, times_s, me, revisit_zero_s):
+    """The definition, one (time, observation) comparison at a time per GP column (the oracle)."""
+    gp_ids = np.asarray(gp_ids, dtype=np.int64)
+    times_s = np.asarray(times_s, dtype=np.float64)
+    count = np.zeros((len(times_s), len(gp_ids)), dtype=np.int64)
+    recent = np.zeros((len(times_s), len(gp_ids)), dtype=bool)
+    col = {int(g): j for j, g in enumerate(gp_ids)}
+    by_col = {}
+    for ob in known:
+        j = col.get(int(ob.gp))
+        if j is None or (ob.planned and ob.source >= me):
+            continue
+        by_col.setdefault(j, []).append((float(ob.t_s), ob.source <= me, bool(ob.planned)))
+    for j, obs in by_col.items():
+        ts = np.array([o[0] for o in obs])
+        wins = np.array([o[1] for o in obs])
+        planned = np.array([o[2] for o in obs])
+        before = (ts[None, :] < times_s[:, None]) | ((ts[None, :] == times_s[:, None]) & wins[None, :])
+        count[:, j] = before.sum(axis=1)
+        rec = before & ((times_s[:, None] - ts[None, :]) < revisit_zero_s)
+        rec |= planned[None, :] & (np.abs(times_s[:, None] - ts[None, :]) < revisit_zero_s)
+        recent[:, j] = rec.any(axis=1)
+    return count, recent
+
+
+def test_prior_state_equals_pairwise_definition():
+    """Random histories on the DP's grid and on unsorted, repeated times, with observations exactly at
+    grid times and at grid times +- revisit_zero_s (the boundaries), all source ranks, plans and GPs
+    outside the instance: the run-based prior_state gives the pairwise definition's arrays."""
+    rng = np.random.default_rng(11)
+    sats = ["sat_11", "sat_12", "sat_21", "sat_22", "sat_31"]
+    for trial in range(60):
+        rz = [900.0, 0.0, 899.999, 37.5][trial % 4]
+        t0 = float(rng.uniform(0, 20000))
+        step = float(rng.choice([10.0, 3.0, 0.1]))
+        times = t0 + step * np.arange(int(rng.integers(1, 120)))
+        if trial % 3 == 1:
+            times = rng.permutation(np.concatenate([times, times[: len(times) // 3]]))
+        gp_ids = rng.choice(60, size=int(rng.integers(1, 12)), replace=False)
+        known = []
+        for _ in range(int(rng.integers(0, 80))):
+            kind = rng.integers(4)
+            base = float(rng.choice(times))
+            t = {0: base, 1: base - rz, 2: base + rz, 3: float(rng.uniform(t0 - 2000, t0 + 2000))}[int(kind)]
+            known.append(KnownObservation(t, int(rng.integers(0, 70)), str(rng.choice(sats)),
+                                          planned=bool(rng.integers(2))))
+        me = str(rng.choice(sats))
+        c, r = prior_state(known, gp_ids, times, me, rz)
+        c0, r0 = _prior_state_pairwise(known, gp_ids, times, me, rz)
+        assert c.dtype == c0.dtype and r.dtype == r0.dtype
+        assert np.array_equal(c, c0) and np.array_equal(r, r0), trial
+    c, r = prior_state([], np.array([1, 2]), np.array([0.0, 1.0]), "sat_11", 900.0)
+    assert c.shape == r.shape == (2, 2) and not c.any() and not r.any()
