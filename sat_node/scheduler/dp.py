@@ -101,6 +101,21 @@ def slew_window_steps(p: SchedulingProblem, max_off_nadir_deg: float) -> int:
         w += 1
 
 
+_MAX_ANGLES: dict = {}
+
+
+def _max_angles(slew, step_s: float, w_steps: int) -> np.ndarray:
+    """``slew.max_angle_deg`` of 0..w_steps steps, remembered (a satellite's replans share them)."""
+    key = (slew, step_s, w_steps)
+    a = _MAX_ANGLES.get(key)
+    if a is None:
+        if len(_MAX_ANGLES) > 64:
+            _MAX_ANGLES.clear()
+        a = _MAX_ANGLES[key] = slew.max_angle_deg(step_s * np.arange(w_steps + 1))
+        a.setflags(write=False)
+    return a
+
+
 def _states(p: SchedulingProblem):
     vf = p.v_first
     ks, gs = np.nonzero(vf > 0.0)  # row-major: sorted by step then GP column
@@ -129,7 +144,7 @@ def solve_dp(p: SchedulingProblem, *, budget_s: float | None = None, chunk_steps
     nad = nadir_unit(p.sat_pos_km[st_k])
     max_off = float(np.max(np.degrees(np.arccos(np.clip(np.sum(nad * st_u, axis=1), -1, 1)))))
     w_steps = slew_window_steps(p, max_off)
-    amax = p.slew.max_angle_deg(p.step_s * np.arange(w_steps + 1))
+    amax = _max_angles(p.slew, p.step_s, w_steps)
     # tiny safety margin so the compiled test never accepts what time_s would refuse
     cos_thr = np.where(amax < 0, 2.0, np.cos(np.radians(np.maximum(amax - 1e-9, 0.0))))
     revisit_steps = p.revisit_zero_s / p.step_s

@@ -23,6 +23,8 @@ Semantics shared by every solver here (DP, brute force, MILP, non-agile), implem
 
 How we know it is right (tests/unit/test_dp.py): the evaluation against a hand-computed three-
 observation plan, and every solver's reported value equals :func:`evaluate_plan` of its plan.
+:func:`for_mask` tests only the time rows a central-angle bound keeps; tests/unit/test_speed_paths.py
+checks it equals the test of every pair on many geometries.
 
 The circular-orbit helpers at the bottom (:func:`circular_walker_ecef_km`,
 :func:`square_region_gp_ecef_km`, :func:`for_mask`) are a simple two-body stand-in (spherical
@@ -266,12 +268,61 @@ def square_region_gp_ecef_km(lat_deg: float, lon_deg: float, size_km: float, spa
 
 
 def for_mask(sat_pos_km: np.ndarray, gp_ecef_km: np.ndarray, for_off_nadir_deg: float) -> np.ndarray:
-    """(T, G) True where the GP is within for_off_nadir_deg of nadir and above the horizon."""
+    """(T, G) True where the GP is within for_off_nadir_deg of nadir and above the horizon.
+
+    Only the time rows where some GP can be in the FOR are computed (:func:`_for_rows`); the others
+    are False. The rows computed get the same per-element arithmetic as the whole array would
+    (tests/unit/test_speed_paths.py compares with :func:`_for_mask_all`).
+    """
+    sat = np.asarray(sat_pos_km, np.float64)
+    gp = np.asarray(gp_ecef_km, np.float64)
+    rows = _for_rows(sat, gp, for_off_nadir_deg)
+    if rows is None:
+        return _for_mask_all(sat, gp, for_off_nadir_deg)
+    out = np.zeros((sat.shape[0], gp.shape[0]), dtype=bool)
+    if len(rows):
+        out[rows] = _for_mask_all(sat[rows], gp, for_off_nadir_deg)
+    return out
+
+
+def _for_mask_all(sat_pos_km: np.ndarray, gp_ecef_km: np.ndarray, for_off_nadir_deg: float) -> np.ndarray:
+    """The FOR test on every (time, GP) pair: off-nadir angle and the GP's local horizon."""
     sat = np.asarray(sat_pos_km, np.float64)[:, None, :]
     gp = np.asarray(gp_ecef_km, np.float64)[None, :, :]
     off = off_nadir_deg(sat, gp)
     above = np.sum((sat - gp) * gp, axis=-1) > 0.0
     return (off <= for_off_nadir_deg) & above
+
+
+# Earth central angle margin [deg] of the row pre-filter (its own rounding is ~1e-13 deg)
+_FOR_ROWS_MARGIN_DEG = 1.0
+
+
+def _for_rows(sat: np.ndarray, gp: np.ndarray, for_off_nadir_deg: float) -> np.ndarray | None:
+    """Time rows where some GP may be in the FOR (a superset), or None to test every row.
+
+    Triangle Earth centre O, satellite S (|OS| = r), GP P (|OP| = rho): the off-nadir angle eta at S
+    and the central angle lam at O obey sin(eta + lam) = r sin(eta) / rho on the near side, so a GP
+    within eta_max of nadir and above its horizon has lam <= arcsin(r sin(eta_max) / rho) - eta_max,
+    or lam <= arccos(rho / r) (the horizon) when that arcsin does not exist; the bound grows with r and
+    shrinks with rho, so the largest r and the smallest rho give one bound for all pairs. A row is kept
+    when some GP is within that bound plus _FOR_ROWS_MARGIN_DEG.
+    """
+    if sat.ndim != 2 or gp.ndim != 2 or sat.shape[1] != 3 or gp.shape[1] != 3 or len(sat) < 2 or len(gp) == 0:
+        return None
+    r_s = np.sqrt(np.einsum("ij,ij->i", sat, sat))
+    r_g = np.sqrt(np.einsum("ij,ij->i", gp, gp))
+    if not (np.all(np.isfinite(r_s)) and np.all(np.isfinite(r_g))) or r_g.min() <= 0 or r_s.min() <= 0:
+        return None
+    r, rho = float(r_s.max()), float(r_g.min())
+    if r <= rho:
+        return None  # a satellite at or below a GP's radius: no simple bound, test every row
+    eta = math.radians(min(max(float(for_off_nadir_deg), 0.0), 180.0))
+    x = r * math.sin(eta) / rho
+    lam = math.acos(rho / r) if x >= 1.0 or eta >= math.pi / 2 else math.asin(x) - eta
+    lam = min(math.pi, lam + math.radians(_FOR_ROWS_MARGIN_DEG))
+    cos_ang = (sat / r_s[:, None]) @ (gp / r_g[:, None]).T  # (T, G) cosines of the central angles
+    return np.flatnonzero((cos_ang >= math.cos(lam)).any(axis=1))
 
 
 # ---- instances from the orbit core and the OSSE field ------------------------------------------------
