@@ -43,8 +43,10 @@ class SlewModelError(ValueError):
 def unit_vectors(v: np.ndarray) -> np.ndarray:
     """Normalize vectors along the last axis; zero vectors raise ValueError."""
     v = np.asarray(v, dtype=np.float64)
-    n = np.linalg.norm(v, axis=-1, keepdims=True)
-    if np.any(n == 0.0):
+    # np.linalg.norm(v, axis=-1, keepdims=True) computes exactly this for real input; calling the
+    # ufuncs directly skips its argument handling (this runs for every plan check and slew)
+    n = np.sqrt(np.add.reduce(v * v, axis=-1, keepdims=True))
+    if (n == 0.0).any():
         raise ValueError("unit_vectors: zero-length vector (satellite on its target?)")
     return v / n
 

@@ -339,3 +339,15 @@ def test_for_mask_row_prefilter_equals_full_test():
             b = off_nadir_deg(s[sub][:, None, :], gp[None, :, :])
             assert a.tobytes() == b.tobytes()
     assert kept < total  # the filter drops rows
+
+
+def test_unit_vectors_norm_equals_linalg_norm():
+    import numpy as np
+
+    from sat_node.acs import unit_vectors
+
+    rng = np.random.default_rng(2)
+    for shape in [(3,), (1, 3), (17, 3), (40, 25, 3), (5, 1, 3)]:
+        v = rng.normal(size=shape) * 10.0 ** rng.integers(-3, 5, size=shape)
+        want = v / np.linalg.norm(v, axis=-1, keepdims=True)
+        assert unit_vectors(v).tobytes() == want.tobytes()
