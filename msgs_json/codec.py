@@ -31,10 +31,19 @@ _encoder = msgspec.json.Encoder()
 _decoders: dict[Any, msgspec.json.Decoder] = {}
 
 
+_by_id: dict[int, tuple[Any, msgspec.json.Decoder]] = {}
+
+
 def _decoder(tp: Any) -> msgspec.json.Decoder:
+    # by identity first: hashing a typing construct (Union, Annotated) costs microseconds, and the
+    # same schema object comes back for every message of a topic
+    hit = _by_id.get(id(tp))
+    if hit is not None and hit[0] is tp:
+        return hit[1]
     d = _decoders.get(tp)
     if d is None:
         d = _decoders[tp] = msgspec.json.Decoder(tp)
+    _by_id[id(tp)] = (tp, d)
     return d
 
 

@@ -74,6 +74,7 @@ _NS = 1_000_000_000
 # next-hop block of recently heard bytes: a broadcast copy reaches every node in view, and the peek is a
 # pure function of the (immutable) bytes, so each transmission is parsed once per process.
 _PEEK_CACHE: dict[bytes, int | None] = {}
+_NEVER = 1 << 62
 _MISSING = object()
 
 
@@ -203,6 +204,7 @@ class BundleAgent:
         self._out_starts = self.graph.out_starts.get(node, np.zeros(0))
         self.radio_free_ns = 0
         self._settle_ns = int(round(self.config.settle_delay_s * 1e9))
+        self._settle_at = _NEVER  # when the oldest transmission in flight is settled (O(1) check per copy heard)
         self.last_received: Bundle | None = None  # what the last receive() decoded (None: nothing)
         self._seq = 0 if store is None else store.get_meta("seq")
         if store is not None:
@@ -543,6 +545,8 @@ class BundleAgent:
         h.contact = c
         tx = Transmission(data, self.graph.contacts[c].dst, s, end, bits, self.node, bid, c)
         self._in_flight[bid] = (tx, h)
+        if len(self._in_flight) == 1:
+            self._reset_settle_at()
         self.radio_free_ns = end
         self._emit(s, "forwarded", h, bid)
         return tx
@@ -564,15 +568,12 @@ class BundleAgent:
     def _settle(self, now_ns: int) -> None:
         """Transmissions that have ended without a failure report are done: only now is the bundle
         removed from the persistent store (a process killed mid-transmission still has it)."""
-        if not self._in_flight:
+        if now_ns < self._settle_at:
             return
         settle_ns = self._settle_ns
         # _in_flight is in send order, and the one radio's transmissions end in that order (each starts
         # after the previous one's end; a failed one leaves and is sent again later, at the end): the
         # settled ones are a prefix, so stop at the first that is not (this runs on every copy heard).
-        first = next(iter(self._in_flight.values()))[0]
-        if first.end_ns + settle_ns > now_ns:
-            return
         done = []
         for bid, (tx, _h) in self._in_flight.items():
             if tx.end_ns + settle_ns > now_ns:
@@ -582,6 +583,13 @@ class BundleAgent:
             del self._in_flight[bid]
             if self.store is not None:
                 self.store.delete(bid)
+        self._reset_settle_at()
+
+    def _reset_settle_at(self) -> None:
+        if self._in_flight:
+            self._settle_at = next(iter(self._in_flight.values()))[0].end_ns + self._settle_ns
+        else:
+            self._settle_at = _NEVER
 
     def in_flight(self, bundle_id: str) -> Transmission | None:
         """The transmission of ``bundle_id`` not yet settled (sent, no verdict from the medium)."""
@@ -593,6 +601,7 @@ class BundleAgent:
         item = self._in_flight.pop(tx.bundle_id, None)
         if item is None:
             return
+        self._reset_settle_at()
         _tx, h = item
         self.counters["tx_failed"] += 1
         h.excluded.add(tx.contact)

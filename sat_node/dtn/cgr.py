@@ -178,6 +178,7 @@ class ContactGraph:
         self.out_idx = order.astype(np.int64)
         self._no_exclusion = np.zeros(n, dtype=np.bool_)
         self._no_node_exclusion = np.zeros(len(self.node_names), dtype=np.bool_)
+        self._node_masks: dict[tuple, np.ndarray] = {}  # excluded node names -> mask (never written)
         self._no_backlog = np.zeros(n, dtype=np.float64)
         H = len(self.node_names)  # a simple path has at most n_nodes - 1 hops
         self._arr = np.full((n, H + 1), INF)
@@ -198,10 +199,14 @@ class ContactGraph:
         self._qid += 1
         node_ex = self._no_node_exclusion
         if excluded_nodes:
-            node_ex = node_ex.copy()
-            for x in excluded_nodes:
-                if x in self.node_index:
-                    node_ex[self.node_index[x]] = True
+            key = tuple(excluded_nodes)
+            node_ex = self._node_masks.get(key)
+            if node_ex is None:
+                node_ex = self._no_node_exclusion.copy()
+                for x in excluded_nodes:
+                    if x in self.node_index:
+                        node_ex[self.node_index[x]] = True
+                self._node_masks[key] = node_ex
         best, hops = _dijkstra(self.start_s, self.end_s, self.src, self.dst, self.rate_bps, self.owlt_s,
                                self.volume_bits if residual is None else residual, self.out_ptr, self.out_idx,
                                self._no_exclusion if excluded is None else excluded, node_ex,
