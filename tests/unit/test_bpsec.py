@@ -39,6 +39,14 @@ def test_round_trip_verifies_and_tampering_fails():
     bad[-3] ^= 1  # a payload byte (payload block has no CRC of its own)
     with pytest.raises(IntegrityError, match="mismatch"):
         verify_bib(decode_bundle(bytes(bad)), KEY)
+    # after a good check of the same bundle (the process remembers checked MAC inputs), a changed
+    # primary block still fails
+    d = decode_bundle(raw)
+    d.lifetime_ms += 1
+    d.primary_raw = None
+    with pytest.raises(IntegrityError, match="mismatch"):
+        verify_bib(d, KEY)
+    verify_bib(decode_bundle(raw), KEY)
     c = decode_bundle(raw)
     c.blocks = [x for x in c.blocks if x.type != BIB_BLOCK]
     with pytest.raises(IntegrityError, match="not integrity-protected"):
