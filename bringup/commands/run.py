@@ -86,11 +86,12 @@ def run(args: argparse.Namespace) -> int:
                    horizon_s=sc.scenario.horizon_s, n_sats=len(world.sat_names), n_gp=world.n_gp,
                    revisit_zero_s=sc.value.revisit_zero_s)
     router_kw = {"extra_delay_s": args.isl_delay_s, "cuts": cuts} if (args.isl_delay_s or cuts) else None
+    report_envs = None
     if args.engine == "local":
-        runtime = _run_local(world, args, meta, bag_dir, out, router_kw, show=not args.no_progress)
+        runtime, report_envs = _run_local(world, args, meta, bag_dir, out, router_kw, show=not args.no_progress)
     else:
         runtime = _run_ros(world, world_path, args, meta, bag_dir, out, router_kw, show=not args.no_progress)
-    return _finish(out, bag_dir, runtime, world, args, say)
+    return _finish(out, bag_dir, runtime, world, args, say, meta=meta, report_envs=report_envs)
 
 
 def _progress_display(show: bool, horizon_ns: int):
@@ -128,7 +129,23 @@ def _run_local(world, args, meta, bag_dir: Path, out: Path, router_kw, *, show: 
     viz = VizFeed(world)
     prog, update = _progress_display(show, sc.horizon_ns)
     in_flight = {"n": 0}
+    # the envelopes the report is made of, kept as they are written: the report is built from them
+    # exactly as `constellation report BAG` builds it from the bag (tests/system/test_engines_equal.py
+    # checks the two agree), without reading the bag back
+    from bringup.report import REPORT_TOPIC_SUFFIXES
+    report_envs: list = []
+    wanted: dict[str, bool] = {}
     with BagWriter(bag_dir) as bag:
+        write = bag.write_envelope
+
+        def sink(env) -> None:
+            write(env)
+            w = wanted.get(env.topic)
+            if w is None:
+                w = wanted[env.topic] = env.topic.endswith(REPORT_TOPIC_SUFFIXES)
+            if w:
+                report_envs.append(env)
+
         bag.write_envelope(Envelope(0, "run", 0, "/run/meta", json.dumps({"meta": meta.__dict__})))
 
         def on_step(t_ns: int) -> None:
@@ -145,7 +162,7 @@ def _run_local(world, args, meta, bag_dir: Path, out: Path, router_kw, *, show: 
             prog.start()
         try:
             res = run_local(parts, horizon_ns=sc.horizon_ns, max_step_ns=int(round(sc.scenario.lockstep_max_step_s * _NS)),
-                            sink=bag.write_envelope, on_step=on_step, progress=progress, progress_interval_s=0.25)
+                            sink=sink, on_step=on_step, progress=progress, progress_interval_s=0.25)
         finally:
             if prog is not None:
                 prog.stop()
@@ -154,7 +171,7 @@ def _run_local(world, args, meta, bag_dir: Path, out: Path, router_kw, *, show: 
                    "rejected_messages": sum(getattr(p, "rejected", 0) for p in parts)}
         bag.write_envelope(Envelope(sc.horizon_ns, "run", 1, "/run/meta",
                                     json.dumps({"meta": meta.__dict__, "runtime": runtime})))
-    return runtime
+    return runtime, report_envs
 
 
 def _run_ros(world, world_path: Path, args, meta, bag_dir: Path, out: Path, router_kw, *, show: bool) -> dict:
@@ -201,11 +218,14 @@ def _run_ros(world, world_path: Path, args, meta, bag_dir: Path, out: Path, rout
             "process_restarts": sum(restarts.values())}
 
 
-def _finish(out: Path, bag_dir: Path, runtime: dict, world, args, say) -> int:
-    from bringup.report import report_from_bag
+def _finish(out: Path, bag_dir: Path, runtime: dict, world, args, say, *, meta=None, report_envs=None) -> int:
+    from bringup.report import build_report, report_from_bag
     from bringup.report_md import write_report_md
 
-    rep = report_from_bag(bag_dir)
+    if report_envs is not None:  # the local engine kept what it wrote (same as reading the bag back)
+        rep = build_report(report_envs, meta, json.loads(json.dumps(runtime)))
+    else:
+        rep = report_from_bag(bag_dir)
     rep["runtime"].update({k: v for k, v in runtime.items() if k not in rep["runtime"]})
     rep["runtime"].update({"wall_s": runtime.get("wall_s"), "real_time_factor": runtime.get("real_time_factor")})
     (out / "report.json").write_text(json.dumps(rep, indent=2, sort_keys=True) + "\n")
