@@ -121,6 +121,14 @@ class Constellation:
         out = np.empty((t.size, 3))
         theta = self.gmst_rad(t)
         jd, fr = self.jd_fr(t)
+        if sat_idx.size and sat_idx.size == t.size and (sat_idx == sat_idx[0]).all():
+            # one satellite (a track, a slew-angle position): the same calls without np.unique and
+            # the masked copies (issue 5: one call per executed observation)
+            i = int(sat_idx[0])
+            err, r, _ = self.satrecs[i].sgp4_array(jd, fr)
+            if np.any(err):
+                raise PropagationError(f"SGP4 error {int(err[err != 0][0])} for {self.names[i]}")
+            return teme_to_ecef(r, theta)
         for i in np.unique(sat_idx):
             m = sat_idx == i
             err, r, _ = self.satrecs[i].sgp4_array(jd[m], fr[m])

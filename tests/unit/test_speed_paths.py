@@ -27,9 +27,49 @@ def _write(path, fast_off: bool) -> None:
                 bag.write_clock(t)
 
 
+def _write_batched(path, sizes) -> None:
+    """The envelopes of _write through write_envelopes, in batches of the given sizes (cycled);
+    the clocks in between as _write writes them."""
+    rng = random.Random(7)
+    envs, clocks = [], []
+    t = 0
+    for i in range(30000):
+        t += rng.randrange(0, 10**9)
+        topic = f"/sat_{rng.randrange(1, 9):02d}/dtn/in"
+        data = bytes(rng.randrange(256) for _ in range(rng.randrange(1, 80))) if i % 3 else f"m{i}"
+        envs.append(Envelope(t, "x", i, topic, data))
+        clocks.append(t if i % 50 == 0 else None)
+    with BagWriter(path) as bag:
+        i = k = 0
+        while i < len(envs):
+            n = min(sizes[k % len(sizes)], len(envs) - i)
+            k += 1
+            for j in range(i, min(i + n, len(envs))):  # clock of envelope j goes after it: split there
+                if clocks[j] is not None:
+                    n = j + 1 - i
+                    break
+            bag.write_envelopes(envs[i:i + n])
+            if clocks[i + n - 1] is not None:
+                bag.write_clock(clocks[i + n - 1])
+            i += n
+
+
+def _slow_bag(path) -> None:
+    """_write through rosbags' own Writer.write and McapWriter.close_chunk (no fast path at all)."""
+    from rosbags.rosbag2.storage_mcap import McapWriter
+
+    fast_close = McapWriter.close_chunk
+    try:
+        McapWriter.close_chunk = McapWriter._close_chunk_orig
+        _write(path, True)
+    finally:
+        McapWriter.close_chunk = fast_close
+    assert fast_close is not McapWriter._close_chunk_orig
+
+
 def test_fast_bag_write_is_byte_identical(tmp_path):
     _write(tmp_path / "fast" / "bag", False)  # same bag name: the summary names its file
-    _write(tmp_path / "slow" / "bag", True)
+    _slow_bag(tmp_path / "slow" / "bag")
     a = (tmp_path / "fast" / "bag" / "bag.mcap").read_bytes()
     b = (tmp_path / "slow" / "bag" / "bag.mcap").read_bytes()
     assert len(a) > 2**20 and a == b
@@ -351,3 +391,96 @@ def test_unit_vectors_norm_equals_linalg_norm():
         v = rng.normal(size=shape) * 10.0 ** rng.integers(-3, 5, size=shape)
         want = v / np.linalg.norm(v, axis=-1, keepdims=True)
         assert unit_vectors(v).tobytes() == want.tobytes()
+
+
+def test_batched_envelope_writes_are_byte_identical(tmp_path):
+    """write_envelopes (the local engine's per-step call) gives rosbags' own file, whatever the batch
+    sizes (1, odd, larger than a chunk), including a batch holding a topic's first envelope."""
+    _slow_bag(tmp_path / "slow" / "bag")
+    b = (tmp_path / "slow" / "bag" / "bag.mcap").read_bytes()
+    for name, sizes in (("a", [1]), ("b", [7, 300, 1]), ("c", [40000])):
+        _write_batched(tmp_path / name / "bag", sizes)
+        assert (tmp_path / name / "bag" / "bag.mcap").read_bytes() == b, name
+        assert ((tmp_path / name / "bag" / "metadata.yaml").read_text()
+                == (tmp_path / "slow" / "bag" / "metadata.yaml").read_text())
+
+
+def test_batched_writes_reject_bad_envelopes_like_single_writes(tmp_path):
+    import pytest
+
+    with BagWriter(tmp_path / "bag") as bag:
+        bag.write_envelopes([Envelope(5, "x", 0, "/a", "ok")])
+        with pytest.raises(ValueError, match="log time must be >= 0"):
+            bag.write_envelopes([Envelope(6, "x", 1, "/a", "ok"), Envelope(-1, "x", 2, "/a", "bad")])
+    with BagReader(tmp_path / "bag") as r:
+        assert [(e.t_ns, e.seq) for e in r.envelopes()] == [(5, 0), (6, 1)]
+
+
+def test_wire_encoder_equals_encode_envelope_bytes():
+    from msgs_json.wire import WireEncoder, decode_envelope, encode_envelope_bytes
+
+    rng = random.Random(3)
+    texts = ["", "plain", 'q"uote\\back', "tab\tnl\nctl\x01", "ünï\u2028cødé\U0001f600", "</script>"]
+    payloads = [bytes(rng.randrange(256) for _ in range(rng.randrange(0, 40))) for _ in range(30)]
+    enc = WireEncoder(cache_max=8)  # small: the cache is cleared many times
+    for i in range(3000):
+        data = rng.choice(payloads) if rng.random() < 0.5 else rng.choice(texts) + str(i)
+        env = Envelope(rng.choice([0, 1, 10**18, rng.randrange(10**15)]), rng.choice(texts[1:] + ["sat_11"]),
+                       rng.randrange(0, 10**9), "/t", data)
+        got = enc(env)
+        assert got == encode_envelope_bytes(env)
+        assert decode_envelope(got, "/t") == env
+    odd = Envelope(True, "s", 1, "/t", "x")  # not an int: the plain encoder decides
+    assert enc(odd) == encode_envelope_bytes(odd)
+
+
+def test_engine_hands_steps_to_write_envelopes(tmp_path):
+    """A BagWriter sink gets each step's list (write_envelopes); the bag equals one made by a sink
+    that writes envelope by envelope."""
+    from bringup.local_engine import LocalEngine, run_local
+    from msgs_json.envelope import Emit, StepResult
+
+    class Talker:
+        def __init__(self, name):
+            self.name = name
+
+        def subscriptions(self):
+            return ["/chat"]
+
+        def start(self, t0):
+            return StepResult([Emit("/chat", f"hi from {self.name}", t0)], t0 + 10)
+
+        def step(self, t, inbox):
+            return StepResult([Emit("/chat", f"{self.name} saw {len(inbox)}", t),
+                               Emit(f"/{self.name}/raw", bytes([len(inbox) % 256]) * 3, t)], t + 7)
+
+        def finish(self, t):
+            return [Emit("/chat", "bye", t)]
+
+    with BagWriter(tmp_path / "a" / "bag") as bag:
+        eng = LocalEngine([Talker("p"), Talker("q")], horizon_ns=500, max_step_ns=100, sink=bag.write_envelope)
+        assert eng._sink_many is not None
+        ra = eng.run()
+    with BagWriter(tmp_path / "b" / "bag") as bag:
+        rb = run_local([Talker("p"), Talker("q")], horizon_ns=500, max_step_ns=100,
+                       sink=lambda e: bag.write_envelope(e))
+    assert ra.counts_by_topic == rb.counts_by_topic and ra.steps == rb.steps
+    assert (tmp_path / "a" / "bag" / "bag.mcap").read_bytes() == (tmp_path / "b" / "bag" / "bag.mcap").read_bytes()
+    with BagReader(tmp_path / "a" / "bag") as r:
+        assert sum(1 for _ in r.envelopes()) == sum(ra.counts_by_topic.values()) > 100
+
+
+def test_one_satellite_positions_equal_the_mixed_path():
+    import numpy as np
+
+    from orbit_clock.propagation import build_constellation
+    from bringup.scenario import load_scenario
+
+    c = build_constellation(load_scenario("paper"))
+    t = np.array([0.0, 12.345, 3600.5, 21599.999, 7.0])
+    for i in (0, 5, len(c) - 1):
+        one = c.positions_ecef_km_at(np.full(t.size, i), t)  # the one-satellite path
+        other = (i + 1) % len(c)
+        mixed = c.positions_ecef_km_at(np.r_[np.full(t.size, i), other], np.r_[t, 1.0])  # np.unique path
+        assert np.array_equal(one, mixed[:t.size])  # bit for bit
+        assert np.array_equal(c.positions_ecef_km_at(np.array([i]), t[2:3]), one[2:3])
