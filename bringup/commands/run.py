@@ -132,19 +132,9 @@ def _run_local(world, args, meta, bag_dir: Path, out: Path, router_kw, *, show: 
     # the envelopes the report is made of, kept as they are written: the report is built from them
     # exactly as `constellation report BAG` builds it from the bag (tests/system/test_engines_equal.py
     # checks the two agree), without reading the bag back
-    from bringup.report import REPORT_TOPIC_SUFFIXES
-    report_envs: list = []
-    wanted: dict[str, bool] = {}
     with BagWriter(bag_dir) as bag:
-        write = bag.write_envelope
-
-        def sink(env) -> None:
-            write(env)
-            w = wanted.get(env.topic)
-            if w is None:
-                w = wanted[env.topic] = env.topic.endswith(REPORT_TOPIC_SUFFIXES)
-            if w:
-                report_envs.append(env)
+        tap = _ReportTap(bag)
+        report_envs = tap.kept
 
         bag.write_envelope(Envelope(0, "run", 0, "/run/meta", json.dumps({"meta": meta.__dict__})))
 
@@ -162,7 +152,7 @@ def _run_local(world, args, meta, bag_dir: Path, out: Path, router_kw, *, show: 
             prog.start()
         try:
             res = run_local(parts, horizon_ns=sc.horizon_ns, max_step_ns=int(round(sc.scenario.lockstep_max_step_s * _NS)),
-                            sink=sink, on_step=on_step, progress=progress, progress_interval_s=0.25)
+                            sink=tap.write_envelope, on_step=on_step, progress=progress, progress_interval_s=0.25)
         finally:
             if prog is not None:
                 prog.stop()
@@ -172,6 +162,34 @@ def _run_local(world, args, meta, bag_dir: Path, out: Path, router_kw, *, show: 
         bag.write_envelope(Envelope(sc.horizon_ns, "run", 1, "/run/meta",
                                     json.dumps({"meta": meta.__dict__, "runtime": runtime})))
     return runtime, report_envs
+
+
+class _ReportTap:
+    """Writes envelopes to the bag (one by one or a step's list at once, as the local engine hands
+    them) and keeps those on the report's topics."""
+
+    def __init__(self, bag):
+        from bringup.report import REPORT_TOPIC_SUFFIXES
+        self.bag = bag
+        self.kept: list = []
+        self._suffixes = REPORT_TOPIC_SUFFIXES
+        self._wanted: dict[str, bool] = {}
+
+    def _keep(self, env) -> None:
+        w = self._wanted.get(env.topic)
+        if w is None:
+            w = self._wanted[env.topic] = env.topic.endswith(self._suffixes)
+        if w:
+            self.kept.append(env)
+
+    def write_envelope(self, env) -> None:
+        self.bag.write_envelope(env)
+        self._keep(env)
+
+    def write_envelopes(self, envs: list) -> None:
+        self.bag.write_envelopes(envs)
+        for env in envs:
+            self._keep(env)
 
 
 def _run_ros(world, world_path: Path, args, meta, bag_dir: Path, out: Path, router_kw, *, show: bool) -> dict:
