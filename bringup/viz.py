@@ -196,6 +196,17 @@ def _marker(t_ns, ns, mid, mtype, *, scale, color, points=(), colors=(), text=""
     )
 
 
+def _link_ends(sat_names, links) -> list[int]:
+    """Satellite indices of each ISL's two ends, links sorted and deduplicated (either direction)."""
+    idx = {n: i for i, n in enumerate(sat_names)}
+    ends: list[int] = []
+    for a, b in sorted({tuple(sorted(p)) for p in links}):
+        if a not in idx or b not in idx:
+            raise ValueError(f"constellation_markers: link {a}-{b} names an unknown satellite")
+        ends += [idx[a], idx[b]]
+    return ends
+
+
 def constellation_markers(
     sat_names: Sequence[str],
     r_ecef_km,
@@ -224,13 +235,7 @@ def constellation_markers(
         _marker(t_ns, "satellites", 0, M.SPHERE_LIST, scale=(0.15, 0.15, 0.15),
                 color=C(r=1.0, g=1.0, b=1.0, a=1.0), points=[_point(v) for v in r]),
     ]
-    idx = {n: i for i, n in enumerate(sat_names)}
-    pairs = sorted({tuple(sorted(p)) for p in links})
-    pts = []
-    for a, b in pairs:
-        if a not in idx or b not in idx:
-            raise ValueError(f"constellation_markers: link {a}-{b} names an unknown satellite")
-        pts += [_point(r[idx[a]]), _point(r[idx[b]])]
+    pts = [_point(r[i]) for i in _link_ends(sat_names, links)]
     markers.append(_marker(t_ns, "isl", 0, M.LINE_LIST, scale=(0.02, 0.0, 0.0),
                            color=C(r=1.0, g=0.85, b=0.1, a=0.9), points=pts))
     if gp_ecef_km is not None:
@@ -389,13 +394,7 @@ def constellation_markers_cdr(sat_names: Sequence[str], r_ecef_km, t_ns: int, *,
         raise ValueError(f"constellation_markers: {len(sat_names)} names but {len(r)} positions")
     sec, nsec = divmod(int(t_ns), 1_000_000_000)
     M = _Marker
-    idx = {n: i for i, n in enumerate(sat_names)}
-    pairs = sorted({tuple(sorted(p)) for p in links})
-    ends = []
-    for a, b_ in pairs:
-        if a not in idx or b_ not in idx:
-            raise ValueError(f"constellation_markers: link {a}-{b_} names an unknown satellite")
-        ends += [idx[a], idx[b_]]
+    ends = _link_ends(sat_names, links)
     gp = None
     if gp_ecef_km is not None:
         g = np.asarray(gp_ecef_km, dtype=float).reshape(-1, 3)
