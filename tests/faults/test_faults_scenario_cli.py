@@ -15,6 +15,10 @@ import sys
 
 import msgspec
 import pytest
+from scenario_edit import bad_value as _bad_value
+from scenario_edit import leaves as _leaves
+from scenario_edit import raw_scenario
+from scenario_edit import set_key as _set
 
 from bringup.scenario import load_scenario
 
@@ -24,9 +28,7 @@ COMMANDS = ("run", "access", "contacts", "constellation")
 
 
 def _raw():
-    raw = msgspec.to_builtins(load_scenario("paper"))
-    raw.pop("source_path", None)
-    return raw
+    return raw_scenario(load_scenario("paper"))
 
 
 def _scalar(v) -> str:
@@ -62,35 +64,6 @@ def to_toml(d: dict, prefix: str = "") -> str:
         else:
             out += f"\n[{name}]\n" + to_toml(v, name + ".")
     return out
-
-
-def _leaves(d, prefix=""):
-    for k, v in d.items():
-        key = f"{prefix}{k}"
-        if isinstance(v, dict):
-            yield from _leaves(v, key + ".")
-        elif isinstance(v, list) and v and isinstance(v[0], dict):
-            for i, item in enumerate(v):
-                yield from _leaves(item, f"{key}[{i}].")
-        elif v is not None:
-            yield key, v
-
-
-def _set(d, key, value):
-    parts = key.replace("[", ".[").split(".")
-    for p in parts[:-1]:
-        d = d[int(p[1:-1])] if p.startswith("[") else d[p]
-    d[parts[-1]] = value
-
-
-def _bad_value(v):
-    if isinstance(v, bool):
-        return "yes"
-    if isinstance(v, (int, float)):
-        return "not a number"
-    if isinstance(v, str):
-        return 12
-    return "not a list"
 
 
 KEYS = [k for k, _ in _leaves(_raw())]

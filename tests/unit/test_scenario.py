@@ -5,16 +5,13 @@ from __future__ import annotations
 import subprocess
 import sys
 
-import msgspec
 import pytest
+from scenario_edit import bad_value as _bad_value
+from scenario_edit import leaves as _leaves
+from scenario_edit import raw_scenario as _raw
+from scenario_edit import set_key as _set
 
 from bringup.scenario import ScenarioError, load_scenario, sat_names
-
-
-def _raw(sc):
-    raw = msgspec.to_builtins(sc)
-    raw.pop("source_path")
-    return raw
 
 
 def test_paper_scenario_matches_design(paper_scenario):
@@ -39,38 +36,6 @@ def test_overrides_keep_planes_when_possible(paper_scenario):
 
 def test_sat_names():
     assert sat_names(2, 2) == ["sat_11", "sat_12", "sat_21", "sat_22"]
-
-
-def _leaves(d, prefix=""):
-    for k, v in d.items():
-        key = f"{prefix}{k}"
-        if isinstance(v, dict):
-            yield from _leaves(v, key + ".")
-        elif isinstance(v, list) and v and isinstance(v[0], dict):
-            for i, item in enumerate(v):
-                yield from _leaves(item, f"{key}[{i}].")
-        else:
-            yield key, v
-
-
-def _set(d, key, value):
-    parts = key.replace("[", ".[").split(".")
-    for p in parts[:-1]:
-        d = d[int(p[1:-1])] if p.startswith("[") else d[p]
-    last = parts[-1]
-    d[last] = value
-
-
-def _bad_value(v):
-    if isinstance(v, bool):
-        return "yes"
-    if isinstance(v, (int, float)):
-        return "not a number"
-    if isinstance(v, str):
-        return 12
-    if isinstance(v, list):
-        return "not a list"
-    return None
 
 
 _KEYS = [k for k, _ in _leaves(_raw(load_scenario("paper")))]
