@@ -56,7 +56,8 @@ def main() -> None:
           f"RTF {r.real_time_factor:.0f}x, {r.wall_s / r.steps * 1e6:.1f} us/step")
     with tempfile.TemporaryDirectory() as d, BagWriter(Path(d) / "bag") as bag:
         t = time.perf_counter()
-        r = run_local(build(), horizon_ns=horizon, max_step_ns=S, sink=bag.write_envelope, on_step=bag.write_clock)
+        r = run_local(build(), horizon_ns=horizon, max_step_ns=S, sink=bag.write_envelope,
+                      sink_many=bag.write_envelopes, on_step=bag.write_clock)
         bag.close()
         w = time.perf_counter() - t
         size = sum(p.stat().st_size for p in (Path(d) / "bag").iterdir())

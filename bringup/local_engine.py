@@ -17,13 +17,14 @@ Usage::
 
     res = run_local(participants, horizon_ns=sc.horizon_ns, max_step_ns=10**10,
                     sink=bag.write_envelope,            # stream (else res.envelopes holds them all)
+                    sink_many=bag.write_envelopes,      # optional: each step's list in one call
                     on_step=bag.write_clock,            # called with t_k before each step
                     progress=print, progress_interval_s=1.0)
     res.steps, res.wall_s, res.real_time_factor, res.counts_by_topic
 
 Every emitted envelope goes to ``sink`` (or into ``res.envelopes``) in the order it is delivered:
-per step, sorted by ``(t_ns, source, seq)``; a sink ``obj.write_envelope`` whose object also has
-``write_envelopes(list)`` (BagWriter) gets each step's list in one call instead, same order. Per-step overhead is a few microseconds plus
+per step, sorted by ``(t_ns, source, seq)``; ``sink_many`` (e.g. BagWriter.write_envelopes), when
+given, gets each step's list in one call instead, same order. Per-step overhead is a few microseconds plus
 O(messages): routing is a precomputed topic -> subscribers table.
 
 Oracle: tests/unit/test_local_engine.py drives toy participants whose behaviour is known by hand
@@ -96,6 +97,7 @@ class LocalEngine:
         max_step_ns: int,
         t0_ns: int = 0,
         sink: Callable[[Envelope], None] | None = None,
+        sink_many: Callable[[list[Envelope]], None] | None = None,
         on_step: Callable[[int], None] | None = None,
         progress: Callable[[Progress], None] | None = None,
         progress_interval_s: float = 1.0,
@@ -112,12 +114,9 @@ class LocalEngine:
         self.max_step_ns = int(max_step_ns)
         self.t0_ns = int(t0_ns)
         self.sink = sink
-        # A sink that is an object's ``write_envelope`` with a ``write_envelopes`` counterpart (the
-        # bag writer) gets each step's envelopes in one call, in the same order (issue 5: ~440k
-        # envelopes per paper run, one Python call each otherwise).
-        owner = getattr(sink, "__self__", None)
-        many = getattr(owner, "write_envelopes", None) if getattr(sink, "__name__", "") == "write_envelope" else None
-        self._sink_many: Callable[[list[Envelope]], None] | None = many if callable(many) else None
+        # each step's envelopes in one call, in the same order (issue 5: ~440k envelopes per paper
+        # run, one Python call each otherwise)
+        self._sink_many = sink_many
         self.on_step = on_step
         self.progress = progress
         self.progress_interval_s = progress_interval_s

@@ -152,7 +152,8 @@ def _run_local(world, args, meta, bag_dir: Path, out: Path, router_kw, *, show: 
             prog.start()
         try:
             res = run_local(parts, horizon_ns=sc.horizon_ns, max_step_ns=int(round(sc.scenario.lockstep_max_step_s * _NS)),
-                            sink=tap.write_envelope, on_step=on_step, progress=progress, progress_interval_s=0.25)
+                            sink=tap.write_envelope, sink_many=tap.write_envelopes, on_step=on_step,
+                            progress=progress, progress_interval_s=0.25)
         finally:
             if prog is not None:
                 prog.stop()

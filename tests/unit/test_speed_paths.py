@@ -458,7 +458,8 @@ def test_engine_hands_steps_to_write_envelopes(tmp_path):
             return [Emit("/chat", "bye", t)]
 
     with BagWriter(tmp_path / "a" / "bag") as bag:
-        eng = LocalEngine([Talker("p"), Talker("q")], horizon_ns=500, max_step_ns=100, sink=bag.write_envelope)
+        eng = LocalEngine([Talker("p"), Talker("q")], horizon_ns=500, max_step_ns=100, sink=bag.write_envelope,
+                          sink_many=bag.write_envelopes)
         assert eng._sink_many is not None
         ra = eng.run()
     with BagWriter(tmp_path / "b" / "bag") as bag:
