@@ -434,14 +434,12 @@ class SatelliteLogic:
         self.agent.transmission_failed(tx, t_ns)
 
     def _bundle_info(self, b) -> dict:
-        import cbor2
-
         from orbit_clock.contact_plan import node_name
-        from sat_node.dtn.agent import PRIORITY_BLOCK
+        from sat_node.dtn.agent import PRIORITY_BLOCK, priority_of
 
         blk = b.block(PRIORITY_BLOCK)
         info = {"bundle_id": b.bundle_id, "src": node_name(b.src[0]), "dst": node_name(b.dest[0]),
-                "priority": int(cbor2.loads(blk.data)) if blk is not None else 0,
+                "priority": priority_of(blk.data) if blk is not None else 0,
                 "creation_ns": (b.creation_ms - self.agent.config.epoch_dtn_ms) * 1_000_000,
                 "hop_count": (b.hop_count[1] if b.hop_count else 0)}
         try:

@@ -66,7 +66,7 @@ from .cgr import ContactGraph
 from .store import BundleStore, StoredBundle
 
 __all__ = ["BundleAgent", "AgentConfig", "Transmission", "BundleEvent", "PRIORITY_BLOCK", "ttl_s_for_priority",
-           "DROP_REASONS", "deadline_delays"]
+           "DROP_REASONS", "deadline_delays", "priority_of"]
 
 PRIORITY_BLOCK = 193  # experimental (RFC 9171 9.1): CBOR uint, 1 (highest) .. 15
 DROP_REASONS = ("ttl", "integrity", "no_route", "hop_limit", "other")
@@ -83,7 +83,7 @@ def deadline_delays(ttl_s_by_priority: dict[int, float]) -> tuple[float, ...]:
     return tuple(ttl_s_for_priority(p, ttl_s_by_priority) for p in range(1, 16))
 
 
-def _priority_of(data: bytes) -> int:
+def priority_of(data: bytes) -> int:
     """The priority block's CBOR uint (the 15 one-byte encodings are looked up, not parsed)."""
     p = _PRIORITY_BYTES.get(data)
     return p if p is not None else int(cbor2.loads(data))
@@ -309,7 +309,7 @@ class BundleAgent:
             if self.config.verify_integrity:
                 verify_bib(b, self.config.key)
             prio_blk = b.block(PRIORITY_BLOCK)
-            priority = _priority_of(prio_blk.data) if prio_blk is not None else 15
+            priority = priority_of(prio_blk.data) if prio_blk is not None else 15
             if not 1 <= priority <= 15:
                 raise ValueError(f"priority block holds {priority}, not 1..15")
             dest = node_name(b.dest[0])
