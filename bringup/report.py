@@ -39,7 +39,7 @@ from msgs_json import codec
 from msgs_json import schemas as S
 from msgs_json.envelope import Envelope
 
-__all__ = ["REPORT_TOPIC_SUFFIXES", "RunMeta", "build_report", "consensus_figures", "flatten", "report_from_bag", "true_values"]
+__all__ = ["REPORT_TOPIC_SUFFIXES", "ReportBuilder", "RunMeta", "build_report", "consensus_figures", "flatten", "report_from_bag", "true_values"]
 
 _NS = 1_000_000_000
 REPORT_TOPIC_SUFFIXES = ("/observations", "/dtn/events", "/dtn/counters", "/schedule", "/ground/uplink")
@@ -81,67 +81,85 @@ def _bundle_event(msg):
 
 def build_report(envelopes, meta: RunMeta, runtime: dict | None = None) -> dict:
     """The report dict (nested, DESIGN.md keys) from envelopes (any iterable of Envelope)."""
-    obs: list[S.Observation] = []
-    events: list = []
-    n_schedules = 0
-    counters: dict[str, dict] = {}
-    cpu_by_planner: dict[str, float] = defaultdict(float)
-    bad = 0
-    planned: dict[tuple[str, int], int] = {}
-    created: dict[str, tuple] = {}
-    delivered: dict[str, tuple[str, int]] = {}
+    b = ReportBuilder()
     for env in envelopes:
+        b.add(env)
+    return b.build(meta, runtime)
+
+
+class ReportBuilder:
+    """``build_report`` in two halves: ``add`` decodes one envelope as it is written (the local
+    engine's recorder does this beside the run, bringup/record_process.py), ``build`` makes the
+    report from what was added. Envelopes off the report's topics are ignored; one that does not
+    decode is counted (``messages_rejected_in_report``)."""
+
+    def __init__(self) -> None:
+        self.obs: list[S.Observation] = []
+        self.events: list = []
+        self.n_schedules = 0
+        self.counters: dict[str, dict] = {}
+        self.cpu_by_planner: dict[str, float] = defaultdict(float)
+        self.bad = 0
+        self.planned: dict[tuple[str, int], int] = {}
+        self.created: dict[str, tuple] = {}
+        self.delivered: dict[str, tuple[str, int]] = {}
+
+    def add(self, env) -> None:
         t = env.topic
         try:
             if t.endswith("/observations"):
-                obs.append(codec.decode(t, env.data))
+                self.obs.append(codec.decode(t, env.data))
             elif t.endswith("/dtn/events"):
                 m = codec.decode(t, env.data)
-                events.append(_bundle_event(m))
+                self.events.append(_bundle_event(m))
                 if isinstance(m, S.BundleCreated):
-                    created[m.bundle_id] = (m.src, m.gp, m.obs_t_ns, m.dst)
-                elif isinstance(m, S.BundleDelivered) and m.bundle_id not in delivered:
-                    delivered[m.bundle_id] = (m.sat, m.t_ns)
+                    self.created[m.bundle_id] = (m.src, m.gp, m.obs_t_ns, m.dst)
+                elif isinstance(m, S.BundleDelivered) and m.bundle_id not in self.delivered:
+                    self.delivered[m.bundle_id] = (m.sat, m.t_ns)
             elif t.endswith("/dtn/counters"):
                 m = codec.decode(t, env.data)
-                counters[m.sat] = m.counters
+                self.counters[m.sat] = m.counters
             elif t.endswith("/schedule"):
-                n_schedules += 1
+                self.n_schedules += 1
                 m = codec.decode(t, env.data)
-                cpu_by_planner[m.sat] += m.solve_cpu_s
-                planned[(m.sat, m.version)] = m.planned_ns
+                self.cpu_by_planner[m.sat] += m.solve_cpu_s
+                self.planned[(m.sat, m.version)] = m.planned_ns
             elif t == "/ground/uplink":
-                cpu_by_planner["ground"] += codec.decode(t, env.data).schedule.solve_cpu_s
+                self.cpu_by_planner["ground"] += codec.decode(t, env.data).schedule.solve_cpu_s
         except ValueError:
-            bad += 1
-    rep: dict = {
-        "scenario": meta.scenario, "mode": meta.mode, "engine": meta.engine, "seed": meta.seed,
-        "horizon_s": meta.horizon_s, "n_sats": meta.n_sats,
-    }
-    rep.update(_value_figures(obs, meta))
-    rep["schedules"] = {"count": n_schedules}
-    rep["dtn"] = _dtn_figures(events)
-    if counters:
-        # overheard copies are counted by the satellites (DtnCounters), not sent as events
-        over = sum(c.get("discarded.not_next_hop", 0) for c in counters.values())
-        rep["dtn"]["copies_discarded"] = rep["dtn"].get("copies_discarded", 0) + over
-        det = rep["dtn"].setdefault("copies_discarded_detail", {})
-        det["not_next_hop"] = det.get("not_next_hop", 0) + over
-        rep["dtn"]["held_at_end"] = sum(c.get("held", 0) for c in counters.values())
-    if meta.mode == "distributed":
-        rep["consensus"] = consensus_figures(obs, created, delivered, planned, meta.revisit_zero_s)
-    if counters:
-        rej: dict[str, int] = defaultdict(int)
-        for c in counters.values():
-            for k, v in c.items():
-                if k.startswith(("rejected.", "tx_failed.", "agent.dropped.", "agent.discarded.", "host.")):
-                    rej[k] += v
-        rep["dtn"]["rejections"] = dict(sorted(rej.items()))
-    rep["messages_rejected_in_report"] = bad
-    rt = dict(runtime or {})
-    rt["scheduler_cpu_s_per_sat"] = (sum(cpu_by_planner.values()) / meta.n_sats) if meta.n_sats else None
-    rep["runtime"] = rt
-    return rep
+            self.bad += 1
+
+    def build(self, meta: RunMeta, runtime: dict | None = None) -> dict:
+        """The report of everything added so far."""
+        obs, events, counters, cpu_by_planner = self.obs, self.events, self.counters, self.cpu_by_planner
+        rep: dict = {
+            "scenario": meta.scenario, "mode": meta.mode, "engine": meta.engine, "seed": meta.seed,
+            "horizon_s": meta.horizon_s, "n_sats": meta.n_sats,
+        }
+        rep.update(_value_figures(obs, meta))
+        rep["schedules"] = {"count": self.n_schedules}
+        rep["dtn"] = _dtn_figures(events)
+        if counters:
+            # overheard copies are counted by the satellites (DtnCounters), not sent as events
+            over = sum(c.get("discarded.not_next_hop", 0) for c in counters.values())
+            rep["dtn"]["copies_discarded"] = rep["dtn"].get("copies_discarded", 0) + over
+            det = rep["dtn"].setdefault("copies_discarded_detail", {})
+            det["not_next_hop"] = det.get("not_next_hop", 0) + over
+            rep["dtn"]["held_at_end"] = sum(c.get("held", 0) for c in counters.values())
+        if meta.mode == "distributed":
+            rep["consensus"] = consensus_figures(obs, self.created, self.delivered, self.planned, meta.revisit_zero_s)
+        if counters:
+            rej: dict[str, int] = defaultdict(int)
+            for c in counters.values():
+                for k, v in c.items():
+                    if k.startswith(("rejected.", "tx_failed.", "agent.dropped.", "agent.discarded.", "host.")):
+                        rej[k] += v
+            rep["dtn"]["rejections"] = dict(sorted(rej.items()))
+        rep["messages_rejected_in_report"] = self.bad
+        rt = dict(runtime or {})
+        rt["scheduler_cpu_s_per_sat"] = (sum(cpu_by_planner.values()) / meta.n_sats) if meta.n_sats else None
+        rep["runtime"] = rt
+        return rep
 
 
 PASS_GAP_S = 120.0  # observations of one satellite closer than this belong to one pass over one area

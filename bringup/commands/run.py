@@ -86,12 +86,12 @@ def run(args: argparse.Namespace) -> int:
                    horizon_s=sc.scenario.horizon_s, n_sats=len(world.sat_names), n_gp=world.n_gp,
                    revisit_zero_s=sc.value.revisit_zero_s)
     router_kw = {"extra_delay_s": args.isl_delay_s, "cuts": cuts} if (args.isl_delay_s or cuts) else None
-    report_envs = None
+    rep = None
     if args.engine == "local":
-        runtime, report_envs = _run_local(world, args, meta, bag_dir, out, router_kw, show=not args.no_progress)
+        runtime, rep = _run_local(world, args, meta, bag_dir, out, router_kw, show=not args.no_progress)
     else:
         runtime = _run_ros(world, world_path, args, meta, bag_dir, out, router_kw, show=not args.no_progress)
-    return _finish(out, bag_dir, runtime, world, args, say, meta=meta, report_envs=report_envs)
+    return _finish(out, bag_dir, runtime, world, args, say, rep=rep)
 
 
 def _progress_display(show: bool, horizon_ns: int):
@@ -113,11 +113,13 @@ def _progress_display(show: bool, horizon_ns: int):
     return prog, update
 
 
-def _run_local(world, args, meta, bag_dir: Path, out: Path, router_kw, *, show: bool) -> dict:
+def _run_local(world, args, meta, bag_dir: Path, out: Path, router_kw, *, show: bool) -> tuple[dict, dict]:
+    """The run on the local engine; returns its runtime figures and its report (built by the
+    recorder process from the envelopes it wrote: the same body as `constellation report BAG`,
+    tests/system/test_engines_equal.py)."""
     from bringup.local_engine import run_local
     from bringup.participants import all_participants
-    from bringup.recording import BagWriter
-    from bringup.viz_feed import VizFeed
+    from bringup.record_process import Recorder
     from msgs_json.envelope import Envelope
 
     sc = world.scenario
@@ -125,22 +127,12 @@ def _run_local(world, args, meta, bag_dir: Path, out: Path, router_kw, *, show: 
     if store_dir.exists():
         shutil.rmtree(store_dir)
     store_dir.mkdir()
-    parts = all_participants(world, args.mode, store_dir=store_dir, router_kw=router_kw)
-    viz = VizFeed(world)
-    prog, update = _progress_display(show, sc.horizon_ns)
-    in_flight = {"n": 0}
-    # the envelopes the report is made of, kept as they are written: the report is built from them
-    # exactly as `constellation report BAG` builds it from the bag (tests/system/test_engines_equal.py
-    # checks the two agree), without reading the bag back
-    with BagWriter(bag_dir) as bag:
-        tap = _ReportTap(bag)
-        report_envs = tap.kept
-
-        bag.write_envelope(Envelope(0, "run", 0, "/run/meta", json.dumps({"meta": meta.__dict__})))
-
-        def on_step(t_ns: int) -> None:
-            bag.write_clock(t_ns)
-            viz.write(bag, t_ns)
+    # the recorder (bag, visualisation, report decoding) forks first, before the stores open
+    with Recorder(bag_dir, world) as rec:
+        parts = all_participants(world, args.mode, store_dir=store_dir, router_kw=router_kw)
+        prog, update = _progress_display(show, sc.horizon_ns)
+        in_flight = {"n": 0}
+        rec.write_envelope(Envelope(0, "run", 0, "/run/meta", json.dumps({"meta": meta.__dict__})))
 
         def progress(p) -> None:
             router = next((q for q in parts if q.name == "dtn_router"), None)
@@ -152,7 +144,7 @@ def _run_local(world, args, meta, bag_dir: Path, out: Path, router_kw, *, show: 
             prog.start()
         try:
             res = run_local(parts, horizon_ns=sc.horizon_ns, max_step_ns=int(round(sc.scenario.lockstep_max_step_s * _NS)),
-                            sink=tap.write_envelope, sink_many=tap.write_envelopes, on_step=on_step,
+                            sink=rec.write_envelope, sink_many=rec.write_envelopes, on_step=rec.step,
                             progress=progress, progress_interval_s=0.25)
         finally:
             if prog is not None:
@@ -160,37 +152,10 @@ def _run_local(world, args, meta, bag_dir: Path, out: Path, router_kw, *, show: 
         runtime = {"wall_s": res.wall_s, "real_time_factor": res.real_time_factor, "steps": res.steps,
                    "envelopes": sum(res.counts_by_topic.values()),
                    "rejected_messages": sum(getattr(p, "rejected", 0) for p in parts)}
-        bag.write_envelope(Envelope(sc.horizon_ns, "run", 1, "/run/meta",
+        rec.write_envelope(Envelope(sc.horizon_ns, "run", 1, "/run/meta",
                                     json.dumps({"meta": meta.__dict__, "runtime": runtime})))
-    return runtime, report_envs
-
-
-class _ReportTap:
-    """Writes envelopes to the bag (one by one or a step's list at once, as the local engine hands
-    them) and keeps those on the report's topics."""
-
-    def __init__(self, bag):
-        from bringup.report import REPORT_TOPIC_SUFFIXES
-        self.bag = bag
-        self.kept: list = []
-        self._suffixes = REPORT_TOPIC_SUFFIXES
-        self._wanted: dict[str, bool] = {}
-
-    def _keep(self, env) -> None:
-        w = self._wanted.get(env.topic)
-        if w is None:
-            w = self._wanted[env.topic] = env.topic.endswith(self._suffixes)
-        if w:
-            self.kept.append(env)
-
-    def write_envelope(self, env) -> None:
-        self.bag.write_envelope(env)
-        self._keep(env)
-
-    def write_envelopes(self, envs: list) -> None:
-        self.bag.write_envelopes(envs)
-        for env in envs:
-            self._keep(env)
+        rep = rec.finish(meta, json.loads(json.dumps(runtime)))
+    return runtime, rep
 
 
 def _run_ros(world, world_path: Path, args, meta, bag_dir: Path, out: Path, router_kw, *, show: bool) -> dict:
@@ -237,13 +202,11 @@ def _run_ros(world, world_path: Path, args, meta, bag_dir: Path, out: Path, rout
             "process_restarts": sum(restarts.values())}
 
 
-def _finish(out: Path, bag_dir: Path, runtime: dict, world, args, say, *, meta=None, report_envs=None) -> int:
-    from bringup.report import build_report, report_from_bag
+def _finish(out: Path, bag_dir: Path, runtime: dict, world, args, say, *, rep: dict | None = None) -> int:
+    from bringup.report import report_from_bag
     from bringup.report_md import write_report_md
 
-    if report_envs is not None:  # the local engine kept what it wrote (same as reading the bag back)
-        rep = build_report(report_envs, meta, json.loads(json.dumps(runtime)))
-    else:
+    if rep is None:  # (the local engine's recorder built it from what it wrote, as report BAG does)
         rep = report_from_bag(bag_dir)
     rep["runtime"].update({k: v for k, v in runtime.items() if k not in rep["runtime"]})
     rep["runtime"].update({"wall_s": runtime.get("wall_s"), "real_time_factor": runtime.get("real_time_factor")})
