@@ -43,9 +43,9 @@ INF = np.inf
 
 
 @numba.njit(cache=True)
-def _dijkstra(start, end, src, dst, rate, owlt, residual, out_ptr, out_idx, excluded, node_excluded,
-              source, dest, t0, bits, backlog_bits, deadline, arr, pred, first_backlog, hop_tol,
-              stamp, qid):
+def _dijkstra(start, end, src, dst, rate, owlt, residual, out_ptr, out_idx, out_maxend, excluded,
+              node_excluded, source, dest, t0, bits, backlog_bits, deadline, arr, pred, first_backlog,
+              hop_tol, stamp, qid):
     """Label-setting search over (contact, hop count) states with Pareto pruning.
 
     First hop on contact c starts at max(t0 + backlog_bits / rate, start) + first_backlog[c] / rate
@@ -58,12 +58,17 @@ def _dijkstra(start, end, src, dst, rate, owlt, residual, out_ptr, out_idx, excl
     contact with fewer-or-equal hops arrives no later. States pop in (arrival, hops, contact) order,
     so the first one reaching ``dest`` is the SABR choice. Returns (contact, hops) or (-1, 0).
     dest < 0: no early stop (one-to-all). arr/pred rows are valid only where stamp[c] == qid (rows are
-    reset on first touch, so the arrays are reused across queries without clearing them)."""
+    reset on first touch, so the arrays are reused across queries without clearing them).
+    A node's outgoing contacts are scanned from the first that may still be open (out_maxend: the
+    running maximum of their end times, in start order) up to the first that starts after the
+    deadline (no arrival through it or a later one can meet it)."""
     H = arr.shape[1] - 1
     heap = [(np.inf, 0, 0)]
     heap.pop()
-    for k in range(out_ptr[source], out_ptr[source + 1]):
+    for k in range(_first_open(out_maxend, out_ptr[source], out_ptr[source + 1], t0), out_ptr[source + 1]):
         c = out_idx[k]
+        if start[c] > deadline:
+            break
         if excluded[c] or node_excluded[dst[c]] or dst[c] == source or end[c] <= t0:
             continue
         ts = max(t0 + backlog_bits / rate[c], start[c]) + first_backlog[c] / rate[c]
@@ -83,6 +88,10 @@ def _dijkstra(start, end, src, dst, rate, owlt, residual, out_ptr, out_idx, excl
     best_c = -1
     best_h = 0
     best_a = np.inf
+    # fewest hops of a label already expanded at each node: states pop in (arrival, hops) order, so
+    # one expanded there with <= h hops arrived no later, and it can take every contact this one
+    # could (earlier start, same residual volume): expanding this one adds no better label
+    node_min_h = np.full(node_excluded.shape[0], H + 1, np.int64)
     while len(heap) > 0:
         a, h, c = heapq.heappop(heap)
         if a > arr[c, h]:
@@ -97,6 +106,10 @@ def _dijkstra(start, end, src, dst, rate, owlt, residual, out_ptr, out_idx, excl
         if dominated:
             continue
         v = dst[c]
+        if v != dest:
+            if node_min_h[v] <= h:
+                continue
+            node_min_h[v] = h
         if v == dest:
             if best_c < 0:
                 best_c, best_h, best_a = c, h, a
@@ -109,8 +122,10 @@ def _dijkstra(start, end, src, dst, rate, owlt, residual, out_ptr, out_idx, excl
             continue  # within the tolerance only a route with fewer hops could still win
         if h >= H:
             continue
-        for k in range(out_ptr[v], out_ptr[v + 1]):
+        for k in range(_first_open(out_maxend, out_ptr[v], out_ptr[v + 1], a), out_ptr[v + 1]):
             e = out_idx[k]
+            if start[e] > deadline:
+                break
             w = dst[e]
             if excluded[e] or w == source or node_excluded[w] or end[e] <= a:
                 continue
@@ -136,6 +151,18 @@ def _dijkstra(start, end, src, dst, rate, owlt, residual, out_ptr, out_idx, excl
             pred[e, h + 1] = c
             heapq.heappush(heap, (na, h + 1, e))
     return best_c, best_h
+
+
+@numba.njit(cache=True)
+def _first_open(maxend, lo, hi, t):
+    """First k in [lo, hi) with maxend[k] > t (maxend is non-decreasing there); hi if none."""
+    while lo < hi:
+        mid = (lo + hi) // 2
+        if maxend[mid] > t:
+            hi = mid
+        else:
+            lo = mid + 1
+    return lo
 
 
 @dataclass(frozen=True)
@@ -176,6 +203,13 @@ class ContactGraph:
         self.out_ptr = np.zeros(len(self.node_names) + 1, dtype=np.int64)
         self.out_ptr[1:] = np.cumsum(counts)
         self.out_idx = order.astype(np.int64)
+        # per node, in its contacts' start order: the latest end so far (scans skip contacts that
+        # have all closed, sat_node/dtn/cgr.py _dijkstra)
+        self.out_maxend = np.empty(n, dtype=np.float64)
+        for i in range(len(self.node_names)):
+            lo, hi = self.out_ptr[i], self.out_ptr[i + 1]
+            if hi > lo:
+                self.out_maxend[lo:hi] = np.maximum.accumulate(self.end_s[self.out_idx[lo:hi]])
         self._no_exclusion = np.zeros(n, dtype=np.bool_)
         self._no_node_exclusion = np.zeros(len(self.node_names), dtype=np.bool_)
         self._node_masks: dict[tuple, np.ndarray] = {}  # excluded node names -> mask (never written)
@@ -208,7 +242,7 @@ class ContactGraph:
                         node_ex[self.node_index[x]] = True
                 self._node_masks[key] = node_ex
         best, hops = _dijkstra(self.start_s, self.end_s, self.src, self.dst, self.rate_bps, self.owlt_s,
-                               self.volume_bits if residual is None else residual, self.out_ptr, self.out_idx,
+                               self.volume_bits if residual is None else residual, self.out_ptr, self.out_idx, self.out_maxend,
                                self._no_exclusion if excluded is None else excluded, node_ex,
                                self.node_index[source], -1 if dest is None else self.node_index[dest],
                                float(t_s), float(bits), float(backlog_bits), float(deadline_s), arr, pred,
