@@ -8,7 +8,8 @@ other core. On the paper run that was ~4 s of the ~26 s the one-process run took
 
 How it works: the parent buffers the calls it used to make on the bag - a step's envelopes (as plain
 tuples), then ``write_clock(t)`` and the visualisation of instant ``t`` - and sends them through a
-pipe in batches of a few thousand envelopes. The child makes exactly those calls, in that order, on
+pipe in batches of a few thousand envelopes (marshal: tuples of ints, str and bytes, about twice as
+fast as pickle for them). The child makes exactly those calls, in that order, on
 a BagWriter of its own, so the file is the one the parent would have written itself
 (tests/unit/test_record_process.py compares the bytes). Envelopes on the report's topics are also
 decoded as they arrive; at ``finish`` the child builds the report and sends it back.
@@ -28,8 +29,10 @@ objects run in it).
 from __future__ import annotations
 
 import gc
+import marshal
 import multiprocessing as mp
 import os
+import pickle
 import signal
 from pathlib import Path
 
@@ -92,7 +95,7 @@ class Recorder:
         if self._closed:
             raise RecorderError(f"recorder for {self.bag_dir}: already closed")
         self._flush()
-        self._send(("finish", meta, runtime))
+        self._send(b"F" + pickle.dumps((meta, runtime)))
         self._closed = True
         try:
             reply = self._conn.recv()
@@ -111,7 +114,7 @@ class Recorder:
         self._closed = True
         try:
             self._flush()
-            self._conn.send(("finish", None, None))
+            self._conn.send_bytes(b"F" + pickle.dumps((None, None)))
             self._conn.recv()
         except (OSError, EOFError, RecorderError):
             pass
@@ -130,11 +133,11 @@ class Recorder:
         ops, self._ops, self._n = self._ops, [], 0
         if self._conn.poll():  # the child only speaks first when it failed
             raise RecorderError(self._failure(self._recv_quiet()))
-        self._send(("ops", ops))
+        self._send(b"O" + marshal.dumps(ops))
 
-    def _send(self, msg) -> None:
+    def _send(self, msg: bytes) -> None:
         try:
-            self._conn.send(msg)
+            self._conn.send_bytes(msg)
         except OSError as exc:
             raise RecorderError(self._failure(self._recv_quiet(), exc)) from None
 
@@ -181,16 +184,16 @@ def _child_main(conn, parent_conn, bag_dir: str, world, report: bool) -> None:
         with BagWriter(bag_dir) as bag:
             while True:
                 try:
-                    msg = conn.recv()
+                    msg = conn.recv_bytes()
                 except EOFError:  # the parent is gone: close the bag with what it handed over
                     break
-                if msg[0] == "finish":
-                    _, meta, runtime = msg
+                if msg[:1] == b"F":
+                    meta, runtime = pickle.loads(msg[1:])
                     bag.close()
                     rep = builder.build(meta, runtime) if (builder is not None and meta is not None) else None
                     reply = ("ok", rep, dict(bag.counts))
                     break
-                for op in msg[1]:
+                for op in marshal.loads(memoryview(msg)[1:]):
                     if type(op) is int:
                         bag.write_clock(op)
                         if viz is not None:

@@ -73,11 +73,18 @@ class ContactPlan:
         return [c for c in self.contacts if c.start_s <= t_s < c.end_s]
 
 
+_SAT_NUMBERS: dict[str, int] = {}  # satellite name -> number, filled as names are seen (at most 81)
+
+
 def node_number(name: str, ground_stations: list[str] | None = None) -> int:
     """ipn node number of a node name: sat_PS -> 10P+S; gs_<x> -> 100 + index in ground_stations."""
+    n = _SAT_NUMBERS.get(name)
+    if n is not None:
+        return n
     m = _SAT_RE.match(name)
     if m:
-        return 10 * int(m.group(1)) + int(m.group(2))
+        n = _SAT_NUMBERS[name] = 10 * int(m.group(1)) + int(m.group(2))
+        return n
     if name.startswith("gs_") and ground_stations is not None and name in ground_stations:
         return GS_NODE_BASE + ground_stations.index(name)
     raise ValueError(f"node name {name!r}: not sat_PS, nor a known ground station")

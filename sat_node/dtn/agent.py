@@ -200,6 +200,7 @@ class BundleAgent:
         self._in_flight: dict[str, tuple[Transmission, _Held]] = {}
         self._parked: dict[int, list] = {}  # contact -> bits waiting for it, by priority (index 0..15)
         self._version = 0  # bumped whenever _parked changes (route memo key)
+        self._route_memo: tuple = (-1, -1, {})  # (t_ns, version, {routing key: (Route | None, deadline_s)})
         self._expiry_heap: list = []
         self._out_starts = self.graph.out_starts.get(node, np.zeros(0))
         self.radio_free_ns = 0
@@ -399,10 +400,27 @@ class BundleAgent:
 
     def _route(self, h: _Held, t_ns: int):
         """CGR from this node at ``t_ns`` (the radio free then), after the bits already waiting for
-        each contact that is not open yet (equal or higher priority). Memoised per (time, state)."""
+        each contact that is not open yet (equal or higher priority). Memoised per (time, state),
+        for the bundle and for every bundle that routes alike at that instant (same destination,
+        exclusions, size and - while contacts have bits parked for them - priority): the query differs
+        only in the deadline (the bundle's expiry), and with no hop tolerance a route found under
+        one deadline is the answer under any deadline it meets, no route under a deadline is the
+        answer under any earlier one (the search only prunes labels arriving after the deadline)."""
         memo = h.route_memo
         if memo is not None and memo[0] == t_ns and memo[1] == self._version:
             return memo[2]
+        shared = self._route_memo
+        if shared[0] != t_ns or shared[1] != self._version:
+            shared = self._route_memo = (t_ns, self._version, {})
+        key = (h.dest, h.excluded_node, tuple(sorted(h.excluded)) if h.excluded else (), h.bits,
+               h.priority if self._parked else 0)
+        hit = shared[2].get(key)
+        deadline_s = h.expiry_ns / _NS
+        if hit is not None and self.config.hop_tolerance_s == 0.0:
+            r, d = hit
+            if (r is not None and r.arrival_s <= deadline_s) or (r is None and deadline_s <= d):
+                h.route_memo = (t_ns, self._version, r)
+                return r
         fb = None
         if self._parked:
             fb = self.graph._no_backlog.copy()
@@ -415,10 +433,11 @@ class BundleAgent:
         if h.excluded:
             excluded = np.zeros(len(self.graph.contacts), dtype=np.bool_)
             excluded[list(h.excluded)] = True
-        r = self.graph.route(self.node, h.dest, t_ns / _NS, h.bits, deadline_s=h.expiry_ns / _NS,
+        r = self.graph.route(self.node, h.dest, t_ns / _NS, h.bits, deadline_s=deadline_s,
                              excluded=excluded, excluded_nodes=(h.excluded_node,) if h.excluded_node else (),
                              first_backlog_bits=fb, hop_tolerance_s=self.config.hop_tolerance_s)
         h.route_memo = (t_ns, self._version, r)
+        shared[2][key] = (r, deadline_s)
         return r
 
     def _park_add(self, c: int, priority: int, bits: int) -> None:

@@ -97,3 +97,17 @@ def test_deadline_queue_sends_the_earliest_expiry_first():
         order = [t.bundle_id for t in a["sat_12"].transmissions_until(90 * S)]
         other = "old" if first == "new" else "new"
         assert order == [ids[first], ids[other]], (delays, p1_created_s)
+
+
+def test_shared_route_memo_respects_each_deadline():
+    """Bundles that route alike at one instant share a CGR answer (agent._route), but only where
+    the answer holds under their own deadline. On this plan the route to sat_13 arrives at 52.5 s:
+    a bundle with a 60 s lifetime gets it, one with 30 s has none (and is dropped no_route) whether
+    it comes before or after the other at the same instant."""
+    cfg = {"ttl_s_by_priority": {1: 30.0, 15: 60.0}}
+    for order in ((9, 1), (1, 9)):
+        a = agents(**cfg)["sat_11"]
+        out = [a.originate(b"x", "sat_13", p, 0) and a.counters["dropped.no_route"] for p in order]
+        assert a.counters["dropped.no_route"] == 1, order
+        assert a.held_count() == 1, order
+        assert out == ([0, 1] if order == (9, 1) else [1, 1])

@@ -74,3 +74,43 @@ def test_cli_deadline_queue_changes_the_order(tmp_path, capsys):
         med[q] = rep["dtn.latency_s_by_priority.9.median"]
     # strict: the P9 waits for all 20 P1s (~40 s on air); deadline: equal TTLs, so it goes first by age
     assert med["priority"] > 40 and med["deadline"] < 10, med
+
+
+def test_route_memo_equals_fresh_queries(paper_inputs, monkeypatch):
+    """The agent's route memos (per bundle, and shared by bundles that route alike at one instant,
+    sat_node/dtn/agent.py _route) hand out exactly what a fresh CGR query with the bundle's own
+    deadline returns: checked on every route of the first 1500 bundles of case4."""
+    import numpy as np
+
+    from sat_node.dtn.agent import BundleAgent
+
+    plan = read_contact_plan(paper_inputs / "contact_plan_3p_8s.csv", rate_bps=1000)
+    traffic = read_traffic(paper_inputs / "traffic_case4.csv")[:1500]
+    orig = BundleAgent._route
+    n = {"calls": 0, "shared": 0}
+
+    def checked(self, h, t_ns):
+        before = self.graph._qid
+        r = orig(self, h, t_ns)
+        n["calls"] += 1
+        n["shared"] += self.graph._qid == before and h.route_memo is not None
+        fb = None
+        if self._parked:
+            fb = self.graph._no_backlog.copy()
+            for c, byp in self._parked.items():
+                if sum(byp[: h.priority + 1]) > 0:
+                    fb[c] = sum(byp[: h.priority + 1])
+        excluded = None
+        if h.excluded:
+            excluded = np.zeros(len(self.graph.contacts), dtype=np.bool_)
+            excluded[list(h.excluded)] = True
+        fresh = self.graph.route(self.node, h.dest, t_ns / 1e9, h.bits, deadline_s=h.expiry_ns / 1e9,
+                                 excluded=excluded, excluded_nodes=(h.excluded_node,) if h.excluded_node else (),
+                                 first_backlog_bits=fb)
+        assert r == fresh, (self.node, h.bundle.bundle_id, t_ns)
+        return r
+
+    monkeypatch.setattr(BundleAgent, "_route", checked)
+    run = run_dtn(plan, traffic)
+    assert run.report(None)["dtn.conservation_ok"]
+    assert n["calls"] > 3000 and n["shared"] > 100, n
