@@ -90,13 +90,20 @@ class Recorder:
         self._ops.append(int(t_ns))
 
     # -- end -----------------------------------------------------------------------------------------
-    def finish(self, meta=None, runtime: dict | None = None) -> dict | None:
-        """Close the bag; with ``meta``, the report of everything written (else None)."""
+    def finish(self, meta=None, runtime: dict | None = None, *, meanwhile=None) -> dict | None:
+        """Close the bag; with ``meta``, the report of everything written (else None).
+        ``meanwhile()``, if given, runs here while the child finishes."""
         if self._closed:
             raise RecorderError(f"recorder for {self.bag_dir}: already closed")
         self._flush()
         self._send(b"F" + pickle.dumps((meta, runtime)))
         self._closed = True
+        if meanwhile is not None:
+            try:
+                meanwhile()
+            except BaseException:
+                self._join_quietly()
+                raise
         try:
             reply = self._conn.recv()
         except EOFError:
@@ -153,6 +160,13 @@ class Recorder:
         code = self._proc.exitcode
         return (f"recorder for {self.bag_dir} stopped without a reply (exit code {code}"
                 + (f", {type(exc).__name__}: {exc}" if exc else "") + ")")
+
+    def _join_quietly(self) -> None:
+        try:
+            self._conn.recv() if self._conn.poll(60) else None
+        except (OSError, EOFError):
+            pass
+        self._join()
 
     def _join(self) -> None:
         self._proc.join(timeout=60)

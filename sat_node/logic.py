@@ -216,6 +216,12 @@ class SatelliteLogic:
             emits.append(self._counters_emit(t_ns))
         return emits
 
+    def close(self) -> None:
+        """Close the bundle store (after ``finish``; the file keeps every committed step)."""
+        store = self.agent.store if self.agent is not None else None
+        if store is not None:
+            store.close()
+
     def _counters_emit(self, t_ns: int) -> Emit:
         c = {"discarded.not_next_hop": self.overheard, "held": self.agent.held_count(),
              "rejected_messages": self.rejected}
