@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import bisect
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 from orbit_clock.contact_plan import Contact, ContactPlan
 
@@ -34,8 +35,7 @@ __all__ = ["LinkModel", "LinkOutcome", "Copy"]
 _NS = 1_000_000_000
 
 
-@dataclass(frozen=True)
-class Copy:
+class Copy(NamedTuple):
     node: str
     arrival_ns: int
 

@@ -53,7 +53,7 @@ import heapq
 import itertools
 from collections import Counter
 from dataclasses import dataclass, field
-from typing import Callable
+from typing import Callable, NamedTuple
 
 import cbor2
 import numpy as np
@@ -61,7 +61,7 @@ import numpy as np
 from orbit_clock.contact_plan import ContactPlan, node_name, node_number
 
 from .bpsec import IntegrityError, add_bib, verify_bib
-from .bpv7 import (PAPER_EPOCH_DTN_MS, Bundle, BundleError, decode_bundle, encode_bundle, ipn, peek_next_hop)
+from .bpv7 import PAPER_EPOCH_DTN_MS, Bundle, BundleError, decode_bundle, encode_bundle, ipn, peek_next_hop
 from .cgr import ContactGraph
 from .store import BundleStore, StoredBundle
 
@@ -118,8 +118,7 @@ class AgentConfig:
     priority_delay_s: tuple | None = None
 
 
-@dataclass(frozen=True)
-class Transmission:
+class Transmission(NamedTuple):
     """One radio transmission: encoded bundle (its next-hop block set), intended next hop,
     [start_ns, end_ns] of the sender's radio, the bits it takes, the contact index (in the agent's plan)."""
 
@@ -133,8 +132,7 @@ class Transmission:
     contact: int
 
 
-@dataclass(frozen=True)
-class BundleEvent:
+class BundleEvent(NamedTuple):
     """For the report: kind in created|forwarded|delivered|dropped|discarded; reason for dropped /
     discarded; created_ns of the bundle, priority, destination."""
 

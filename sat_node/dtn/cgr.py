@@ -30,7 +30,7 @@ route it returns (contiguous, time-feasible) before handing it out.
 from __future__ import annotations
 
 import heapq
-from dataclasses import dataclass
+from typing import NamedTuple
 
 import numba
 import numpy as np
@@ -165,8 +165,7 @@ def _first_open(maxend, lo, hi, t):
     return lo
 
 
-@dataclass(frozen=True)
-class Route:
+class Route(NamedTuple):
     """A route: contact indices in order, the next hop node name, arrival [s] at the destination."""
 
     contacts: tuple[int, ...]

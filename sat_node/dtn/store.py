@@ -38,14 +38,13 @@ net effect equals the same writes made one by one.
 from __future__ import annotations
 
 import sqlite3
-from dataclasses import dataclass
 from pathlib import Path
+from typing import NamedTuple
 
 __all__ = ["BundleStore", "StoredBundle"]
 
 
-@dataclass(frozen=True)
-class StoredBundle:
+class StoredBundle(NamedTuple):
     bundle_id: str
     data: bytes
     priority: int
