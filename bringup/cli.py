@@ -104,9 +104,10 @@ def entry() -> None:
     ``FAST_EXIT = True`` (it closes every file it writes before returning: ``run``) succeeded, the
     process leaves with ``os._exit`` once the atexit handlers have run and stdout/stderr are
     flushed: the interpreter's teardown after numba kernels were loaded (LLVM's) takes ~0.3-0.4 s
-    and would only free memory."""
+    and would only free memory. Not under a profiler or tracer (they write their results then)."""
     code = main()
-    if _fast_exit:
+    if _fast_exit and sys.getprofile() is None and sys.gettrace() is None:  # (profilers, coverage: their
+        # results are written at interpreter exit)
         import atexit
 
         atexit._run_exitfuncs()

@@ -23,7 +23,9 @@ Durability guarantee (what a kill can cost): the unit is the lockstep step.
 ``synchronous=NORMAL`` in WAL mode: a committed transaction survives a process kill - its frames are
 in the WAL file, which the OS has even when they were not fsynced - and that is the failure we model.
 A power cut may roll back the transactions since the last checkpoint (the file stays consistent).
-Checkpoints run every ``_WAL_CHECKPOINT_PAGES`` WAL pages. The bundles table is ``WITHOUT ROWID``
+Checkpoints run every ``_WAL_CHECKPOINT_PAGES`` WAL pages. The connection is used by one thread at a
+time, not always the one that opened it (``check_same_thread=False``): the local run closes its
+satellites' stores side by side at the end (bringup/commands/run.py). The bundles table is ``WITHOUT ROWID``
 (one B-tree keyed by the bundle id instead of a rowid table plus its index: fewer pages per commit);
 a file made by an earlier version (a rowid table) is read and written the same way. Reads
 (:meth:`load_all`, ``len``, :meth:`get_meta`) see the batch's pending writes (they are written into
@@ -68,7 +70,8 @@ class BundleStore:
         self.path = None if path is None else Path(path)
         if self.path is not None:
             self.path.parent.mkdir(parents=True, exist_ok=True)
-        self._db = sqlite3.connect(":memory:" if self.path is None else str(self.path), isolation_level=None)
+        self._db = sqlite3.connect(":memory:" if self.path is None else str(self.path), isolation_level=None,
+                                   check_same_thread=False)
         if self.path is not None:
             mode = self._db.execute("PRAGMA journal_mode=WAL").fetchone()[0]
             if mode.lower() != "wal":
