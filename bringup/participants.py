@@ -46,9 +46,35 @@ def _make(world: World, role: str, mode: str, *, store_dir: Path | None, router_
     if role == GROUND_ROLE:
         return GroundLogic(world)
     if role in world.sat_names:
-        store = str(store_dir / f"{role}.sqlite") if store_dir is not None and mode == "distributed" else None
+        store = str(store_path(store_dir, role)) if store_dir is not None and mode == "distributed" else None
         return SatelliteLogic(world, role, mode, store_path=store)
     raise UserError(f"role {role!r}: not a satellite of the scenario, nor '{ROUTER_ROLE}'/'{GROUND_ROLE}'")
+
+
+def store_path(store_dir: Path, sat: str) -> Path:
+    """The bundle store file of satellite ``sat`` in a run's store folder."""
+    return Path(store_dir) / f"{sat}.sqlite"
+
+
+def create_stores(store_dir: Path, sats: list[str]):
+    """Start creating the satellites' empty bundle stores (SQLite files in WAL mode) in worker
+    threads; returns ``wait()``, which returns when they are all made (their worker threads ended)
+    and raises the first failure. Making one takes ~25 ms, nearly all of it waiting for the disk (the
+    WAL switch syncs the file), so the local run starts them before it builds the world and they
+    overlap with it; the satellites then open files that are ready (sat_node/dtn/store.py)."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    from sat_node.dtn.store import BundleStore
+
+    ex = ThreadPoolExecutor(max_workers=8, thread_name_prefix="store")
+    futs = [ex.submit(lambda p: BundleStore(p).close(), store_path(store_dir, s)) for s in sats]
+
+    def wait() -> None:
+        ex.shutdown(wait=True)
+        for f in futs:
+            f.result()
+
+    return wait
 
 
 def all_participants(world: World, mode: str, *, store_dir: Path | None = None,

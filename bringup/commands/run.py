@@ -80,6 +80,9 @@ def run(args: argparse.Namespace) -> int:
     say(f"run: {sc.name}, {sc.constellation.total_sats} satellites, {sc.scenario.horizon_s / 3600:g} h, "
         f"mode {args.mode}, engine {args.engine} -> {out}")
     t0 = time.perf_counter()
+    stores_ready = None
+    if args.engine == "local":  # the ros engine's satellites make their own, in their processes
+        stores_ready = _fresh_store_dir(out / "store", sc.sat_names if args.mode == "distributed" else [])
     world = World.cached(sc, out / "cache")
     world_path = out / "cache" / f"world-{world.key}.pkl"
     if not world_path.exists():
@@ -92,6 +95,7 @@ def run(args: argparse.Namespace) -> int:
     router_kw = {"extra_delay_s": args.isl_delay_s, "cuts": cuts} if (args.isl_delay_s or cuts) else None
     rep = None
     if args.engine == "local":
+        stores_ready()  # (before the recorder forks: no other thread runs then)
         runtime, rep = _run_local(world, args, meta, bag_dir, out, router_kw, show=not args.no_progress)
     else:
         runtime = _run_ros(world, world_path, args, meta, bag_dir, out, router_kw, show=not args.no_progress)
@@ -127,10 +131,7 @@ def _run_local(world, args, meta, bag_dir: Path, out: Path, router_kw, *, show: 
     from msgs_json.envelope import Envelope
 
     sc = world.scenario
-    store_dir = out / "store"
-    if store_dir.exists():
-        shutil.rmtree(store_dir)
-    store_dir.mkdir()
+    store_dir = out / "store"  # (made by run(): _fresh_store_dir)
     # the recorder (bag, visualisation, report decoding) forks first, before the stores open
     with Recorder(bag_dir, world) as rec:
         parts = all_participants(world, args.mode, store_dir=store_dir, router_kw=router_kw)
@@ -163,6 +164,17 @@ def _run_local(world, args, meta, bag_dir: Path, out: Path, router_kw, *, show: 
         # closes run side by side (~1 s one after the other on the paper run)
         rep = rec.finish(meta, json.loads(json.dumps(runtime)), meanwhile=lambda: _close_all(parts))
     return runtime, rep
+
+
+def _fresh_store_dir(store_dir: Path, sats: list[str]):
+    """An empty ``store_dir``, its satellites' new stores started (participants.create_stores: the
+    returned ``wait()``)."""
+    from bringup.participants import create_stores
+
+    if store_dir.exists():
+        shutil.rmtree(store_dir)
+    store_dir.mkdir()
+    return create_stores(store_dir, sats)
 
 
 def _close_all(parts: list) -> None:
