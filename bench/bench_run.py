@@ -3,6 +3,7 @@
 Usage::
 
     .venv/bin/python bench/bench_run.py [--sats 24 --hours 6 --mode distributed --engines local,ros]
+        [--repeat N] [--baseline-src DIR]
 
 Each engine runs as a child process (`python -m bringup.cli run ...`); the process tree's total
 resident memory is sampled every 0.25 s from /proc (peak of the RSS sum and of the PSS sum), and the machine's MemAvailable drop during the run (what the run took, whatever else ran), CPU time is the children's
@@ -18,6 +19,7 @@ import argparse
 import json
 import os
 import resource
+import statistics
 import subprocess
 import sys
 import tempfile
@@ -64,12 +66,15 @@ def _mem_available_mib() -> float:
     return float("nan")
 
 
-def run_one(engine: str, args, out: Path) -> dict:
+def run_one(engine: str, args, out: Path, src: str | None = None) -> dict:
     cmd = [sys.executable, "-m", "bringup.cli", "run", "--engine", engine, "--mode", args.mode, "--sats",
            str(args.sats), "--hours", str(args.hours), "--out", str(out), "--no-plots", "--no-progress"]
+    env = None
+    if src is not None:  # another checkout of the project (e.g. a git worktree of an older commit)
+        env = dict(os.environ, PYTHONPATH=os.pathsep.join([src, os.environ.get("PYTHONPATH", "")]).rstrip(os.pathsep))
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     t0 = time.perf_counter()
-    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, env=env)
     peak_rss = peak_pss = 0.0
     avail0 = min_avail = _mem_available_mib()
     while proc.poll() is None:
@@ -98,12 +103,33 @@ def main() -> int:
     ap.add_argument("--hours", type=float, default=6.0)
     ap.add_argument("--mode", default="distributed")
     ap.add_argument("--engines", default="local,ros")
+    ap.add_argument("--repeat", type=int, default=1, help="runs per engine (wall time: min and median printed)")
+    ap.add_argument("--baseline-src", default=None, metavar="DIR",
+                    help="also run each engine from this checkout (e.g. `git worktree add DIR REV`), "
+                         "alternating with this one, and print the wall-time ratio of the medians")
     args = ap.parse_args()
     rows = []
+    walls: dict[str, list[float]] = {}
+    srcs = [None] + ([args.baseline_src] if args.baseline_src else [])
     with tempfile.TemporaryDirectory() as d:
         for eng in args.engines.split(","):
-            rows.append(run_one(eng, args, Path(d) / eng))
-            print(json.dumps(rows[-1]), flush=True)
+            for k in range(args.repeat):
+                for src in srcs:
+                    tag = eng if src is None else f"{eng}@baseline"
+                    row = run_one(eng, args, Path(d) / f"{tag}-{k}", src)
+                    row["engine"] = tag
+                    walls.setdefault(tag, []).append(row["wall_s"])
+                    if src is None and k == args.repeat - 1:
+                        rows.append(row)
+                    print(json.dumps(row), flush=True)
+    for tag, w in walls.items():
+        if len(w) > 1:
+            print(f"{tag}: wall min {min(w):.2f} s, median {statistics.median(w):.2f} s over {len(w)} runs "
+                  f"(RTF {args.hours * 3600 / statistics.median(w):.0f}x at the median)")
+    for eng in args.engines.split(","):
+        if f"{eng}@baseline" in walls:
+            a, b = statistics.median(walls[eng]), statistics.median(walls[f"{eng}@baseline"])
+            print(f"{eng}: this checkout / baseline wall time (medians): {a / b:.3f}")
     if len(rows) == 2:
         a, b = rows
         same = all(a[k] == b[k] for k in ("value", "observations", "bundles_created", "bundles_delivered"))
