@@ -74,7 +74,8 @@ def run_one(engine: str, args, out: Path, src: str | None = None) -> dict:
         env = dict(os.environ, PYTHONPATH=os.pathsep.join([src, os.environ.get("PYTHONPATH", "")]).rstrip(os.pathsep))
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     t0 = time.perf_counter()
-    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, env=env)
+    # (run from inside the checkout: `python -m` puts the working folder first on sys.path)
+    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, env=env, cwd=src)
     peak_rss = peak_pss = 0.0
     avail0 = min_avail = _mem_available_mib()
     while proc.poll() is None:
