@@ -10,7 +10,16 @@ host never share one) and ``FASTRTPS_DEFAULT_PROFILES_FILE`` = bringup/dds/fastd
 Progress (sim time, real-time factor, steps/s, bundles in flight in the router) goes to a
 callback. Ctrl-C / SIGTERM: the clock is asked to stop first (it tells the hosts and closes the
 bag, which stays readable), then the hosts; a child that fails is named in the result's message
-and the result is non-zero.
+and the result is non-zero. A child still running 5 s after SIGTERM gets SIGUSR1 (node processes
+then write their Python stacks into their log) and SIGKILL, and its log says so.
+End of a run: after the clock exits 0 the hosts get 10 s to leave (they take ~0.1 s), then
+SIGTERM. A host that had to be killed then is not a failure of the run (it acked the final step,
+so everything it sent is in the bag and its per-step state is committed); it is listed in the
+result's ``lingered``. Seen under load: about one host in 30 runs hung in FastDDS participant
+destruction during its teardown (blocked in C, so SIGTERM went unhandled), which failed a complete
+run with "process 'sat_12' failed (exit code -9): no message"; node processes now skip that
+destruction (bringup/ros_host.py exit_now), and this rule keeps any other hang at exit from
+failing a complete run.
 Each child's stderr goes to ``out_dir/logs/<role>.log`` (appended across restarts) and its pid to
 ``out_dir/logs/<role>.pid``.
 
@@ -32,7 +41,9 @@ Multi-host: ``wrap(role, argv, env) -> (argv, env)`` rewrites each child's comma
 e.g. ``ip netns exec NS ...`` with per-host ``ROS_STATIC_PEERS`` (tests/multihost).
 
 Oracle: tests/ros/test_launcher.py (a toy run completes and its bag equals the local engine's
-envelopes; a killed host is named; SIGINT leaves a readable bag; two leases never share an id;
+envelopes; a killed host is named; a host that will not exit after a clean run is killed, named
+in ``lingered`` with its stacks in its log, and the run stands; SIGINT leaves a readable bag; two
+leases never share an id;
 progress carries the router's bundles in flight, equal step by step to the local engine's figure,
 tests/ros/test_progress_in_flight.py); tests/faults/test_restart_clock.py (a clock killed more
 often than allowed leaves a partial bag that equals the local engine's run up to its last step).
@@ -146,10 +157,14 @@ class LaunchResult:
     last: LaunchProgress | None
     failed_roles: list[str]
     restarts: dict[str, int] = None  # type: ignore[assignment]
+    # hosts that did not exit after a run the clock completed and were killed (the run stands)
+    lingered: list[str] = None  # type: ignore[assignment]
 
     def __post_init__(self) -> None:
         if self.restarts is None:
             self.restarts = {}
+        if self.lingered is None:
+            self.lingered = []
 
     @property
     def ok(self) -> bool:
@@ -169,17 +184,31 @@ class _Child:
         return (errs or lines or [""])[-1].strip()
 
 
-def _terminate(children: list[_Child], timeout_s: float) -> None:
+def _terminate(children: list[_Child], timeout_s: float) -> list[str]:
+    """SIGTERM every live child; one still running ``timeout_s`` later is killed (SIGKILL), after
+    a SIGUSR1 that makes a node process (bringup/commands/node.py via ros_host / clock_node:
+    faulthandler) write its Python stacks into its log. Returns the roles that had to be killed;
+    each log says so."""
     for c in children:
         if c.proc.poll() is None:
             c.proc.send_signal(signal.SIGTERM)
     deadline = time.monotonic() + timeout_s
+    killed: list[str] = []
     for c in children:
         try:
             c.proc.wait(timeout=max(0.0, deadline - time.monotonic()))
         except subprocess.TimeoutExpired:
+            with open(c.log, "a") as fh:
+                fh.write(f"launcher: {c.role} still running {timeout_s:g} s after SIGTERM; its stacks, then SIGKILL\n")
+            c.proc.send_signal(signal.SIGUSR1)
+            try:
+                c.proc.wait(timeout=1.0)
+            except subprocess.TimeoutExpired:
+                pass
             c.proc.kill()
             c.proc.wait()
+            killed.append(c.role)
+    return killed
 
 
 def _signame(sig: int) -> str:
@@ -188,6 +217,9 @@ def _signame(sig: int) -> str:
     except ValueError:
         return f"signal {sig}"
 
+
+# Wall seconds hosts get to exit after the clock ended the run (they normally take ~0.1 s).
+_HOST_EXIT_GRACE_S = 10.0
 
 # Clock exit codes that are its own decision (ok, user error, a host failed, interrupted): never restarted.
 _CLOCK_DECIDED = (0, 2, 3, 130)
@@ -247,6 +279,7 @@ def launch(spec: RunSpec, out_dir: Path, *, progress: Callable[[LaunchProgress],
     children: list[_Child] = []
 
     restarts: dict[str, int] = {}
+    lingered: list[str] = []
 
     def start(role: str, **kw) -> _Child:
         log = out_dir / "logs" / f"{role}.log"
@@ -338,11 +371,20 @@ def launch(spec: RunSpec, out_dir: Path, *, progress: Callable[[LaunchProgress],
                             message = (f"clock {how} and was restarted {restarts.get(CLOCK_ROLE, 0)} of "
                                        f"{spec.max_restarts} times")
                     # hosts leave on the clock's stop message; give them a moment, then insist
-                    deadline = time.monotonic() + 10.0
+                    deadline = time.monotonic() + _HOST_EXIT_GRACE_S
                     while time.monotonic() < deadline and any(h.proc.poll() is None for h in hosts):
                         time.sleep(0.05)
-                    _terminate(hosts, 5.0)
-                    bad = [h for h in hosts if h.proc.returncode not in (0, -signal.SIGTERM, 130)]
+                    stuck = _terminate(hosts, 5.0)
+                    # After a clean end (clock exit 0) every host has acked the final step, so its
+                    # envelopes are in the bag and its per-step state is committed: a host killed
+                    # here only failed to leave (seen: stuck in rclpy destroy_node, SIGTERM
+                    # unhandled). Its log says so and the result carries it, but the run stands.
+                    bad = [h for h in hosts if h.role not in stuck
+                           and h.proc.returncode not in (0, -signal.SIGTERM, 130)]
+                    if crc == 0:
+                        lingered = [f"process '{h.role}' did not exit within {_HOST_EXIT_GRACE_S:g} s of the "
+                                    f"end of the run (nor 5 s after SIGTERM) and was killed; see its log {h.log}"
+                                    for h in hosts if h.role in stuck]
                     if crc == 0 and bad:
                         rc = 1
                         failed = [h.role for h in bad]
@@ -357,7 +399,7 @@ def launch(spec: RunSpec, out_dir: Path, *, progress: Callable[[LaunchProgress],
             _terminate(hosts, 5.0)
             rc, message, failed = 130, "interrupted: every process stopped, bag closed", []
         reader.join(timeout=2.0)
-        return LaunchResult(rc, message, dom, out_dir, last[0], failed, restarts)
+        return LaunchResult(rc, message, dom, out_dir, last[0], failed, restarts, lingered)
     finally:
         _terminate(children, 5.0)
         if old_term is not None:

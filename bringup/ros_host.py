@@ -34,6 +34,8 @@ DDS, emit exactly the envelopes the local engine (bringup/local_engine.py) emits
 
 from __future__ import annotations
 
+import faulthandler
+import os
 import signal
 import sys
 import time
@@ -65,7 +67,7 @@ from orbit_clock.lockstep import (
     encode_msg,
 )
 
-__all__ = ["QOS_DATA", "QOS_SYNC_PUB", "QOS_SYNC_SUB", "HostError", "ParticipantHost", "run_host"]
+__all__ = ["QOS_DATA", "QOS_SYNC_PUB", "QOS_SYNC_SUB", "HostError", "ParticipantHost", "exit_now", "run_host"]
 
 QOS_DATA = QoSProfile(history=HistoryPolicy.KEEP_ALL, reliability=ReliabilityPolicy.RELIABLE,
                       durability=DurabilityPolicy.VOLATILE)
@@ -430,7 +432,13 @@ class ParticipantHost:
         except Exception:  # noqa: BLE001 - best effort on the way out
             pass
 
-    def close(self) -> None:
+    def close(self, dds: bool = True) -> None:
+        """Close the checkpoint store and (``dds``) destroy the nodes and the context. A process
+        that exits right after passes ``dds=False`` and leaves with :func:`exit_now` (see there)."""
+        if not dds:
+            if self.ckpt is not None:
+                self.ckpt.close()
+            return
         try:
             if self.ckpt is not None:
                 self.ckpt.close()
@@ -442,19 +450,45 @@ class ParticipantHost:
             rclpy.try_shutdown(context=self.ctx)
 
 
+def exit_now(code: int) -> None:
+    """End a node process (host or clock) once its files are closed, without destroying its DDS
+    participant. That destruction (rclpy destroy_node of the last node -> rmw destroy_participant
+    -> FastDDS 2.14 ``DomainParticipant::set_listener``) can deadlock when discovery traffic
+    arrives meanwhile, which it does at the end of a run, when every process of the run leaves at
+    once: a FastDDS receive thread waits in ``onReaderDiscovery`` for a mutex while set_listener
+    spins waiting for that listener call to end, forever (gdb stacks of a host and of the clock,
+    under load, about 1 host in 30 runs), with the GIL held, so SIGTERM goes unhandled. The
+    participant only frees memory and tells peers it left; peers of a finished run do not need it
+    (they drop it at lease expiry), so the process skips it: stdout/stderr flushed, ``os._exit``."""
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (OSError, ValueError):
+            pass
+    os._exit(code)
+
+
 def run_host(role: str, participants: Sequence[Participant], **kw) -> int:
-    """Process entry: host ``participants`` until the clock stops the run. Exit code: 0 ok,
-    1 the host failed (message on stderr naming the participant), 130 interrupted."""
+    """Process entry: host ``participants`` until the clock stops the run, then end the process
+    (:func:`exit_now`). Exit code: 0 ok, 1 the host failed (message on stderr naming the
+    participant), 130 interrupted."""
+    # SIGUSR1 writes every thread's Python stack into the log (stderr): the launcher sends it before
+    # it kills a host that ignored SIGTERM.
+    faulthandler.register(signal.SIGUSR1, all_threads=True)
     host = ParticipantHost(role, participants, **kw)
     signal.signal(signal.SIGTERM, host.request_stop)
     signal.signal(signal.SIGINT, host.request_stop)
     try:
-        return host.run()
+        rc = host.run()
     except KeyboardInterrupt:
         print(f"host {role}: interrupted", file=sys.stderr)
-        return 130
+        rc = 130
     except (HostError, LockstepError) as exc:
         print(f"host {role}: error: {exc}", file=sys.stderr)
-        return 1
-    finally:
+        rc = 1
+    except BaseException:
         host.close()
+        raise
+    host.close(dds=False)
+    exit_now(rc)
+    return rc  # not reached

@@ -48,6 +48,7 @@ a readable bag).
 
 from __future__ import annotations
 
+import faulthandler
 import json
 import pickle
 import signal
@@ -65,7 +66,7 @@ from rclpy.signals import SignalHandlerOptions
 from rosgraph_msgs.msg import Clock
 from std_msgs.msg import String
 
-from bringup.ros_host import QOS_DATA, QOS_SYNC_PUB, QOS_SYNC_SUB
+from bringup.ros_host import QOS_DATA, QOS_SYNC_PUB, QOS_SYNC_SUB, exit_now
 from bringup.run_spec import RunSpec
 from msgs_json.wire import WireError, decode_envelope
 from orbit_clock.lockstep import (
@@ -475,7 +476,9 @@ class LockstepClock:
         except Exception:  # noqa: BLE001 - best effort on the way out
             pass
 
-    def close(self) -> None:
+    def close(self, dds: bool = True) -> None:
+        """Close the bag (or export the journal into it) and (``dds``) destroy the node and the
+        context; a process that exits right after passes ``dds=False`` (bringup/ros_host.py exit_now)."""
         try:
             if self.journal is not None:
                 try:
@@ -485,29 +488,38 @@ class LockstepClock:
                     self.journal.close()
             elif self.bag is not None:
                 self.bag.close()
+            if not dds:
+                return
             self.executor.shutdown(timeout_sec=1.0)
             self.node.destroy_node()
         finally:
-            rclpy.try_shutdown(context=self.ctx)
+            if dds:
+                rclpy.try_shutdown(context=self.ctx)
 
 
 def run_clock(spec: RunSpec) -> int:
     """Process entry of the clock role. Exit code 0 ok, 3 a host failed or went silent (named on
     stderr), 130 interrupted (hosts told to stop, bag closed)."""
+    # SIGUSR1 writes every thread's Python stack into the log (bringup/launcher.py, before a SIGKILL)
+    faulthandler.register(signal.SIGUSR1, all_threads=True)
     clock = LockstepClock(spec)
     signal.signal(signal.SIGTERM, clock.request_stop)
     signal.signal(signal.SIGINT, clock.request_stop)
     try:
         rc = clock.run()
         clock.stop_hosts()
-        return rc
     except KeyboardInterrupt:
         clock.stop_hosts("interrupted")
         print("clock: interrupted; hosts told to stop, bag closed", file=sys.stderr)
-        return 130
+        rc = 130
     except ClockError as exc:
         clock.stop_hosts(str(exc))
         print(f"clock: error: {exc}", file=sys.stderr)
-        return 3
-    finally:
+        rc = 3
+    except BaseException:
         clock.close()
+        raise
+    # the bag is closed here; the DDS participant is not destroyed (a FastDDS deadlock: exit_now)
+    clock.close(dds=False)
+    exit_now(rc)
+    return rc  # not reached

@@ -15,7 +15,8 @@ split steps by stamp alone.
 ``make(spec, role)`` is the run-spec factory: role ``pingpong`` hosts ping and pong in one process,
 role ``c<i>`` hosts counter i (``spec.extra["n_counters"]`` counters in the ring;
 ``blob_every`` (0: no blobs) and ``period_s`` tune the counters;
-``spec.extra["stall"] = {"role": ..., "at_ns": ...}`` makes one a Staller). ``all_participants``
+``spec.extra["stall"] = {"role": ..., "at_ns": ...}`` makes one a Staller; ``spec.extra["linger"] = role``
+makes that role's process ignore SIGTERM and not exit after its run). ``all_participants``
 returns fresh instances of every role's participants, for the local engine reference run.
 """
 
@@ -126,8 +127,25 @@ def roles(n_counters: int, pingpong: bool = True) -> list[str]:
     return (["pingpong"] if pingpong else []) + [f"c{i}" for i in range(n_counters)]
 
 
-def make(spec, role: str) -> list:
+def _linger_at_exit() -> None:
+    """The host process, once its run is over, neither exits nor reacts to SIGTERM (as hosts blocked
+    in FastDDS participant destruction were seen to): only SIGKILL ends it. Replaces the host's
+    way out (bringup/ros_host.py exit_now)."""
+    import signal
+
+    import bringup.ros_host
+
+    def linger(code: int) -> None:
+        signal.signal(signal.SIGTERM, signal.SIG_IGN)
+        time.sleep(120)
+
+    bringup.ros_host.exit_now = linger
+
+
+def make(spec, role: str, host: bool = True) -> list:
     n = int(spec.extra.get("n_counters", 2))
+    if host and spec.extra.get("linger") == role:
+        _linger_at_exit()
     if role == "pingpong":
         return [Ping(), Pong()]
     if role.startswith("c") and role[1:].isdigit():
@@ -140,4 +158,4 @@ def make(spec, role: str) -> list:
 
 
 def all_participants(spec) -> list:
-    return [p for r in spec.roles for p in make(spec, r)]
+    return [p for r in spec.roles for p in make(spec, r, host=False)]
