@@ -188,9 +188,14 @@ SHM_DIR = Path("/dev/shm")
 
 
 def _shm_files() -> set[str]:
-    """FastDDS shared-memory files (segments, port queues and their lock files) in /dev/shm."""
+    """FastDDS shared-memory segments (and their lock files) in /dev/shm: ``fastrtps_<id>``, one per
+    participant. Port queues (``fastrtps_port<n>``, 52 KB each) are shared by the participants of a
+    domain on this host and found again by name: they are left alone. (Removing them too at the end
+    of each run made tests/faults/test_restart_ros.py's clock-restart case fail twice in a row - one
+    satellite never acked the restarted clock's first step - and pass again once they were kept;
+    why is not understood.)"""
     try:
-        return {n for n in os.listdir(SHM_DIR) if n.startswith("fastrtps_")}
+        return {n for n in os.listdir(SHM_DIR) if n.startswith("fastrtps_") and not n.startswith("fastrtps_port")}
     except OSError:
         return set()
 

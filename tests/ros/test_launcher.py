@@ -181,9 +181,10 @@ def test_stale_shared_memory_files_are_removed(tmp_path, monkeypatch):
     monkeypatch.setattr(L, "SHM_DIR", tmp_path)
     (tmp_path / "fastrtps_old").write_bytes(b"x")
     before = L._shm_files()
-    for name in ("fastrtps_gone", "fastrtps_gone_el", "fastrtps_held", "other_file"):
+    for name in ("fastrtps_gone", "fastrtps_gone_el", "fastrtps_held", "fastrtps_port7413", "other_file"):
         (tmp_path / name).write_bytes(b"x")
     with open(tmp_path / "fastrtps_held", "rb"):
         removed = L.remove_stale_shm(before)
     assert removed == ["fastrtps_gone", "fastrtps_gone_el"]
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["fastrtps_held", "fastrtps_old", "other_file"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["fastrtps_held", "fastrtps_old", "fastrtps_port7413",
+                                                         "other_file"]
