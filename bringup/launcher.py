@@ -184,64 +184,6 @@ class _Child:
         return (errs or lines or [""])[-1].strip()
 
 
-SHM_DIR = Path("/dev/shm")
-
-
-def _shm_files() -> set[str]:
-    """FastDDS shared-memory segments (and their lock files) in /dev/shm: ``fastrtps_<id>``, one per
-    participant. Port queues (``fastrtps_port<n>``, 52 KB each) are shared by the participants of a
-    domain on this host and found again by name: they are left alone. (Removing them too at the end
-    of each run made tests/faults/test_restart_ros.py's clock-restart case fail twice in a row - one
-    satellite never acked the restarted clock's first step - and pass again once they were kept;
-    why is not understood.)"""
-    try:
-        return {n for n in os.listdir(SHM_DIR) if n.startswith("fastrtps_") and not n.startswith("fastrtps_port")}
-    except OSError:
-        return set()
-
-
-def _shm_in_use() -> set[str]:
-    """Names in /dev/shm that a live process has mapped or open (read from /proc)."""
-    used: set[str] = set()
-    prefix = str(SHM_DIR) + "/"
-    for pid in os.listdir("/proc"):
-        if not pid.isdigit():
-            continue
-        try:
-            with open(f"/proc/{pid}/maps") as fh:
-                for line in fh:
-                    i = line.find(prefix)
-                    if i >= 0:
-                        used.add(line[i + len(prefix):].split()[0])
-            for fd in os.listdir(f"/proc/{pid}/fd"):
-                target = os.readlink(f"/proc/{pid}/fd/{fd}")
-                if target.startswith(prefix):
-                    used.add(target[len(prefix):].split()[0])
-        except OSError:  # the process left, or is not ours to read
-            continue
-    return used
-
-
-def remove_stale_shm(before: set[str]) -> list[str]:
-    """Remove the FastDDS shared-memory files that appeared since ``before`` and that no live
-    process has mapped or open; returns their names. The run's node processes leave without
-    destroying their DDS participant (bringup/ros_host.py exit_now: FastDDS 2.14 can deadlock
-    there), so FastDDS does not remove their segments (~0.55 MB each, RAM-backed); files of other
-    runs still going are in use and stay."""
-    new = _shm_files() - before
-    if not new:
-        return []
-    used = _shm_in_use()
-    removed = []
-    for name in sorted(new - used):
-        try:
-            (SHM_DIR / name).unlink()
-            removed.append(name)
-        except OSError:
-            pass
-    return removed
-
-
 def _terminate(children: list[_Child], timeout_s: float) -> list[str]:
     """SIGTERM every live child; one still running ``timeout_s`` later is killed (SIGKILL), after
     a SIGUSR1 that makes a node process (bringup/commands/node.py via ros_host / clock_node:
@@ -332,7 +274,6 @@ def launch(spec: RunSpec, out_dir: Path, *, progress: Callable[[LaunchProgress],
         _clear_checkpoints(Path(spec.state_dir), [CLOCK_ROLE, *spec.roles])
     lease = lease_domain_id() if domain_id is None else None
     dom = lease.domain_id if lease else int(domain_id)  # type: ignore[arg-type]
-    shm_before = _shm_files()
     env = child_env(dom)
     last: list[LaunchProgress | None] = [None]
     children: list[_Child] = []
@@ -461,7 +402,6 @@ def launch(spec: RunSpec, out_dir: Path, *, progress: Callable[[LaunchProgress],
         return LaunchResult(rc, message, dom, out_dir, last[0], failed, restarts, lingered)
     finally:
         _terminate(children, 5.0)
-        remove_stale_shm(shm_before)
         if old_term is not None:
             signal.signal(signal.SIGTERM, old_term)
         if lease is not None:
