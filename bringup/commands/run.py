@@ -59,7 +59,6 @@ def parse_cut(text: str) -> tuple[str, str, float, float]:
 
 
 def run(args: argparse.Namespace) -> int:
-    from bringup.participants import roles_for
     from bringup.report import RunMeta
     from bringup.world import World
 
@@ -128,6 +127,7 @@ def _run_local(world, args, meta, bag_dir: Path, out: Path, router_kw, *, show: 
     from bringup.local_engine import run_local
     from bringup.participants import all_participants
     from bringup.record_process import Recorder
+    from bringup.store_batches import StoreBatches
     from msgs_json.envelope import Envelope
 
     sc = world.scenario
@@ -145,15 +145,28 @@ def _run_local(world, args, meta, bag_dir: Path, out: Path, router_kw, *, show: 
                 in_flight["n"] = len(router.pending)
             update(t_ns=p.t_ns, rtf=p.real_time_factor, extra=f"{p.envelopes:,} msgs, {in_flight['n']} bundles in flight")
 
+        # one store commit per satellite every few steps, not every step (bringup/store_batches.py)
+        batches = StoreBatches(s for s in (getattr(getattr(p, "agent", None), "store", None) for p in parts)
+                               if s is not None)
+
+        def on_step(t_ns: int) -> None:
+            rec.step(t_ns)
+            batches.step()
+
         if prog is not None:
             prog.start()
+        batches.start()
         try:
             res = run_local(parts, horizon_ns=sc.horizon_ns, max_step_ns=int(round(sc.scenario.lockstep_max_step_s * _NS)),
-                            sink=rec.write_envelope, sink_many=rec.write_envelopes, on_step=rec.step,
+                            sink=rec.write_envelope, sink_many=rec.write_envelopes, on_step=on_step,
                             progress=progress, progress_interval_s=0.25)
+        except BaseException:
+            batches.abandon()
+            raise
         finally:
             if prog is not None:
                 prog.stop()
+        batches.finish()  # after the participants' finish, before the stores close
         runtime = {"wall_s": res.wall_s, "real_time_factor": res.real_time_factor, "steps": res.steps,
                    "envelopes": sum(res.counts_by_topic.values()),
                    "rejected_messages": sum(getattr(p, "rejected", 0) for p in parts)}

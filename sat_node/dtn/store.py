@@ -108,6 +108,17 @@ class BundleStore:
         finally:
             self._batch = False
 
+    def rollback(self) -> None:
+        """Drop the batch's pending writes (and roll back the open transaction) and close the batch:
+        the file stays at the last commit."""
+        self._rows = {}
+        self._meta = {}
+        try:
+            if self._db.in_transaction:
+                self._db.execute("ROLLBACK")
+        finally:
+            self._batch = False
+
     def _flush(self) -> None:
         """Write the batch's pending rows into the (then open) transaction."""
         rows, meta = self._rows, self._meta
