@@ -15,6 +15,14 @@ PAPER_INPUTS = Path(os.environ.get("PAPER_INPUTS", REPO.parent / "shared" / "pap
 os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
 
 
+def pytest_sessionstart(session) -> None:
+    """Free the FastDDS shared-memory files earlier runs on this machine left and no live process
+    holds (bringup/shm_cleanup.py: hundreds of them made ROS runs hang at start)."""
+    from bringup.shm_cleanup import remove_unheld
+
+    remove_unheld()
+
+
 @pytest.fixture(scope="session")
 def paper_inputs() -> Path:
     if not (PAPER_INPUTS / "contact_plan_3p_8s.csv").exists():
