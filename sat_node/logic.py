@@ -171,7 +171,8 @@ class SatelliteLogic:
 
     def step(self, t_ns: int, inbox: list[Envelope]) -> StepResult:
         store = self.agent.store if self.agent is not None else None
-        own_tx = store is not None and store.begin()  # one store transaction per step
+        own_tx = store is not None and store.begin()  # one store transaction per step (unless a
+        # caller's is open: the ROS host's checkpoint, or a local run's batch, bringup/store_batches.py)
         try:
             return self._step(t_ns, inbox)
         finally:

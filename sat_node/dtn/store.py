@@ -18,6 +18,8 @@ Durability guarantee (what a kill can cost): the unit is the lockstep step.
 * When a caller already has a transaction open on the connection (the ROS host's per-step checkpoint,
   bringup/checkpoint.py, which commits the checkpoint row with the step's bundle rows), writes go
   straight into it and the caller's COMMIT makes them durable together with the checkpoint.
+* A local run (one process, no resume) opens one batch for many steps (bringup/store_batches.py):
+  the satellite's ``begin`` then joins it, and the file advances every 50 steps instead of every step.
 * Outside a batch every write is its own autocommitted transaction.
 
 ``synchronous=NORMAL`` in WAL mode: a committed transaction survives a process kill - its frames are
