@@ -67,6 +67,7 @@ from pathlib import Path
 
 from bringup.errors import UserError
 from bringup.run_spec import CLOCK_ROLE, RunSpec
+from bringup.shm_cleanup import remove_unheld
 
 __all__ = [
     "FASTDDS_PROFILE",
@@ -272,6 +273,10 @@ def launch(spec: RunSpec, out_dir: Path, *, progress: Callable[[LaunchProgress],
     spec.to_file(spec_path)
     if spec.state_dir:
         _clear_checkpoints(Path(spec.state_dir), [CLOCK_ROLE, *spec.roles])
+    # FastDDS shared-memory files that no live process holds are leftovers of killed processes; a port
+    # file a process was killed while creating stays empty, and the next participant to pick its port
+    # number waits on it forever ("hosts not up"): remove them, whole groups only (shm_cleanup.py)
+    remove_unheld()
     lease = lease_domain_id() if domain_id is None else None
     dom = lease.domain_id if lease else int(domain_id)  # type: ignore[arg-type]
     env = child_env(dom)

@@ -5,19 +5,26 @@ FastDDS's shared-memory transport (on in every ROS process here: rmw_fastrtps ad
 say - measured) keeps, per participant, a segment ``fastrtps_<hex>`` (+ ``_el`` lock file) and a port
 queue ``fastrtps_port<N>`` (+ ``_el`` and a mutex ``sem.fastrtps_port<N>_mutex``). A process that
 leaves without destroying its participant - our node processes do, on purpose (bringup/ros_host.py:
-FastDDS 2.14 can deadlock there), and every SIGKILL in the fault tests - leaves them behind. Hundreds
-of such files from earlier runs made later runs on this machine hang at start ("hosts not up", seen
-with ~2000 files; gone after removing them).
+FastDDS 2.14 can deadlock there), and every SIGKILL in the fault tests - leaves them behind.
+
+What hangs a later run (seen in CI, diagnosed with ``py-spy dump --native``): a process killed while
+FastDDS was creating its port leaves ``fastrtps_port<N>`` empty (0 bytes). Participants take the
+shared-memory ports 7000, 7001, ... in turn, and the next one to reach N opens that file with boost's
+``open_or_create``, which spins forever waiting for the dead creator to initialise it: that process
+never comes up and the clock reports "hosts not up". Only removing the file ends it.
 
 :func:`remove_unheld` removes a file group (a segment with its lock, or a port with its lock and
 mutex) only when no member is mapped or open by any live process (read from /proc/*/maps and
 /proc/*/fd), so files of runs still going stay. Removing a port's queue but not its mutex left
-inconsistent state in an earlier attempt: groups go whole or not at all. It is meant to run when
-this project starts no ROS process at that moment (the test session's start, tests/conftest.py; or
-by hand: ``python -m bringup.shm_cleanup``).
+inconsistent state in an earlier attempt: groups go whole or not at all. A live participant always
+holds its files (the descriptor from creation, then the mapping; a lock file stays open), so files of
+runs still going stay. The launcher runs it before every run (bringup/launcher.py), the test session
+at its start (tests/conftest.py); by hand: ``python -m bringup.shm_cleanup``.
 
 How we know it is right: tests/unit/test_shm_cleanup.py builds groups in a temporary folder, holds
-some (an open descriptor, a mapping) and checks that exactly the unheld groups go.
+some (an open descriptor, a mapping) and checks that exactly the unheld groups go;
+tests/ros/test_launcher.py plants empty port files where a run's participants look first and the run
+completes (it hung until the test's timeout without the launcher's cleanup).
 """
 
 from __future__ import annotations
