@@ -339,6 +339,7 @@ def launch(spec: RunSpec, out_dir: Path, *, progress: Callable[[LaunchProgress],
                         with open(h.log, "a") as fh:
                             fh.write(f"launcher: {h.role} exited with code {h.proc.returncode}; "
                                      f"restart {restarts[h.role]} of {spec.max_restarts}\n")
+                        remove_unheld()  # what the dead process left unheld (an empty port if it died starting)
                         new = start(h.role, stdout=subprocess.DEVNULL)
                         hosts[hosts.index(h)] = new
                         children[children.index(h)] = new
@@ -359,6 +360,7 @@ def launch(spec: RunSpec, out_dir: Path, *, progress: Callable[[LaunchProgress],
                         fh.write(f"launcher: {CLOCK_ROLE} exited with code {crc}; "
                                  f"restart {restarts[CLOCK_ROLE]} of {spec.max_restarts}\n")
                     reader.join(timeout=2.0)
+                    remove_unheld()
                     new = start(CLOCK_ROLE, stdout=subprocess.PIPE, text=True)
                     children[children.index(clock)] = new
                     clock = new
