@@ -15,7 +15,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from dtn_router.des import latency_lower_bounds, run_dtn  # noqa: E402
+from dtn_router.des import latency_lower_bounds, run_dtn, store_forward_bound_mean  # noqa: E402
 from orbit_clock.contact_plan import read_contact_plan  # noqa: E402
 from sat_node.dtn.agent import AgentConfig, deadline_delays  # noqa: E402
 from sat_node.dtn.cgr import ContactGraph  # noqa: E402
@@ -29,8 +29,10 @@ def main() -> int:
     ap.add_argument("--cases", nargs="+", default=["case4", "case1"])
     ap.add_argument("--queue", choices=["priority", "deadline"], default="priority",
                     help="send order (constellation dtn --queue)")
+    ap.add_argument("--rate-bps", type=float, default=1000.0,
+                    help="ISL rate (the study's link budget: 1000; its simulator's configuration: 1e6)")
     args = ap.parse_args()
-    plan = read_contact_plan(INPUTS / "contact_plan_3p_8s.csv", rate_bps=1000)
+    plan = read_contact_plan(INPUTS / "contact_plan_3p_8s.csv", rate_bps=args.rate_bps)
     g = ContactGraph(plan)
     g.route("sat_11", "sat_35", 0.0, 2000)  # compile / load the numba cache
     rng = random.Random(1)
@@ -52,11 +54,15 @@ def main() -> int:
         wall = time.perf_counter() - t0
         r = run.report(lb)
         print(f"{case:6s} {r['dtn.bundles_created']:7d} {r['dtn.bundles_delivered']:9d} {r['dtn.delivery_ratio']:.4f} "
-              f"{r['dtn.latency_s.mean']:7.1f} {r['dtn.latency_s.lower_bound_mean']:8.1f} "
-              f"{r['dtn.latency_s.mean'] / r['dtn.latency_s.lower_bound_mean']:14.2f} {r['dtn.latency_s.median']:8.1f} "
-              f"{r['dtn.latency_s.p95']:6.1f} {r['dtn.latency_s.max']:6.1f} {r['dtn.dropped.ttl']:8d} "
+              f"{r['dtn.latency_s.mean']:7.4g} {r['dtn.latency_s.lower_bound_mean']:8.4g} "
+              f"{r['dtn.latency_s.mean'] / r['dtn.latency_s.lower_bound_mean']:14.2f} {r['dtn.latency_s.median']:8.4g} "
+              f"{r['dtn.latency_s.p95']:6.4g} {r['dtn.latency_s.max']:6.4g} {r['dtn.dropped.ttl']:8d} "
               f"{r['dtn.dropped.other']:10d} {r['dtn.copies_discarded']:11d} {wall:6.1f}  conservation="
               f"{r['dtn.conservation_ok']}")
+        sf = store_forward_bound_mean(plan, traffic, 2000, (cfg or AgentConfig()).ttl_s_by_priority)
+        print(f"   store-and-forward bound on the mean (any routing, any order): {sf:.4g} s; "
+              f"measured / it = {r['dtn.latency_s.mean'] / sf:.2f}; the issue's bound / it = "
+              f"{r['dtn.latency_s.lower_bound_mean'] / sf:.2f}")
         print("   drops by reason:", {k.split(".")[-1]: v for k, v in r.items() if k.startswith("dtn.dropped_detail.")},
               " transmissions:", sum(a.counters["forwarded"] for a in run.agents.values()),
               " sim wall s:", round(run.wall_s, 1))
@@ -66,7 +72,7 @@ def main() -> int:
             if c:
                 vals = [r[f"dtn.latency_s_by_priority.{p}.{k}"] for k in ("median", "p95", "max")]
                 print(f"   {p:4d} {c:7d} {r[f'dtn.latency_s_by_priority.{p}.count']:9d} "
-                      + " ".join(f"{'-' if v is None else round(v, 1)!s:>7s}" for v in vals))
+                      + " ".join(f"{'-' if v is None else f'{v:.4g}':>7s}" for v in vals))
     return 0
 
 
