@@ -160,9 +160,8 @@ def run_matrix(*, scenario: str, seeds: list[int | None], out: Path, engine: str
     def one(task):
         m, i, s = task
         d = Path(out) / f"{m}-s{s if s is not None else 'default'}"
-        # several runs at once already fill the cores: no worker processes on top (run --workers)
         rep = run_one(scenario=scenario, mode=m, seed=s, out=d, engine=engine, sats=sats, hours=hours,
-                      plots=(i == 0), extra=["--workers", "0"] if (jobs > 1 and engine == "local") else None)
+                      plots=(i == 0))
         say(f"compare: {m} seed {s}: value {get_path(rep, 'value.cumulative') or 0:.0f}, "
             f"{(get_path(rep, 'coverage.gp_observed_fraction') or 0) * 100:.1f} % GPs "
             f"({(get_path(rep, 'runtime.wall_s') or 0):.0f} s)")

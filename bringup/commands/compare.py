@@ -28,7 +28,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--seeds", type=int, default=1, help="number of seeds K: the scenario seed, +1, ... (default 1)")
     p.add_argument("--sats", type=int, default=None, help="number of satellites (default: scenario)")
     p.add_argument("--hours", type=float, default=None, help="horizon [h] (default: scenario)")
-    p.add_argument("--jobs", type=int, default=1, help="runs at once (default 1; with several, each local run keeps its satellites in one process: --workers 0)")
+    p.add_argument("--jobs", type=int, default=1, help="runs at once (default 1; each run is one process)")
     p.add_argument("--json", action="store_true", help="print exactly one JSON object on stdout")
     p.add_argument("--out", type=Path, default=None, help="folder (default runs/compare-<scenario>)")
     p.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
