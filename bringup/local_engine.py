@@ -22,10 +22,6 @@ Usage::
                     progress=print, progress_interval_s=1.0)
     res.steps, res.wall_s, res.real_time_factor, res.counts_by_topic
 
-``groups`` (bringup/worker_group.py): participants made and stepped in worker processes, each step
-at the same time as this process steps its own; the engine treats them as listed after the local
-ones, so the envelopes and their order are the same as with every participant here.
-
 Every emitted envelope goes to ``sink`` (or into ``res.envelopes``) in the order it is delivered:
 per step, sorted by ``(t_ns, source, seq)``; ``sink_many`` (e.g. BagWriter.write_envelopes), when
 given, gets each step's list in one call instead, same order. Per-step overhead is a few microseconds plus
@@ -105,16 +101,12 @@ class LocalEngine:
         on_step: Callable[[int], None] | None = None,
         progress: Callable[[Progress], None] | None = None,
         progress_interval_s: float = 1.0,
-        groups: Sequence = (),
     ):
         if not (0 <= t0_ns <= horizon_ns):
             raise EngineError(f"local engine: need 0 <= t0_ns <= horizon_ns, got {t0_ns}, {horizon_ns}")
         if max_step_ns < 1:
             raise EngineError(f"local engine: max_step_ns must be >= 1, got {max_step_ns}")
-        # participants in worker processes (bringup/worker_group.py): stepped there, at the same
-        # time as these; listed after the local ones, each group's in its own order
-        self.groups = list(groups)
-        names = [p.name for p in participants] + [n for g in self.groups for n in g.names]
+        names = [p.name for p in participants]
         if len(set(names)) != len(names) or not all(isinstance(n, str) and n for n in names):
             raise EngineError(f"local engine: participant names must be unique non-empty strings: {names}")
         self.participants = list(participants)
@@ -130,11 +122,9 @@ class LocalEngine:
         self.progress_interval_s = progress_interval_s
         # topic -> indices of subscribers (list order), fixed for the run
         self._subs: dict[str, list[int]] = {}
-        subs = [p.subscriptions() for p in self.participants] + [s for g in self.groups for s in g.subscriptions]
-        for i, topics in enumerate(subs):
-            for topic in dict.fromkeys(topics):
+        for i, p in enumerate(self.participants):
+            for topic in dict.fromkeys(p.subscriptions()):
                 self._subs.setdefault(topic, []).append(i)
-        self._names = names
         self._seq: dict[str, int] = {n: 0 for n in names}
         self.counts_by_topic: dict[str, int] = {}
 
@@ -166,16 +156,6 @@ class LocalEngine:
             counts[topic] = get(topic, 0) + 1
         self._seq[name] = seq
         return out
-
-    def _take_remote(self, j: int, res, t: int, where: str | None, pending: list, wake: list) -> None:
-        """A worker participant's (emits, next wakeup) for instant ``t``, checked and stamped as a
-        local one's are."""
-        emits, w = res
-        if w is not None and type(w) is not int:
-            raise EngineError(f"{self._names[j]} step at {t}: next_wakeup_ns must be int or None, got {w!r}")
-        if emits:
-            pending.extend(self._stamp(self._names[j], [Emit._make(e) for e in emits], t, where))
-        wake[j] = w
 
     @staticmethod
     def _result(name: str, r, where: str) -> StepResult:
@@ -228,32 +208,21 @@ class LocalEngine:
                     f"{ps[i].name} failed in {fn.__name__}({args[0]}): {type(exc).__name__}: {exc}"
                 ) from exc
 
-        names = self._names
-        n_all = len(names)
+        names = [p.name for p in ps]
         steps_fn = [p.step for p in ps]
-        groups = self.groups
-        # each group's slots in the combined list (after the local participants)
-        slots: list[range] = []
-        k = n
-        for g in groups:
-            slots.append(range(k, k + len(g.names)))
-            k += len(g.names)
         # start
         t = self.t0_ns
         pending: list[Envelope] = []
-        wake: list[int | None] = [None] * n_all
+        wake: list[int | None] = [None] * n
         for i, p in enumerate(ps):
             r = self._result(p.name, call(i, p.start, t), "start")
             pending.extend(self._stamp(p.name, r.emits, t, "start"))
             wake[i] = r.next_wakeup_ns
-        for g, sl in zip(groups, slots):
-            for j, res in zip(sl, _remote(g.start, t)):
-                self._take_remote(j, res, t, "start", pending, wake)
 
         steps = 0
         while True:
             # deliver what was emitted in the previous step
-            inboxes: list[list[Envelope]] = [[] for _ in range(n_all)] if pending else None  # type: ignore[assignment]
+            inboxes: list[list[Envelope]] = [[] for _ in range(n)] if pending else None  # type: ignore[assignment]
             if pending:
                 pending.sort(key=_KEY)
                 if sink_many is not None:
@@ -270,8 +239,6 @@ class LocalEngine:
                 pending = []
             if on_step is not None:
                 on_step(t)
-            for g, sl in zip(groups, slots):  # the workers step while this process steps its own
-                g.send_step(t, [inboxes[j] for j in sl] if inboxes else [[] for _ in sl])
             i = 0
             try:
                 for i in range(n):
@@ -288,9 +255,6 @@ class LocalEngine:
                 raise
             except Exception as exc:
                 raise EngineError(f"{names[i]} failed in step({t}): {type(exc).__name__}: {exc}") from exc
-            for g, sl in zip(groups, slots):
-                for j, res in zip(sl, _remote(g.recv_step)):
-                    self._take_remote(j, res, t, None, pending, wake)
             steps += 1
             if progress is not None:
                 now = time.perf_counter()
@@ -310,9 +274,6 @@ class LocalEngine:
         for i, p in enumerate(ps):
             emits = call(i, p.finish, horizon)
             pending.extend(self._stamp(p.name, emits, horizon, "finish"))
-        for g, sl in zip(groups, slots):
-            for j, emits in zip(sl, _remote(g.finish, horizon)):
-                pending.extend(self._stamp(names[j], [Emit._make(e) for e in emits], horizon, "finish"))
         pending.sort(key=_KEY)
         if sink_many is not None:
             sink_many(pending)
@@ -324,16 +285,6 @@ class LocalEngine:
         if progress is not None:
             progress(Progress(horizon, horizon, steps, n_env, wall))
         return RunResult(steps, self.t0_ns, horizon, wall, keep, dict(self.counts_by_topic))
-
-
-def _remote(fn, *args):
-    """A worker group's call; its participant's failure becomes the engine's EngineError."""
-    from bringup.worker_group import RemoteFailure
-
-    try:
-        return fn(*args)
-    except RemoteFailure as exc:
-        raise EngineError(str(exc)) from None
 
 
 def run_local(participants: Sequence[Participant], **kw) -> RunResult:

@@ -79,13 +79,7 @@ def create_stores(store_dir: Path, sats: list[str]):
 
 def all_participants(world: World, mode: str, *, store_dir: Path | None = None,
                      router_kw: dict | None = None) -> list:
-    return make_participants(world, mode, roles_for(world, mode), store_dir=store_dir, router_kw=router_kw)
-
-
-def make_participants(world: World, mode: str, roles: list[str], *, store_dir: Path | None = None,
-                      router_kw: dict | None = None) -> list:
-    """The participants of ``roles`` (a part of ``roles_for(world, mode)``), in that order."""
-    return [_make(world, r, mode, store_dir=store_dir, router_kw=router_kw) for r in roles]
+    return [_make(world, r, mode, store_dir=store_dir, router_kw=router_kw) for r in roles_for(world, mode)]
 
 
 def build(spec: RunSpec, role: str) -> list:

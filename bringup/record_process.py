@@ -74,12 +74,6 @@ class Recorder:
         self.report: dict | None = None
         self.counts: dict[str, int] = {}
 
-    @property
-    def pipe(self):
-        """This process's end of the pipe to the recorder: a process forked after it closes its copy,
-        so that the recorder still reads end-of-file if this process dies."""
-        return self._conn
-
     # -- what the local engine calls -----------------------------------------------------------------
     def write_envelope(self, env: Envelope) -> None:
         self.write_envelopes([env])

@@ -44,9 +44,6 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="ros engine: restart a crashed process (satellite, router, ground or the clock) up to "
                         "N times; every process checkpoints each step and resumes from it (default 0: a crash "
                         "ends the run)")
-    p.add_argument("--workers", type=int, default=1, metavar="N",
-                   help="local engine: step part of the satellites in N worker processes, in parallel with "
-                        "this one (same envelopes, same order, same report; default 1; 0: all in one process)")
 
 
 def parse_cut(text: str) -> tuple[str, str, float, float]:
@@ -127,39 +124,17 @@ def _run_local(world, args, meta, bag_dir: Path, out: Path, router_kw, *, show: 
     """The run on the local engine; returns its runtime figures and its report (built by the
     recorder process from the envelopes it wrote: the same body as `constellation report BAG`,
     tests/system/test_engines_equal.py)."""
-    from contextlib import ExitStack
-
     from bringup.local_engine import run_local
-    from bringup.participants import make_participants, roles_for
+    from bringup.participants import all_participants
     from bringup.record_process import Recorder
     from bringup.store_batches import StoreBatches
-    from bringup.worker_group import WorkerGroup
     from msgs_json.envelope import Envelope
 
     sc = world.scenario
     store_dir = out / "store"  # (made by run(): _fresh_store_dir)
-    if args.workers < 0:
-        raise UserError(f"--workers {args.workers}: must be >= 0")
-    # the recorder (bag, visualisation, report decoding) forks first, then the workers, each before
-    # any store opens; a child closes its copies of the pipes forked before it (their readers need EOF)
-    with Recorder(bag_dir, world) as rec, ExitStack() as stack:
-        roles = roles_for(world, args.mode)
-        sats = [r for r in roles if r in world.sat_names]
-        k = args.workers + 1
-        # satellites dealt in turn: this process keeps sats[0::k] and the router / ground station (on
-        # the paper run an even split measured best: 14.4-16.3 s for the loop against 15.5-17.2 s with
-        # 8 or 4 kept here, 15.5-16.3 s with 14 or 16; two workers on two cores 18.9 s)
-        remote = [sats[w + 1::k] for w in range(args.workers)]
-        groups: list = []
-        for w, rs in enumerate(r for r in remote if r):
-            g = WorkerGroup(lambda rs=rs: make_participants(world, args.mode, rs, store_dir=store_dir,
-                                                            router_kw=router_kw),
-                            close_in_child=[rec.pipe, *(x.pipe for x in groups)], label=f"worker {w + 1}")
-            stack.callback(g.close, abandon=True)  # (a no-op once closed after a good run)
-            groups.append(g)
-        away = {r for rs in remote for r in rs}
-        parts = make_participants(world, args.mode, [r for r in roles if r not in away], store_dir=store_dir,
-                                  router_kw=router_kw)
+    # the recorder (bag, visualisation, report decoding) forks first, before the stores open
+    with Recorder(bag_dir, world) as rec:
+        parts = all_participants(world, args.mode, store_dir=store_dir, router_kw=router_kw)
         prog, update = _progress_display(show, sc.horizon_ns)
         in_flight = {"n": 0}
         rec.write_envelope(Envelope(0, "run", 0, "/run/meta", json.dumps({"meta": meta.__dict__})))
@@ -184,7 +159,7 @@ def _run_local(world, args, meta, bag_dir: Path, out: Path, router_kw, *, show: 
         try:
             res = run_local(parts, horizon_ns=sc.horizon_ns, max_step_ns=int(round(sc.scenario.lockstep_max_step_s * _NS)),
                             sink=rec.write_envelope, sink_many=rec.write_envelopes, on_step=on_step,
-                            progress=progress, progress_interval_s=0.25, groups=groups)
+                            progress=progress, progress_interval_s=0.25)
         except BaseException:
             batches.abandon()
             raise
@@ -194,19 +169,13 @@ def _run_local(world, args, meta, bag_dir: Path, out: Path, router_kw, *, show: 
         batches.finish()  # after the participants' finish, before the stores close
         runtime = {"wall_s": res.wall_s, "real_time_factor": res.real_time_factor, "steps": res.steps,
                    "envelopes": sum(res.counts_by_topic.values()),
-                   "rejected_messages": sum(getattr(p, "rejected", 0) for p in parts)
-                   + sum(sum(g.rejected.values()) for g in groups)}
+                   "rejected_messages": sum(getattr(p, "rejected", 0) for p in parts)}
         rec.write_envelope(Envelope(sc.horizon_ns, "run", 1, "/run/meta",
                                     json.dumps({"meta": meta.__dict__, "runtime": runtime})))
         # while the recorder finishes the bag and the report, the satellites' stores close: SQLite
         # checkpoints each WAL into its file and syncs it, mostly waiting on the disk, so the 24
         # closes run side by side (~1 s one after the other on the paper run)
-        def close_everything() -> None:
-            for g in groups:  # the workers' stores: their batches were committed at finish
-                g.close()
-            _close_all(parts)
-
-        rep = rec.finish(meta, json.loads(json.dumps(runtime)), meanwhile=close_everything)
+        rep = rec.finish(meta, json.loads(json.dumps(runtime)), meanwhile=lambda: _close_all(parts))
     return runtime, rep
 
 

@@ -142,20 +142,14 @@ def test_a_local_run_batches_every_satellite_store_and_ends_with_per_step_rows(t
     monkeypatch.setattr(sb.StoreBatches, "start", spy)
     args = ["run", "--engine", "local", "--mode", "distributed", "--sats", "24", "--hours", "2",
             "--no-plots", "--no-progress"]
-    # one process (--workers 0: every store in this process's batches), then the default: half the
-    # satellites in a worker process, batched there (bringup/worker_group.py)
-    assert main([*args, "--workers", "0", "--out", str(tmp_path / "batched")]) == 0
-    assert main([*args, "--out", str(tmp_path / "worker")]) == 0
+    assert main([*args, "--out", str(tmp_path / "batched")]) == 0
     monkeypatch.setattr(sb.StoreBatches.__init__, "__defaults__", (1,))
-    assert main([*args, "--workers", "0", "--out", str(tmp_path / "per_step")]) == 0
-    # (batches re-start after each commit; the worker's 12 are batched in the worker, unseen here)
+    assert main([*args, "--out", str(tmp_path / "per_step")]) == 0
     assert seen[0] == (24, sb.STORE_COMMIT_STEPS) and seen[-1] == (24, 1)
-    assert set(seen) == {(24, sb.STORE_COMMIT_STEPS), (12, sb.STORE_COMMIT_STEPS), (24, 1)}
     files = sorted((tmp_path / "per_step" / "store").glob("*.sqlite"))
     assert len(files) == 24
+    for f in files:  # (the paper run's satellites hold no bundle at the end: rows are [] here)
+        assert _rows(tmp_path / "batched" / "store" / f.name) == _rows(f)
     meta = [BundleStore(f).get_meta("seq", -1) for f in files]  # bundles each satellite created
     assert sum(m > 0 for m in meta) >= 10
-    for run in ("batched", "worker"):
-        for f in files:  # (the paper run's satellites hold no bundle at the end: rows are [] here)
-            assert _rows(tmp_path / run / "store" / f.name) == _rows(f)
-        assert meta == [BundleStore(tmp_path / run / "store" / f.name).get_meta("seq", -1) for f in files]
+    assert meta == [BundleStore(tmp_path / "batched" / "store" / f.name).get_meta("seq", -1) for f in files]
