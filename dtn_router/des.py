@@ -156,7 +156,7 @@ def latency_lower_bounds(plan: ContactPlan, traffic: list[TrafficItem], bundle_b
     for c in plan.contacts:
         rate_by_src[c.src] = max(rate_by_src.get(c.src, 0.0), c.rate_bps)
     out = {}
-    for i, item in enumerate(traffic):
+    for i, item in sorted(enumerate(traffic), key=lambda x: x[1].t_s):  # the radio serves in creation order
         key = (item.source, item.t_s)
         if key not in cache:
             cache[key] = graph.earliest_arrivals(item.source, item.t_s, bundle_bits)
@@ -195,7 +195,7 @@ def store_forward_bound_mean(plan: ContactPlan, traffic: list[TrafficItem], bund
     hops_cache: dict[tuple[float, float, str], list[int]] = {}
     radio_free: dict[str, float] = {}
     total, count = 0.0, 0
-    for item in traffic:
+    for item in sorted(traffic, key=lambda it: it.t_s):  # the radio serves in creation order (stable)
         rate = rate_by_src.get(item.source)
         if not rate or item.dest not in idx:
             continue

@@ -553,6 +553,7 @@ class BundleAgent:
         if end > self.graph.end_s[c] * _NS:  # rounding: the contact closes first - re-route without it
             self._leave_group(h)
             h.excluded.add(c)
+            h.route_memo = None  # the memo still names c: without this the same route comes back forever
             del self._held[bid]
             self._held[bid] = h
             self._enqueue(h, s)

@@ -58,6 +58,30 @@ def test_store_forward_bound_hops_within_ttl_and_unreachable():
     assert store_forward_bound_mean(plan, [item, lost], 2000, {15: 50.0}) == pytest.approx(5.0)
 
 
+def test_bounds_do_not_depend_on_the_order_of_the_traffic_list():
+    """Both bounds serve each source's radio in creation order, whatever order the list is in: items at
+    t=100 s and t=0 s (listed in that order) on one 1000 b/s contact, light 0.5 s: each leaves 2 s after
+    its creation, so the mean is 2.5 s (not (2.5 + 102.5) / 2, as a list-order radio would give)."""
+    plan = ContactPlan([Contact(0.0, 1000.0, "sat_11", "sat_12", 1000.0, 0.5)])
+    traffic = [TrafficItem(100.0, "sat_11", "sat_12", 1, "p1", "r", 1), TrafficItem(0.0, "sat_11", "sat_12", 1, "p0", "r", 0)]
+    assert store_forward_bound_mean(plan, traffic, 2000, {15: 3000.0}) == pytest.approx(2.5)
+    lb = latency_lower_bounds(plan, traffic, 2000, {0: "late", 1: "early"})
+    assert lb == pytest.approx({"late": 2.5, "early": 2.5})
+    assert store_forward_bound_mean(plan, traffic[::-1], 2000, {15: 3000.0}) == pytest.approx(2.5)
+
+
+@pytest.mark.timeout(30)
+def test_transmission_ending_exactly_at_contact_end_does_not_loop():
+    """Regression: a transmission whose ceil-to-ns end passes the contact's end by rounding is re-routed
+    without that contact; the route memo used to keep naming the contact, so the agent re-tried it
+    forever. Here no other contact exists: the bundle is dropped (no route) and the run ends."""
+    plan = ContactPlan([Contact(31.19, 32.19, "sat_11", "sat_12", 4000.0, 0.5)])
+    run = run_dtn(plan, [TrafficItem(31.69, "sat_11", "sat_12", 1, "p0", "r", 0)])
+    rep = run.report()
+    assert rep["dtn.bundles_created"] == 1 and rep["dtn.conservation_ok"]
+    assert rep["dtn.bundles_delivered"] + rep["dtn.dropped_detail.no_route"] == 1
+
+
 @pytest.mark.parametrize("seed", range(12))
 def test_store_forward_bound_below_every_full_delivery(seed):
     """The invariant the bound claims: on random plans and bursty traffic, any run that delivers every
