@@ -282,12 +282,9 @@ class ContactGraph:
         """One-to-all earliest arrival [s] with full volumes and no backlog (lower bounds)."""
         _best, _h, arr2, _pred = self._run(source, None, t_s, bits, 0.0, INF, None, None, ())
         arr = np.where(self._stamp == self._qid, arr2.min(axis=1), INF)
-        out: dict[str, float] = {}
-        finite = np.isfinite(arr)
-        for c in np.nonzero(finite)[0]:
-            name = self.contacts[c].dst
-            if arr[c] < out.get(name, INF):
-                out[name] = float(arr[c])
+        by_node = np.full(len(self.node_names), INF)
+        np.minimum.at(by_node, self.dst, arr)  # per node: the earliest over the contacts into it
+        out = {self.node_names[i]: float(by_node[i]) for i in np.nonzero(np.isfinite(by_node))[0]}
         out.pop(source, None)
         return out
 
