@@ -161,7 +161,7 @@ class _Held:
     excluded_node: str | None = None  # the node it came from (no ping-pong)
     bits: int = 0
     group: object = None
-    route_memo: tuple | None = None  # (t_ns, parked version, Route | None)
+    route_memo: tuple | None = None  # (t_ns, parked version, len(excluded), Route | None)
 
 
 class _Group:
@@ -406,9 +406,9 @@ class BundleAgent:
         only in the deadline (the bundle's expiry), and with no hop tolerance a route found under
         one deadline is the answer under any deadline it meets, no route under a deadline is the
         answer under any earlier one (the search only prunes labels arriving after the deadline)."""
-        memo = h.route_memo
-        if memo is not None and memo[0] == t_ns and memo[1] == self._version:
-            return memo[2]
+        memo = h.route_memo  # exclusions only grow: their count tells whether the memo predates one
+        if memo is not None and memo[0] == t_ns and memo[1] == self._version and memo[2] == len(h.excluded):
+            return memo[3]
         shared = self._route_memo
         if shared[0] != t_ns or shared[1] != self._version:
             shared = self._route_memo = (t_ns, self._version, {})
@@ -419,7 +419,7 @@ class BundleAgent:
         if hit is not None and self.config.hop_tolerance_s == 0.0:
             r, d = hit
             if (r is not None and r.arrival_s <= deadline_s) or (r is None and deadline_s <= d):
-                h.route_memo = (t_ns, self._version, r)
+                h.route_memo = (t_ns, self._version, len(h.excluded), r)
                 return r
         fb = None
         if self._parked:
@@ -436,7 +436,7 @@ class BundleAgent:
         r = self.graph.route(self.node, h.dest, t_ns / _NS, h.bits, deadline_s=deadline_s,
                              excluded=excluded, excluded_nodes=(h.excluded_node,) if h.excluded_node else (),
                              first_backlog_bits=fb, hop_tolerance_s=self.config.hop_tolerance_s)
-        h.route_memo = (t_ns, self._version, r)
+        h.route_memo = (t_ns, self._version, len(h.excluded), r)
         shared[2][key] = (r, deadline_s)
         return r
 
@@ -555,7 +555,6 @@ class BundleAgent:
         if end > self.graph.end_s[c] * _NS:  # rounding: the contact closes first - re-route without it
             self._leave_group(h)
             h.excluded.add(c)
-            h.route_memo = None  # the memo still names c: without this the same route comes back forever
             del self._held[bid]
             self._held[bid] = h
             self._enqueue(h, s)
@@ -625,7 +624,6 @@ class BundleAgent:
         _tx, h = item
         self.counters["tx_failed"] += 1
         h.excluded.add(tx.contact)
-        h.route_memo = None
         self._held[tx.bundle_id] = h
         if now_ns >= h.expiry_ns:
             self._forget(tx.bundle_id)

@@ -3,8 +3,7 @@
 Oracle: every run ends (a per-test timeout), conserves bundles (created = delivered + dropped + held),
 never delivers a bundle before its earliest arrival over the plan with transmission and light time
 and no contention (ContactGraph.earliest_arrivals; CGR is checked against a brute force over every
-simple path in test_cgr_random.py), and
-never after its TTL. Contact ends, creation times and transmission ends are drawn to land on or near
+simple path in test_cgr_random.py), and never after its TTL. Contact ends, creation times and transmission ends are drawn to land on or near
 each other: a transmission whose rounded end passes the contact's end once made an agent re-try the
 same route forever (fixed in 90d4226). 4000 seeds passed by hand when this was written."""
 
