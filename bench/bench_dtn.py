@@ -15,11 +15,11 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from dtn_router.des import latency_lower_bounds, run_dtn, store_forward_bound_mean  # noqa: E402
-from orbit_clock.contact_plan import read_contact_plan  # noqa: E402
-from sat_node.dtn.agent import AgentConfig, deadline_delays  # noqa: E402
-from sat_node.dtn.cgr import ContactGraph  # noqa: E402
-from sat_node.dtn.traffic import read_traffic  # noqa: E402
+from dtn_router.des import latency_lower_bounds, run_dtn, store_forward_bound_mean
+from orbit_clock.contact_plan import read_contact_plan
+from sat_node.dtn.agent import AgentConfig, deadline_delays
+from sat_node.dtn.cgr import ContactGraph
+from sat_node.dtn.traffic import read_traffic
 
 INPUTS = Path(os.environ.get("PAPER_INPUTS", Path(__file__).resolve().parents[2] / "shared" / "paper_inputs"))
 

@@ -11,7 +11,15 @@ Knowledge of Q (``--knowledge``):
   none        lam = 0: plain earliest arrival (what CGR does from local state);
   neighbours  only the queues of nodes in contact now (what a node could overhear on the broadcast
               medium), others taken as empty;
-  oracle      every node's queue at that instant (no DTN node has this: a what-if).
+  oracle      every node's queue at that instant (no DTN node has this: a what-if);
+  penalty:S   no queue knowledge, every relay on the route costs a fixed S seconds (routes that
+              wait for a contact with fewer hops instead of relaying now).
+
+Paring (``--pare-fraction F``, off by default): a congestion-control what-if that spends the
+target's 1 % loss allowance. A bundle is refused at its source at creation ("traffic pared", RFC 9171
+reason 10) when the source already holds more than ``--pare-backlog-s`` of radio time, its priority
+number is at least ``--pare-min-priority``, it needs at least ``--pare-min-hops`` hops over the
+contacts open now, and the run has pared fewer than F of the bundles created so far.
 
 Send orders: priority (1 first, then creation), deadline (earliest expiry first), and srpt-guard
 (fewest remaining hops over the contacts open now first, then earliest expiry; a bundle queued
@@ -24,7 +32,7 @@ land within ~5 % of bench/bench_dtn.py's full DES on the same inputs (case1: 91.
 section) and in issue 4's notes.
 
     .venv/bin/python bench/dtn_policy_study.py [--case case1] [--orders priority,deadline,srpt-guard]
-        [--knowledge none,neighbours,oracle] [--lam 0.1]
+        [--knowledge none,neighbours,oracle,penalty:300] [--lam 0.1] [--pare-fraction 0.009]
 """
 
 from __future__ import annotations
@@ -43,10 +51,10 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from dtn_router.des import latency_lower_bounds  # noqa: E402
-from orbit_clock.contact_plan import read_contact_plan  # noqa: E402
-from sat_node.dtn.agent import AgentConfig, ttl_s_for_priority  # noqa: E402
-from sat_node.dtn.traffic import read_traffic  # noqa: E402
+from dtn_router.des import latency_lower_bounds
+from orbit_clock.contact_plan import read_contact_plan
+from sat_node.dtn.agent import AgentConfig, ttl_s_for_priority
+from sat_node.dtn.traffic import read_traffic
 
 INPUTS = Path(os.environ.get("PAPER_INPUTS", Path(__file__).resolve().parents[2] / "shared" / "paper_inputs"))
 GUARD_S = 300.0
@@ -129,10 +137,16 @@ class Plan:
         return -1
 
 
-def simulate(plan: Plan, items: list[tuple], order: str, knowledge: str, lam: float) -> dict:
-    """items: (t_s, src, dest, priority, ttl_s) in creation order. Returns the run's figures."""
+def simulate(plan: Plan, items: list[tuple], order: str, knowledge: str, lam: float,
+             pare: dict | None = None) -> dict:
+    """items: (t_s, src, dest, priority, ttl_s) in creation order; ``pare``: fraction, backlog_s,
+    min_priority, min_hops (module docstring) or None. Returns the run's figures."""
     n = len(plan.names)
-    lam = 0.0 if knowledge == "none" else lam
+    penalty_s = float(knowledge.split(":", 1)[1]) if knowledge.startswith("penalty:") else None
+    if knowledge == "none":
+        lam = 0.0
+    elif penalty_s is not None:  # lam * tx * q == penalty_s for every relay
+        lam, fixed_q = 1.0, [penalty_s / min(plan.tx_s.values())] * n
     queues: list[list] = [[] for _ in range(n)]
     qlen = [0] * n
     busy = [0.0] * n
@@ -145,6 +159,7 @@ def simulate(plan: Plan, items: list[tuple], order: str, knowledge: str, lam: fl
     prev = [-1] * len(items)
     hops_cache: dict[tuple[int, int], list[int]] = {}
     tx_count = 0
+    pared = 0
     now = [0.0]
 
     def remaining_hops(u: int, d: int) -> int:
@@ -173,6 +188,11 @@ def simulate(plan: Plan, items: list[tuple], order: str, knowledge: str, lam: fl
                 delivered[i] = t
                 continue
             prev[i] = from_node
+            if (pare and from_node < 0 and qlen[u] * min(plan.tx_s.values()) > pare["backlog_s"]
+                    and items[i][3] >= pare["min_priority"] and pared < pare["fraction"] * (i + 1)
+                    and remaining_hops(u, items[i][2]) >= pare["min_hops"]):
+                pared += 1  # refused at its source: counted as not delivered
+                continue
             heapq.heappush(queues[u], (rank(i, u), i))
             qlen[u] += 1
             if not pending[u]:
@@ -186,6 +206,8 @@ def simulate(plan: Plan, items: list[tuple], order: str, knowledge: str, lam: fl
             for v in plan.adj[u]:
                 if plan.depart(u, v, t) == t:
                     q[v] = qlen[v]
+        elif penalty_s is not None:
+            q = fixed_q
         else:
             q = qlen
         waiting, sent, wake = [], False, math.inf
@@ -222,7 +244,7 @@ def simulate(plan: Plan, items: list[tuple], order: str, knowledge: str, lam: fl
     lat = np.array([delivered[j] - items[j][0] for j in ok])
     return {"delivered": len(ok) / len(items), "mean_s": float(lat.mean()),
             "source_wait_s": float(np.mean([left_source[j] - items[j][0] for j in ok])),
-            "tx_per_bundle": tx_count / len(items)}
+            "tx_per_bundle": tx_count / len(items), "pared": pared / len(items)}
 
 
 def main() -> int:
@@ -233,6 +255,10 @@ def main() -> int:
     ap.add_argument("--orders", default="priority,deadline,srpt-guard")
     ap.add_argument("--knowledge", default="none,neighbours,oracle")
     ap.add_argument("--lam", type=float, default=0.1, help="weight of a relay's queue in the route cost")
+    ap.add_argument("--pare-fraction", type=float, default=0.0, help="paring allowance (0: off)")
+    ap.add_argument("--pare-backlog-s", type=float, default=200.0)
+    ap.add_argument("--pare-min-priority", type=int, default=4)
+    ap.add_argument("--pare-min-hops", type=int, default=2)
     args = ap.parse_args()
     contact_plan = read_contact_plan(INPUTS / "contact_plan_3p_8s.csv", rate_bps=args.rate_bps)
     plan = Plan(contact_plan, args.bundle_bits)
@@ -244,13 +270,16 @@ def main() -> int:
     bound = float(np.mean(list(per_bundle.values())))
     print(f"{args.case}: {len(items)} bundles at {args.rate_bps:g} b/s; issue's bound mean {bound:.1f} s "
           f"(target: >= 99 % delivered, mean <= {1.25 * bound:.1f} s)")
-    print("order       knowledge   delivered  mean_s  /bound  source_wait_s  tx/bundle  wall_s")
+    pare = None if args.pare_fraction <= 0 else {
+        "fraction": args.pare_fraction, "backlog_s": args.pare_backlog_s,
+        "min_priority": args.pare_min_priority, "min_hops": args.pare_min_hops}
+    print("order       knowledge   delivered  mean_s  /bound  source_wait_s  tx/bundle  pared  wall_s")
     for order in args.orders.split(","):
         for knowledge in args.knowledge.split(","):
             t0 = time.perf_counter()
-            r = simulate(plan, items, order, knowledge, args.lam)
+            r = simulate(plan, items, order, knowledge, args.lam, pare)
             print(f"{order:11s} {knowledge:11s} {100 * r['delivered']:8.2f}% {r['mean_s']:7.1f} {r['mean_s'] / bound:6.2f}x "
-                  f"{r['source_wait_s']:14.1f} {r['tx_per_bundle']:10.3f} {time.perf_counter() - t0:7.1f}", flush=True)
+                  f"{r['source_wait_s']:14.1f} {r['tx_per_bundle']:10.3f} {100 * r['pared']:5.2f}% {time.perf_counter() - t0:7.1f}", flush=True)
     return 0
 
 
