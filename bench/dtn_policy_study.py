@@ -142,11 +142,12 @@ def simulate(plan: Plan, items: list[tuple], order: str, knowledge: str, lam: fl
     """items: (t_s, src, dest, priority, ttl_s) in creation order; ``pare``: fraction, backlog_s,
     min_priority, min_hops (module docstring) or None. Returns the run's figures."""
     n = len(plan.names)
+    tx_min = min(plan.tx_s.values())
     penalty_s = float(knowledge.split(":", 1)[1]) if knowledge.startswith("penalty:") else None
     if knowledge == "none":
         lam = 0.0
     elif penalty_s is not None:  # lam * tx * q == penalty_s for every relay
-        lam, fixed_q = 1.0, [penalty_s / min(plan.tx_s.values())] * n
+        lam, fixed_q = 1.0, [penalty_s / tx_min] * n
     queues: list[list] = [[] for _ in range(n)]
     qlen = [0] * n
     busy = [0.0] * n
@@ -188,7 +189,7 @@ def simulate(plan: Plan, items: list[tuple], order: str, knowledge: str, lam: fl
                 delivered[i] = t
                 continue
             prev[i] = from_node
-            if (pare and from_node < 0 and qlen[u] * min(plan.tx_s.values()) > pare["backlog_s"]
+            if (pare and from_node < 0 and qlen[u] * tx_min > pare["backlog_s"]
                     and items[i][3] >= pare["min_priority"] and pared < pare["fraction"] * (i + 1)
                     and remaining_hops(u, items[i][2]) >= pare["min_hops"]):
                 pared += 1  # refused at its source: counted as not delivered
