@@ -111,6 +111,8 @@ class IslCfg(_S, kw_only=True):
     ttl_p1_s: Pos = 900.0
     ttl_p2_3_s: Pos = 1800.0
     ttl_p4_15_s: Pos = 3000.0
+    send_order: Literal["priority", "deadline"] = "priority"
+    hop_tolerance_s: NonNeg = 0.0
 
     def ttl_s(self, priority: int) -> float:
         """Bundle lifetime [s] for a priority 1..15 (DESIGN.md section 1)."""

@@ -136,8 +136,9 @@ class SatelliteLogic:
             # copy reaches the router at the next step, the report the sender at the one after, and
             # transmissions are computed retroactively up to the step): the agent keeps a sent bundle
             # for twelve of the longest steps before it forgets it (56 s seen at 10 s steps)
-            cfg = AgentConfig(ttl_s_by_priority={1: i.ttl_p1_s, 3: i.ttl_p2_3_s, 15: i.ttl_p4_15_s},
-                              bundle_bits=i.bundle_bits, settle_delay_s=12 * sc.scenario.lockstep_max_step_s)
+            cfg = AgentConfig.for_policy(
+                i.send_order, i.hop_tolerance_s, ttl_s_by_priority={1: i.ttl_p1_s, 3: i.ttl_p2_3_s, 15: i.ttl_p4_15_s},
+                bundle_bits=i.bundle_bits, settle_delay_s=12 * sc.scenario.lockstep_max_step_s)
             store = BundleStore(store_path) if store_path else None
             self.agent = BundleAgent(name, world.isl_plan, cfg, store=store)
             self._ev_done = 0

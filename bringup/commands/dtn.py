@@ -28,6 +28,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="send order: 'priority' (strict, 1 first; the study's) or 'deadline' (earliest expiry "
                         "first: no bundle is left to its TTL while younger high-priority ones go, at the cost "
                         "of mean latency)")
+    p.add_argument("--hop-tolerance-s", type=float, default=0.0, metavar="S",
+                   help="CGR takes the route with the fewest hops among those arriving within S seconds of "
+                        "the earliest (default 0: earliest arrival only); fewer relays where radios queue")
     p.add_argument("--json", action="store_true", help="print the figures as one JSON object")
     p.add_argument("--dump-bundles", type=Path, default=None, metavar="DIR",
                    help="write the encoded bytes of the first 100 bundles created, one <id>.bpv7 file each")
@@ -47,7 +50,7 @@ def _parse_ttl(text: str) -> dict[int, float]:
 def run(args: argparse.Namespace) -> int:
     from dtn_router.des import latency_lower_bounds, run_dtn, store_forward_bound_mean
     from orbit_clock.contact_plan import ContactPlanError, read_contact_plan
-    from sat_node.dtn.agent import AgentConfig, deadline_delays
+    from sat_node.dtn.agent import AgentConfig
     from sat_node.dtn.traffic import TrafficError, read_traffic
 
     t0 = time.perf_counter()
@@ -62,8 +65,11 @@ def run(args: argparse.Namespace) -> int:
     if unknown:
         raise UserError(f"{args.traffic}: sources {unknown[:5]} have no contact in {args.contact_plan}")
     ttl = _parse_ttl(args.ttl_s)
-    config = AgentConfig(ttl_s_by_priority=ttl, bundle_bits=args.bundle_bits,
-                         priority_delay_s=deadline_delays(ttl) if args.queue == "deadline" else None)
+    try:
+        config = AgentConfig.for_policy(args.queue, args.hop_tolerance_s, ttl_s_by_priority=ttl,
+                                        bundle_bits=args.bundle_bits)
+    except ValueError as exc:
+        raise UserError(f"--hop-tolerance-s: {exc}") from None
     dump = None
     if args.dump_bundles is not None:
         args.dump_bundles.mkdir(parents=True, exist_ok=True)

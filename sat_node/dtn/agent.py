@@ -54,7 +54,7 @@ from __future__ import annotations
 import heapq
 import itertools
 from collections import Counter
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Callable, NamedTuple
 
 import cbor2
@@ -68,10 +68,12 @@ from .cgr import ContactGraph
 from .store import BundleStore, StoredBundle
 
 __all__ = ["BundleAgent", "AgentConfig", "Transmission", "BundleEvent", "PRIORITY_BLOCK", "ttl_s_for_priority",
-           "DROP_REASONS", "deadline_delays", "priority_of"]
+           "DROP_REASONS", "SEND_ORDERS", "deadline_delays", "priority_of"]
 
 PRIORITY_BLOCK = 193  # experimental (RFC 9171 9.1): CBOR uint, 1 (highest) .. 15
 DROP_REASONS = ("ttl", "integrity", "no_route", "hop_limit", "other")
+# Send orders (AgentConfig.for_policy): strict priority (the study's), or earliest expiry first
+SEND_ORDERS = ("priority", "deadline")
 _NS = 1_000_000_000
 # next-hop block of recently heard bytes: a broadcast copy reaches every node in view, and the peek is a
 # pure function of the (immutable) bytes, so each transmission is parsed once per process.
@@ -118,6 +120,19 @@ class AgentConfig:
     # before it forgets the bundle (the lockstep medium reports one or two steps later) [s].
     settle_delay_s: float = 0.0
     priority_delay_s: tuple | None = None
+
+    @classmethod
+    def for_policy(cls, send_order: str = "priority", hop_tolerance_s: float = 0.0, **kw) -> "AgentConfig":
+        """A config for one of :data:`SEND_ORDERS` (``deadline``: each priority's delay is its TTL,
+        so the earliest expiry goes first) and a CGR hop tolerance [s]; other fields from ``kw``."""
+        if send_order not in SEND_ORDERS:
+            raise ValueError(f"send order {send_order!r}: one of {', '.join(SEND_ORDERS)}")
+        if not hop_tolerance_s >= 0.0:
+            raise ValueError(f"hop tolerance {hop_tolerance_s!r} s: must be >= 0")
+        cfg = cls(hop_tolerance_s=float(hop_tolerance_s), **kw)
+        if send_order == "deadline":
+            cfg = replace(cfg, priority_delay_s=deadline_delays(cfg.ttl_s_by_priority))
+        return cfg
 
 
 class Transmission(NamedTuple):

@@ -171,6 +171,47 @@ def test_cli_deadline_queue_changes_the_order(tmp_path, capsys):
     assert med["priority"] > 40 and med["deadline"] < 10, med
 
 
+def test_policy_config_names_what_is_wrong():
+    from sat_node.dtn.agent import AgentConfig, deadline_delays
+
+    cfg = AgentConfig.for_policy("deadline", 12.5, ttl_s_by_priority={1: 100.0, 15: 300.0}, bundle_bits=800)
+    assert cfg.priority_delay_s == deadline_delays({1: 100.0, 15: 300.0}) == (100.0,) + (300.0,) * 14
+    assert cfg.hop_tolerance_s == 12.5 and cfg.bundle_bits == 800
+    assert AgentConfig.for_policy().priority_delay_s is None
+    with pytest.raises(ValueError, match="send order 'fifo'"):
+        AgentConfig.for_policy("fifo")
+    for bad in (-1.0, float("nan")):
+        with pytest.raises(ValueError, match="hop tolerance"):
+            AgentConfig.for_policy("priority", bad)
+
+
+def test_cli_hop_tolerance_takes_the_direct_contact(tmp_path, capsys):
+    """`constellation dtn --hop-tolerance-s`: a bundle created at 10 s at sat_11 for sat_13 reaches it
+    over the chain at 15 s (10-12 on air, +0.5, 12.5-14.5, +0.5: 5 s, two transmissions) or over a
+    direct contact opening at 50 s (50-52, +0.5: 42.5 s, one), which arrives 37.5 s after the chain:
+    a 40 s tolerance takes it, 30 s keeps the chain. A negative tolerance is one clear error line."""
+    import json
+
+    from bringup.cli import main
+    from orbit_clock.contact_plan import write_contact_plan
+    plan = ContactPlan(PLAN.contacts + [Contact(50.0, 1000.0, "sat_11", "sat_13", 1000.0, 0.5)])
+    with open(tmp_path / "plan.csv", "w") as fh:
+        write_contact_plan(plan, "csv", fh)
+    head = "source,time_s,packet_id,region,Sat11,Sat12,Sat13"
+    (tmp_path / "traffic.csv").write_text(f"{head}\nSat11,10,1,r,0,-1,4\n")
+    argv = ["dtn", "--contact-plan", str(tmp_path / "plan.csv"), "--traffic", str(tmp_path / "traffic.csv"), "--json"]
+    got = {}
+    for tol in (0.0, 30.0, 40.0):
+        assert main(argv + ["--hop-tolerance-s", str(tol)]) == 0
+        rep = json.loads(capsys.readouterr().out)
+        assert rep["dtn.delivery_ratio"] == 1.0 and rep["dtn.conservation_ok"]
+        got[tol] = rep["dtn.latency_s.mean"]
+    assert got == pytest.approx({0.0: 5.0, 30.0: 5.0, 40.0: 42.5}), got
+    assert main(argv + ["--hop-tolerance-s", "-5"]) != 0
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--hop-tolerance-s" in err[0] and "must be >= 0" in err[0], err
+
+
 def test_route_memo_equals_fresh_queries(paper_inputs, monkeypatch):
     """The agent's route memos (per bundle, and shared by bundles that route alike at one instant,
     sat_node/dtn/agent.py _route) hand out exactly what a fresh CGR query with the bundle's own

@@ -46,3 +46,25 @@ def test_candidate_filter_keeps_every_visible_gp(world):
             assert set(visible.tolist()) <= ids, (sat, t0)
             kept_some += len(ids) > 0
     assert kept_some > 0
+
+
+def test_satellite_agents_take_the_scenario_send_order_and_hop_tolerance(world):
+    """[isl] send_order / hop_tolerance_s reach every satellite's bundle agent (both engines build
+    satellites this way); the paper's defaults are the study's strict priority and earliest arrival."""
+    import dataclasses
+
+    import msgspec
+
+    from sat_node.dtn.agent import deadline_delays
+    from sat_node.logic import SatelliteLogic
+
+    sat = world.sat_names[0]
+    cfg = SatelliteLogic(world, sat, "distributed").agent.config
+    assert cfg.priority_delay_s is None and cfg.hop_tolerance_s == 0.0
+    sc = world.scenario
+    isl = msgspec.structs.replace(sc.isl, send_order="deadline", hop_tolerance_s=30.0)
+    w2 = dataclasses.replace(world, scenario=msgspec.structs.replace(sc, isl=isl))
+    cfg = SatelliteLogic(w2, sat, "distributed").agent.config
+    assert cfg.hop_tolerance_s == 30.0
+    assert cfg.priority_delay_s == deadline_delays(cfg.ttl_s_by_priority)
+    assert cfg.priority_delay_s[0] == isl.ttl_p1_s and cfg.priority_delay_s[14] == isl.ttl_p4_15_s
