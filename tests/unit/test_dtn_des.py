@@ -132,12 +132,17 @@ _CASE1_TARGETS_MISSED = pytest.mark.xfail(
     reason="issue 4: case1 at 1 kb/s misses >= 99 % delivered with a mean <= 1.25x the bound (README)")
 
 
-@pytest.mark.parametrize("case", ["case4", pytest.param("case1", marks=[pytest.mark.slow, _CASE1_TARGETS_MISSED])])
-def test_study_inputs_targets(paper_inputs, case):
+def _study_run(paper_inputs, case: str, config=None):
+    """The study's plan at 1 kb/s and one of its traffic sets: (plan, traffic, report with the bound)."""
     plan = read_contact_plan(paper_inputs / "contact_plan_3p_8s.csv", rate_bps=1000)
     traffic = read_traffic(paper_inputs / f"traffic_{case}.csv")
-    run = run_dtn(plan, traffic)
-    rep = run.report(latency_lower_bounds(plan, traffic, 2000, run.created_ids))
+    run = run_dtn(plan, traffic, config=config)
+    return plan, traffic, run.report(latency_lower_bounds(plan, traffic, 2000, run.created_ids))
+
+
+@pytest.mark.parametrize("case", ["case4", pytest.param("case1", marks=[pytest.mark.slow, _CASE1_TARGETS_MISSED])])
+def test_study_inputs_targets(paper_inputs, case):
+    _plan, _traffic, rep = _study_run(paper_inputs, case)
     assert rep["dtn.conservation_ok"]
     assert rep["dtn.delivery_ratio"] >= 0.99
     for p in (1, 2, 3):
@@ -159,11 +164,8 @@ def test_case1_trade_off_between_send_orders(paper_inputs, order):
     Both means sit above the store-and-forward bound, which no policy beats when all is delivered."""
     from sat_node.dtn.agent import AgentConfig
 
-    plan = read_contact_plan(paper_inputs / "contact_plan_3p_8s.csv", rate_bps=1000)
-    traffic = read_traffic(paper_inputs / "traffic_case1.csv")
     cfg = AgentConfig.for_policy(order)
-    run = run_dtn(plan, traffic, config=cfg)
-    rep = run.report(latency_lower_bounds(plan, traffic, 2000, run.created_ids))
+    plan, traffic, rep = _study_run(paper_inputs, "case1", cfg)
     sf = store_forward_bound_mean(plan, traffic, 2000, cfg.ttl_s_by_priority)
     assert rep["dtn.conservation_ok"] and rep["dtn.dropped.integrity"] == 0
     bound = rep["dtn.latency_s.lower_bound_mean"]
