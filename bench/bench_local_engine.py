@@ -14,8 +14,8 @@ import tempfile
 import time
 from pathlib import Path
 
-from bringup.local_engine import run_local
-from bringup.recording import BagWriter
+from bringup.engine.local import run_local
+from bringup.recording.bag import BagWriter
 from msgs_json.envelope import Emit, StepResult
 
 S = 1_000_000_000

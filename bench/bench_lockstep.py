@@ -21,8 +21,8 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from bringup.launcher import launch
-from bringup.run_spec import RunSpec
+from bringup.engine.ros.launcher import launch
+from bringup.engine.ros.run_spec import RunSpec
 
 
 def _rss_tree_kib(root_pid: int) -> int:

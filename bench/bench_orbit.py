@@ -19,7 +19,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from bringup.scenario import load_scenario
+from bringup.scenario.config import load_scenario
 from orbit_clock import (
     access_windows,
     access_windows_bruteforce,

@@ -1,6 +1,6 @@
 """Benchmark the onboard DP scheduler on the paper scenario (issue 3).
 
-Runs ``constellation bench-scheduler`` logic (bringup/commands/bench_scheduler.py): one satellite
+Runs ``constellation bench-scheduler`` logic (bringup/cli/bench_scheduler.py): one satellite
 scheduled over the whole 6 h horizon (replanning every 10 min, all its passes) for the DP runtime,
 and DP against the exact MILP on small instances cut from the scenario's passes for the value ratio.
 Prints a summary, then the figures as one JSON object.
@@ -17,8 +17,8 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from bringup.commands import bench_scheduler as bs
-from bringup.commands._common import scenario_from_args
+from bringup.cli import bench_scheduler as bs
+from bringup.cli.common import scenario_from_args
 
 
 def main(argv: list[str] | None = None) -> int:

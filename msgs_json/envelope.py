@@ -4,7 +4,7 @@ A *participant* is one node's logic (a satellite, the DTN router, the ground sta
 plain Python object with no rclpy in it. An engine drives all participants through the same
 sequence of steps ``t_0 < t_1 < ...`` (integer ns since the scenario epoch):
 
-* ``local`` engine: one process, an in-memory bus (bringup/local_engine.py);
+* ``local`` engine: one process, an in-memory bus (bringup/engine/local.py);
 * ``ros`` engine: one OS process per satellite, DDS in between, the orbit_clock node running the
   barrier (a step ends only when every participant acked it and all it sent was received).
 

@@ -2,7 +2,7 @@
 
 Front door of the pure core: Walker generation, SGP4 propagation, frames, ground points, GP access,
 ISL and ground-station contact plans, bundle priority order, contact-plan types. The clock node
-(``orbit_clock.clock_node``) is not imported here so that importing the package never pulls rclpy.
+(``bringup.engine.ros.clock_node``) is not imported here so that importing the package never pulls rclpy.
 """
 
 from orbit_clock.access import (

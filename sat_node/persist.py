@@ -13,8 +13,8 @@ nothing happened: no observation executed twice, none lost, no accepted bundle l
   The shared read-only inputs (world, scenario, belief noise, contact graph, store connection,
   agent config) are rebuilt from the world pickle by the new process, not saved.
 
-The host (bringup/ros_host.py) writes the snapshot into the bundle store's own SQLite file in the
-same transaction as the step's store writes (:func:`persistent_connection`; bringup/checkpoint.py),
+The host (bringup/engine/ros/host.py) writes the snapshot into the bundle store's own SQLite file in the
+same transaction as the step's store writes (:func:`persistent_connection`; bringup/engine/checkpoint.py),
 so bundles and knowledge never disagree. :func:`restore` checks that: the rows in the store must be
 exactly the bundles the restored agent holds; a difference (which the single transaction should make
 impossible) is repaired from the snapshot and counted in ``restore_report``.

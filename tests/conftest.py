@@ -17,8 +17,8 @@ os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
 
 def pytest_sessionstart(session) -> None:
     """Free the FastDDS shared-memory files earlier runs on this machine left and no live process
-    holds (bringup/shm_cleanup.py: hundreds of them made ROS runs hang at start)."""
-    from bringup.shm_cleanup import remove_unheld
+    holds (bringup/engine/ros/shm_cleanup.py: hundreds of them made ROS runs hang at start)."""
+    from bringup.engine.ros.shm_cleanup import remove_unheld
 
     remove_unheld()
 
@@ -32,6 +32,6 @@ def paper_inputs() -> Path:
 
 @pytest.fixture(scope="session")
 def paper_scenario():
-    from bringup.scenario import load_scenario
+    from bringup.scenario.config import load_scenario
 
     return load_scenario("paper")

@@ -8,7 +8,7 @@ memory (the DTN-only discrete-event runs, where persistence buys nothing).
 
 Durability guarantee (what a kill can cost): the unit is the lockstep step.
 
-* The satellite opens a batch per step (:meth:`begin` ... :meth:`commit`, sat_node/logic.py). Inside
+* The satellite opens a batch per step (:meth:`begin` ... :meth:`commit`, sat_node/satellite.py). Inside
   it puts, deletes and meta writes are collected in memory, the last write of a key winning (a bundle
   put and deleted in the same step never reaches the file), and :meth:`commit` writes them in one
   SQLite transaction. A process killed during a step therefore finds the file as it was at the end
@@ -16,9 +16,9 @@ Durability guarantee (what a kill can cost): the unit is the lockstep step.
   process killed after :meth:`commit` returned finds every bundle the step accepted: a restarted
   process always finds a step boundary, never half a step.
 * When a caller already has a transaction open on the connection (the ROS host's per-step checkpoint,
-  bringup/checkpoint.py, which commits the checkpoint row with the step's bundle rows), writes go
+  bringup/engine/checkpoint.py, which commits the checkpoint row with the step's bundle rows), writes go
   straight into it and the caller's COMMIT makes them durable together with the checkpoint.
-* A local run (one process, no resume) opens one batch for many steps (bringup/store_batches.py):
+* A local run (one process, no resume) opens one batch for many steps (bringup/engine/store_batches.py):
   the satellite's ``begin`` then joins it, and the file advances every 50 steps instead of every step.
 * Outside a batch every write is its own autocommitted transaction.
 
@@ -27,7 +27,7 @@ in the WAL file, which the OS has even when they were not fsynced - and that is 
 A power cut may roll back the transactions since the last checkpoint (the file stays consistent).
 Checkpoints run every ``_WAL_CHECKPOINT_PAGES`` WAL pages. The connection is used by one thread at a
 time, not always the one that opened it (``check_same_thread=False``): the local run closes its
-satellites' stores side by side at the end (bringup/commands/run.py). The bundles table is ``WITHOUT ROWID``
+satellites' stores side by side at the end (bringup/cli/run.py). The bundles table is ``WITHOUT ROWID``
 (one B-tree keyed by the bundle id instead of a rowid table plus its index: fewer pages per commit);
 a file made by an earlier version (a rowid table) is read and written the same way. Reads
 (:meth:`load_all`, ``len``, :meth:`get_meta`) see the batch's pending writes (they are written into

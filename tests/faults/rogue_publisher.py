@@ -24,7 +24,7 @@ def main() -> int:
     sys.path.insert(0, __file__.rsplit("/", 1)[0])
     from test_faults_hostile import _forged_bundle
 
-    from bringup.ros_host import QOS_DATA, QOS_SYNC_PUB
+    from bringup.engine.ros.host import QOS_DATA, QOS_SYNC_PUB
     from msgs_json import topics as T
     from msgs_json.envelope import Envelope
     from msgs_json.wire import encode_envelope

@@ -32,8 +32,8 @@ FORGED_T_NS = 123_456_789  # the forged observations' time: no real observation 
 
 @pytest.fixture(scope="module")
 def world():
-    from bringup.scenario import load_scenario
-    from bringup.world import World
+    from bringup.scenario.config import load_scenario
+    from bringup.scenario.world import World
 
     return World.cached(load_scenario("paper").with_overrides(sats=SATS, hours=HOURS, seed=1))
 
@@ -47,7 +47,7 @@ def _forged_bundle(target: str, claimed_src: str, gp: int, t_ns: int, seq: int) 
     from sat_node.dtn.agent import PRIORITY_BLOCK, AgentConfig
     from sat_node.dtn.bpsec import add_bib
     from sat_node.dtn.bpv7 import Bundle, encode_bundle, ipn
-    from sat_node.logic import observation_payload
+    from sat_node.satellite import observation_payload
 
     cfg = AgentConfig()
     b = Bundle(dest=ipn(node_number(target), 1), src=ipn(node_number(claimed_src), 1),
@@ -134,8 +134,8 @@ class Rogue:
 
 
 def _run(world, rogue=None):
-    from bringup.local_engine import run_local
-    from bringup.participants import all_participants
+    from bringup.engine.local import run_local
+    from bringup.scenario.participants import all_participants
 
     sc = world.scenario
     parts = all_participants(world, "distributed")

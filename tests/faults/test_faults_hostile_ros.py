@@ -37,7 +37,7 @@ def _cmd(engine, out):
 
 
 def _trace(bag):
-    from bringup.recording import BagReader
+    from bringup.recording.bag import BagReader
     from msgs_json import codec, schemas as S
 
     obs, dlv = [], []

@@ -8,7 +8,7 @@ Oracles:
   dropped with a reason; never silently lost;
 * conservation over every bundle of the run: created = delivered + dropped (by reason) + held at
   the end, and each created bundle is in exactly one of these;
-* the consensus figures (bringup/report.py) of plain, delayed and cut runs are computed and the
+* the consensus figures (bringup/analysis/report.py) of plain, delayed and cut runs are computed and the
   added delay can only make news later (never more pairs informed than the plain run);
 * through the CLI: ``run --cut A-B@T1-T2 --isl-delay-s X`` writes report.json with the consensus
   section and conservation holding.
@@ -31,15 +31,15 @@ SATS, HOURS = 12, 1.0
 
 @pytest.fixture(scope="module")
 def world():
-    from bringup.scenario import load_scenario
-    from bringup.world import World
+    from bringup.scenario.config import load_scenario
+    from bringup.scenario.world import World
 
     return World.cached(load_scenario("paper").with_overrides(sats=SATS, hours=HOURS, seed=1))
 
 
 def _run(world, router_kw=None):
-    from bringup.local_engine import run_local
-    from bringup.participants import all_participants
+    from bringup.engine.local import run_local
+    from bringup.scenario.participants import all_participants
 
     sc = world.scenario
     parts = all_participants(world, "distributed", router_kw=router_kw)
@@ -134,7 +134,7 @@ def test_contact_ending_mid_transmission_is_reported_and_bundle_goes_later(cut_c
 
 def test_forged_status_is_rejected_and_counted(world):
     """A status naming no transmission of ours (or another satellite) changes nothing, is counted."""
-    from bringup.participants import all_participants
+    from bringup.scenario.participants import all_participants
     from msgs_json.envelope import Envelope
     from msgs_json.topics import dtn_status_topic
 
@@ -153,7 +153,7 @@ def test_forged_status_is_rejected_and_counted(world):
 
 
 def test_consensus_figures_plain_delay_cut(world, plain, cut_case):
-    from bringup.report import RunMeta, build_report
+    from bringup.analysis.report import RunMeta, build_report
 
     sc = world.scenario
     meta = RunMeta(scenario=sc.name, mode="distributed", engine="local", seed=1, horizon_s=sc.scenario.horizon_s,
@@ -195,7 +195,7 @@ def test_consensus_figures_hand_worked():
     (schedule v2) and sees GPs 3 (duplicate) and 4 at 700, 710 s. News: GP1's bundle reached sat_21
     at 500 s (in time), GP3's at 650 s (late), GP2's never. Area Y: sat_21 sees GP 50 at 2000 s, sat_31
     planned at 1900 s (before) and sees GP 50 again at 2100 s: a duplicate from late news."""
-    from bringup.report import consensus_figures
+    from bringup.analysis.report import consensus_figures
 
     def o(sat, gp, t_s, ver=1):
         return S.Observation(sat=sat, gp=gp, t_ns=int(t_s * 1e9), assumed_value=1.0, recorded_value=1.0,

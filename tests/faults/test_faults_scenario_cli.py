@@ -20,7 +20,7 @@ from scenario_edit import leaves as _leaves
 from scenario_edit import raw_scenario
 from scenario_edit import set_key as _set
 
-from bringup.scenario import load_scenario
+from bringup.scenario.config import load_scenario
 
 pytestmark = [pytest.mark.faults]
 
@@ -106,7 +106,7 @@ def _check_one_line(cmd, err, key, rc):
 
 @pytest.mark.parametrize("cmd", COMMANDS)
 def test_every_field_wrong_in_turn_through_each_command(tmp_path, capsys, cmd):
-    from bringup.cli import main
+    from bringup.cli.main import main
 
     cases = [(k, _bad_value(v)) for k, v in _leaves(_raw())] + RANGE
     for key, value in cases:
@@ -129,7 +129,7 @@ def test_sample_as_real_processes(tmp_path, cmd):
 
 
 def test_broken_toml_and_missing_file_through_each_command(tmp_path, capsys):
-    from bringup.cli import main
+    from bringup.cli.main import main
 
     bad = tmp_path / "BAD.toml"
     bad.write_text("[scenario\nname=1\n")

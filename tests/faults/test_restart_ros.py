@@ -5,7 +5,7 @@ One process is killed with SIGKILL at a random (seeded) lockstep step while the 
 launcher restarts it (``max_restarts``), it resumes from its checkpoint (satellites: their SQLite
 bundle store plus what the scheduler knows, one transaction per step; sat_node/persist.py), the
 clock waits for it by name and re-sends what it missed. The clock itself is killed too: it restarts
-from its per-step checkpoint and journal (orbit_clock/clock_node.py), the hosts wait, answer again
+from its per-step checkpoint and journal (bringup/engine/ros/clock_node.py), the hosts wait, answer again
 the step they had run (never running it twice) and the bag is exported whole. Oracles:
 
 * the uninterrupted local-engine run of the same scenario and seed: observations (sat, gp, t_ns)
@@ -36,19 +36,19 @@ SATS, HOURS = 12, 1.0
 
 
 def _observations(bag: Path):
-    from bringup.trace import observations_from_bag
+    from bringup.analysis.trace import observations_from_bag
 
     return observations_from_bag(bag)
 
 
 def _deliveries(bag: Path):
-    from bringup.trace import deliveries_from_bag
+    from bringup.analysis.trace import deliveries_from_bag
 
     return deliveries_from_bag(bag)
 
 
 def _accounting(bag: Path) -> dict:
-    from bringup.report import report_from_bag
+    from bringup.analysis.report import report_from_bag
 
     d = report_from_bag(bag)["dtn"]
     dropped = sum(v for v in d.get("dropped", {}).values() if isinstance(v, int))
@@ -67,11 +67,11 @@ def reference(tmp_path_factory):
 
 
 def _ros_run_with_kill(reference: Path, out: Path, victim: str, kill_step: int):
-    from bringup.launcher import launch
-    from bringup.participants import FACTORY, roles_for
-    from bringup.report import RunMeta
-    from bringup.run_spec import RunSpec
-    from bringup.world import World
+    from bringup.engine.ros.launcher import launch
+    from bringup.scenario.participants import FACTORY, roles_for
+    from bringup.analysis.report import RunMeta
+    from bringup.engine.ros.run_spec import RunSpec
+    from bringup.scenario.world import World
 
     world_path = next((reference / "cache").glob("world-*.pkl"))
     world = World.load(world_path)

@@ -31,7 +31,7 @@ def test_checkpoint_is_atomic_under_sigkill(tmp_path):
 import os, signal, sys
 sys.path.insert(0, {str(REPO)!r})
 from sat_node.dtn.store import BundleStore, StoredBundle
-from bringup.checkpoint import CheckpointDB
+from bringup.engine.checkpoint import CheckpointDB
 st = BundleStore({str(db)!r})
 ck = CheckpointDB(conn=st._db)
 ck.begin(); st.put(StoredBundle("a", b"x", 1, "sat_12", 10, 0)); ck.commit(1, {{"step": 1}}, [b"one"])
@@ -40,7 +40,7 @@ os.kill(os.getpid(), signal.SIGKILL)
 """
     r = subprocess.run([sys.executable, "-c", code], check=False, capture_output=True, timeout=60)
     assert r.returncode == -signal.SIGKILL, r.stderr
-    from bringup.checkpoint import CheckpointDB
+    from bringup.engine.checkpoint import CheckpointDB
     from sat_node.dtn.store import BundleStore
 
     st = BundleStore(db)
@@ -55,7 +55,7 @@ class _Toy:
 
 
 def test_generic_snapshot_skips_shared_inputs():
-    from bringup.checkpoint import restore_participant, snapshot_participant
+    from bringup.engine.checkpoint import restore_participant, snapshot_participant
 
     a = _Toy()
     a.n = 7
@@ -106,17 +106,17 @@ class _Restarting:
 
 @pytest.fixture(scope="module")
 def world(tmp_path_factory):
-    from bringup.scenario import load_scenario
-    from bringup.world import World
+    from bringup.scenario.config import load_scenario
+    from bringup.scenario.world import World
 
     sc = load_scenario("paper").with_overrides(sats=SATS, hours=HOURS)
     return World.cached(sc, tmp_path_factory.mktemp("world"))
 
 
 def test_satellites_rebuilt_from_snapshot_and_store_continue_exactly(world, tmp_path):
-    from bringup.local_engine import run_local
-    from bringup.participants import all_participants
-    from sat_node.logic import SatelliteLogic
+    from bringup.engine.local import run_local
+    from bringup.scenario.participants import all_participants
+    from sat_node.satellite import SatelliteLogic
 
     horizon, max_step = world.scenario.horizon_ns, int(world.scenario.scenario.lockstep_max_step_s * 1e9)
     ref = run_local(all_participants(world, "distributed", store_dir=tmp_path / "ref"),

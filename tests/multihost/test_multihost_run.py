@@ -37,11 +37,11 @@ def _local(out: Path) -> Path:
 def test_scenario_across_namespace_hosts_equals_single_host(tmp_path):
     from test_restart_ros import _deliveries, _observations
 
-    from bringup.launcher import CLOCK_ROLE, launch
-    from bringup.participants import FACTORY, roles_for
-    from bringup.report import RunMeta
-    from bringup.run_spec import RunSpec
-    from bringup.world import World
+    from bringup.engine.ros.launcher import CLOCK_ROLE, launch
+    from bringup.scenario.participants import FACTORY, roles_for
+    from bringup.analysis.report import RunMeta
+    from bringup.engine.ros.run_spec import RunSpec
+    from bringup.scenario.world import World
 
     before = list_netns()
     ref = _local(tmp_path / "local")

@@ -226,7 +226,7 @@ TOY_DIR = REPO / "tests" / "ros"
 def test_toy_lockstep_run_across_hosts_equals_local(tmp_path, root_state_unchanged):
     """Clock + each participant process in its own namespace (DDS over the bridge, static peers):
     the recorded envelopes equal the in-process local engine's for the same participants."""
-    for mod in ("orbit_clock.clock_node", "bringup.ros_host", "bringup.recording", "bringup.local_engine"):
+    for mod in ("bringup.engine.ros.clock_node", "bringup.engine.ros.host", "bringup.recording.bag", "bringup.engine.local"):
         if importlib.util.find_spec(mod) is None:
             pytest.skip(f"the ROS engine has not landed yet ({mod} missing)")
     if not (TOY_DIR / "toy_participants.py").is_file():
@@ -236,9 +236,9 @@ def test_toy_lockstep_run_across_hosts_equals_local(tmp_path, root_state_unchang
         import toy_participants as toy
     finally:
         sys.path.remove(str(TOY_DIR))
-    from bringup.local_engine import run_local
-    from bringup.recording import BagReader
-    from bringup.run_spec import CLOCK_ROLE, RunSpec
+    from bringup.engine.local import run_local
+    from bringup.recording.bag import BagReader
+    from bringup.engine.ros.run_spec import CLOCK_ROLE, RunSpec
 
     s = 1_000_000_000
     roles = toy.roles(3)

@@ -17,10 +17,10 @@ from pathlib import Path
 import pytest
 
 from bringup.errors import UserError
-from bringup.launcher import REPO, child_env, launch, lease_domain_id
-from bringup.local_engine import run_local
-from bringup.recording import BagReader
-from bringup.run_spec import RunSpec
+from bringup.engine.ros.launcher import REPO, child_env, launch, lease_domain_id
+from bringup.engine.local import run_local
+from bringup.recording.bag import BagReader
+from bringup.engine.ros.run_spec import RunSpec
 from tests.ros import toy_participants as toy
 
 pytestmark = [pytest.mark.ros, pytest.mark.timeout(180)]
@@ -132,8 +132,8 @@ def test_sigint_leaves_readable_bag(tmp_path):
     script = f"""
 import signal, sys
 signal.signal(signal.SIGINT, signal.default_int_handler)
-from bringup.launcher import launch
-from bringup.run_spec import RunSpec
+from bringup.engine.ros.launcher import launch
+from bringup.engine.ros.run_spec import RunSpec
 spec = RunSpec(factory="tests.ros.toy_participants:make", roles=["pingpong", "c0", "c1"],
                horizon_ns=3600 * 10**9, max_step_ns=10**10, real_time_factor=100.0,
                bag_dir={str(tmp_path / "bag")!r}, progress_period_s=0.2, extra={{"n_counters": 2}})
@@ -173,7 +173,7 @@ def test_empty_shared_memory_port_of_a_killed_process_does_not_hang_the_next_run
     /dev/shm/fastrtps_port7013 empty; every later run's participant that reached port 7013 waited on
     it forever (boost open_or_create spins until the creator finishes) and the clock reported
     "hosts not up". The launcher removes the leftovers no live process holds before it starts a run
-    (bringup/shm_cleanup.py). Here empty port files stand where a run's participants look first."""
+    (bringup/engine/ros/shm_cleanup.py). Here empty port files stand where a run's participants look first."""
     shm = Path("/dev/shm")
     planted = []
     for n in range(7000, 7040):

@@ -2,7 +2,7 @@
 
 Toy participants (tests/ros/toy_participants.py) whose output hashes their inboxes run under the
 launcher (clock + one process per role, unique ROS_DOMAIN_ID, loopback only); the envelopes
-recorded in the MCAP bag must equal, field for field, those bringup/local_engine.py emits for
+recorded in the MCAP bag must equal, field for field, those bringup/engine/local.py emits for
 fresh copies of the same participants. A participant that stops answering is named.
 """
 
@@ -12,11 +12,11 @@ import time
 
 import pytest
 
-from bringup.launcher import launch
-from bringup.local_engine import run_local
-from bringup.recording import BagReader
-from bringup.run_spec import RunSpec
-from orbit_clock.lockstep import next_step_ns
+from bringup.engine.ros.launcher import launch
+from bringup.engine.local import run_local
+from bringup.recording.bag import BagReader
+from bringup.engine.ros.run_spec import RunSpec
+from bringup.engine.lockstep import next_step_ns
 from tests.ros import toy_participants as toy
 
 pytestmark = [pytest.mark.ros, pytest.mark.timeout(180)]
@@ -86,8 +86,8 @@ def test_bad_message_is_counted_not_fatal(monkeypatch):
     """A subscription callback fed junk counts it and keeps going (no exception escapes)."""
     from std_msgs.msg import String
 
-    from bringup.launcher import lease_domain_id
-    from bringup.ros_host import ParticipantHost
+    from bringup.engine.ros.launcher import lease_domain_id
+    from bringup.engine.ros.host import ParticipantHost
 
     with lease_domain_id() as lease:
         monkeypatch.setenv("ROS_DOMAIN_ID", str(lease.domain_id))

@@ -4,7 +4,7 @@ Reduced paper scenario (9 satellites, 45 min, distributed) with 30 s of extra IS
 bundle copies stay in the router across steps (without it every copy arrives before the next
 10 s step and the figure is 0 throughout). Oracles:
 
-* the local engine (bringup/local_engine.py) is the reference: its progress callback, called
+* the local engine (bringup/engine/local.py) is the reference: its progress callback, called
   after every step, reads ``len(router.pending)`` (what ``constellation run --engine local``
   displays). The ROS run's progress records (clock -> launcher, one per step here) must carry the
   same figure at every sim time, be > 0 at some step and 0 at the end;
@@ -30,8 +30,8 @@ S = 10**9
 
 @pytest.fixture(scope="module")
 def world(tmp_path_factory):
-    from bringup.scenario import load_scenario
-    from bringup.world import World
+    from bringup.scenario.config import load_scenario
+    from bringup.scenario.world import World
 
     base = tmp_path_factory.mktemp("inflight")
     sc = load_scenario("paper").with_overrides(sats=SATS, hours=HOURS)
@@ -43,9 +43,9 @@ def world(tmp_path_factory):
 
 
 def _local_in_flight(world, store: Path) -> dict[int, int]:
-    from bringup.local_engine import run_local
-    from bringup.participants import all_participants
-    from dtn_router.logic import ROUTER_NAME
+    from bringup.engine.local import run_local
+    from bringup.scenario.participants import all_participants
+    from dtn_router.router import ROUTER_NAME
 
     sc = world.scenario
     store.mkdir()
@@ -58,16 +58,16 @@ def _local_in_flight(world, store: Path) -> dict[int, int]:
 
 
 def test_router_name_matches_the_host_constant():
-    from bringup.ros_host import _ROUTER_NAME
-    from dtn_router.logic import ROUTER_NAME
+    from bringup.engine.ros.host import _ROUTER_NAME
+    from dtn_router.router import ROUTER_NAME
 
     assert _ROUTER_NAME == ROUTER_NAME
 
 
 def test_ros_progress_in_flight_equals_local_engine_step_by_step(world, tmp_path):
-    from bringup.launcher import launch
-    from bringup.participants import FACTORY, roles_for
-    from bringup.run_spec import RunSpec
+    from bringup.engine.ros.launcher import launch
+    from bringup.scenario.participants import FACTORY, roles_for
+    from bringup.engine.ros.run_spec import RunSpec
 
     w, world_path, _ = world
     sc = w.scenario

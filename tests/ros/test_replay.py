@@ -18,8 +18,8 @@ S = 1_000_000_000
 
 
 def _make_bag(path, with_clock=True):
-    from bringup.recording import BagWriter
-    from bringup.viz import write_viz
+    from bringup.recording.bag import BagWriter
+    from bringup.recording.viz_messages import write_viz
     from msgs_json.envelope import Envelope
 
     with BagWriter(path) as bag:
@@ -41,8 +41,8 @@ def test_replay_delivers_every_message_and_clock(tmp_path, with_clock):
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.qos import QoSProfile, ReliabilityPolicy
 
-    from bringup.launcher import child_env, lease_domain_id
-    from bringup.recording import CLOCK_TYPE, BagReader, clock_cdr
+    from bringup.engine.ros.launcher import child_env, lease_domain_id
+    from bringup.recording.bag import CLOCK_TYPE, BagReader, clock_cdr
 
     bag = _make_bag(tmp_path / "bag", with_clock)
     with BagReader(bag) as r:

@@ -130,16 +130,16 @@ def roles(n_counters: int, pingpong: bool = True) -> list[str]:
 def _linger_at_exit() -> None:
     """The host process, once its run is over, neither exits nor reacts to SIGTERM (as hosts blocked
     in FastDDS participant destruction were seen to): only SIGKILL ends it. Replaces the host's
-    way out (bringup/ros_host.py exit_now)."""
+    way out (bringup/engine/ros/host.py exit_now)."""
     import signal
 
-    import bringup.ros_host
+    import bringup.engine.ros.host
 
     def linger(code: int) -> None:
         signal.signal(signal.SIGTERM, signal.SIG_IGN)
         time.sleep(120)
 
-    bringup.ros_host.exit_now = linger
+    bringup.engine.ros.host.exit_now = linger
 
 
 def make(spec, role: str, host: bool = True) -> list:

@@ -96,9 +96,9 @@ def test_plots_and_figure5_gaps_brute_force(cmp):
     for name in ("value_over_time.png", "figure5.png"):
         p = out / "plots" / name
         assert p.exists() and 0 < p.stat().st_size < 300_000
-    from bringup.figure5 import bundle_rows_from_bag, figure5_data
-    from bringup.scenario import load_scenario
-    from bringup.world import World
+    from bringup.analysis.figure5 import bundle_rows_from_bag, figure5_data
+    from bringup.scenario.config import load_scenario
+    from bringup.scenario.world import World
 
     sc = load_scenario("paper").with_overrides(sats=SATS, hours=HOURS, seed=1)
     world = World.cached(sc, out / "distributed-s1" / "cache")

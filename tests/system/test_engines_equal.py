@@ -40,13 +40,13 @@ def runs(tmp_path_factory):
 
 
 def _observations(bag: Path):
-    from bringup.trace import observations_from_bag
+    from bringup.analysis.trace import observations_from_bag
 
     return observations_from_bag(bag)
 
 
 def _deliveries(bag: Path):
-    from bringup.trace import deliveries_from_bag
+    from bringup.analysis.trace import deliveries_from_bag
 
     return deliveries_from_bag(bag)
 
@@ -76,7 +76,7 @@ def test_bag_opens_with_independent_readers(runs, engine):
         n_clock = sum(1 for _ in reader.messages(connections=[c for c in reader.connections if c.topic == "/clock"]))
     assert mcap_topics == ros_topics
     assert n_clock > 100
-    from bringup.scenario import sat_names
+    from bringup.scenario.config import sat_names
 
     for s in sat_names(3, SATS // 3):  # every satellite publishes its plan, counters and position
         for leaf in ("schedule", "dtn/counters", "fix"):
@@ -100,9 +100,9 @@ def test_report_from_bag_equals_run_report(runs, engine):
 
 @pytest.mark.parametrize("engine", ["local", "ros"])
 def test_bundles_cross_only_inside_contacts_with_link_delay(runs, engine):
-    from bringup.recording import BagReader
-    from bringup.scenario import load_scenario
-    from bringup.world import World
+    from bringup.recording.bag import BagReader
+    from bringup.scenario.config import load_scenario
+    from bringup.scenario.world import World
 
     sc = load_scenario("paper").with_overrides(sats=SATS, hours=HOURS)
     world = World.build(sc)

@@ -1,4 +1,4 @@
-"""The console script's exit (bringup/cli.py entry): after a successful `run` it leaves with
+"""The console script's exit (bringup/cli/main.py entry): after a successful `run` it leaves with
 os._exit once atexit handlers ran and the streams are flushed; nothing the run wrote may be lost
 (oracle: the bag opens and `report BAG` equals report.json; stdout/stderr complete), and a failing
 command still exits through sys.exit with its code and one-line message."""
@@ -23,7 +23,7 @@ def test_fast_exit_after_run_loses_nothing(tmp_path):
     rep = json.loads((out / "report.json").read_text())
     assert (out / "report.md").read_text().strip()
     assert sorted(p.name for p in (out / "plots").iterdir())
-    from bringup.report import report_from_bag
+    from bringup.analysis.report import report_from_bag
 
     again = report_from_bag(out / "bag")
     for k in ("observations", "value", "dtn", "coverage"):

@@ -1,4 +1,4 @@
-"""bringup/compare.py: combining seeds, ratios and tables on hand-made reports (values worked out by hand)."""
+"""bringup/analysis/compare.py: combining seeds, ratios and tables on hand-made reports (values worked out by hand)."""
 
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ import math
 
 import pytest
 
-from bringup import compare as C
+from bringup.analysis import compare as C
 
 
 def _rep(mode, value, frac, n, dup, err):
@@ -90,7 +90,7 @@ def test_scenario_variant_changes_one_parameter(paper_scenario):
 
 
 def test_cli_rejects_bad_counts_in_one_line(capsys):
-    from bringup.cli import main
+    from bringup.cli.main import main
 
     assert main(["compare", "--seeds", "0", "--out", "/nonexistent/never-written"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
@@ -102,7 +102,7 @@ def test_cli_rejects_bad_counts_in_one_line(capsys):
 def test_sweep_rows_plan_marks_the_baseline(paper_scenario):
     import argparse
 
-    from bringup.commands import sweep
+    from bringup.cli import sweep
 
     p = argparse.ArgumentParser()
     sweep.add_arguments(p)

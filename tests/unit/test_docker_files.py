@@ -1,11 +1,11 @@
 """Static checks of docker/ and `constellation compose` (issue 7; no Docker engine on the build machines).
 
-Oracles, independent of bringup/compose.py:
+Oracles, independent of bringup/deploy/compose.py:
 * COMPOSE_SUBSET_SCHEMA below: a JSON schema of the part of the Compose Specification
   (compose-spec/compose-spec, schema/compose-spec.json) the generated files use, with the spec's
   key patterns and types and ``additionalProperties: false`` (a key outside the subset, or a typo,
   fails). Checked with jsonschema (draft 7, as the spec's own schema).
-* the project's CLI parser (``bringup.cli.build_parser()``): every service's command must parse;
+* the project's CLI parser (``bringup.cli.main.build_parser()``): every service's command must parse;
 * RunSpec.from_file: the run spec written beside the compose file loads, and its roles are exactly
   the services that are not the clock;
 * the file system: every Dockerfile COPY source exists in the build context, and the packages
@@ -23,8 +23,8 @@ import jsonschema
 import pytest
 import yaml
 
-from bringup.cli import build_parser, main
-from bringup.run_spec import CLOCK_ROLE, RunSpec
+from bringup.cli.main import build_parser, main
+from bringup.engine.ros.run_spec import CLOCK_ROLE, RunSpec
 
 REPO = Path(__file__).resolve().parents[2]
 DOCKERFILE = REPO / "docker" / "Dockerfile"
@@ -193,12 +193,12 @@ def test_every_command_is_a_real_subcommand(tmp_path, n_sats):
     doc, out = _write(tmp_path, n_sats)
     spec = RunSpec.from_file(out.parent / "run_spec.json")
     parser = build_parser()
-    node_mod = "bringup.commands.node"
+    node_mod = "bringup.cli.node"
     try:
         __import__(node_mod)
     except ModuleNotFoundError as exc:
         if exc.name == node_mod:
-            pytest.skip("bringup/commands/node.py (the ROS engine's process entry) has not landed yet")
+            pytest.skip("bringup/cli/node.py (the ROS engine's process entry) has not landed yet")
         raise
     for name, s in doc["services"].items():
         argv = s["command"]

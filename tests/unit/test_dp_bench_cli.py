@@ -2,7 +2,7 @@
 
 import json
 
-from bringup.cli import main
+from bringup.cli.main import main
 
 
 def test_bench_scheduler_json(capsys):

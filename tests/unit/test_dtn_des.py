@@ -185,7 +185,7 @@ def test_cli_deadline_queue_changes_the_order(tmp_path, capsys):
     expiry first; equal TTLs here) it goes before every P1 created after it."""
     import json
 
-    from bringup.cli import main
+    from bringup.cli.main import main
     from orbit_clock.contact_plan import write_contact_plan
     with open(tmp_path / "plan.csv", "w") as fh:
         write_contact_plan(PLAN, "csv", fh)
@@ -227,7 +227,7 @@ def test_cli_hop_tolerance_takes_the_direct_contact(tmp_path, capsys):
     a 40 s tolerance takes it, 30 s keeps the chain. A negative tolerance is one clear error line."""
     import json
 
-    from bringup.cli import main
+    from bringup.cli.main import main
     from orbit_clock.contact_plan import write_contact_plan
     plan = ContactPlan(PLAN.contacts + [Contact(50.0, 1000.0, "sat_11", "sat_13", 1000.0, 0.5)])
     with open(tmp_path / "plan.csv", "w") as fh:

@@ -1,11 +1,11 @@
-"""bringup/figure5.py on hand-built access windows and bundle events (gaps and margins worked out by hand)."""
+"""bringup/analysis/figure5.py on hand-built access windows and bundle events (gaps and margins worked out by hand)."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from bringup.figure5 import bundle_rows, figure5_data, figure5_summary, plot_figure5
+from bringup.analysis.figure5 import bundle_rows, figure5_data, figure5_summary, plot_figure5
 from msgs_json import schemas as S
 from orbit_clock.access import AccessWindows
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from bringup.local_engine import EngineError, LocalEngine, run_local
+from bringup.engine.local import EngineError, LocalEngine, run_local
 from msgs_json.envelope import Emit, Envelope, Participant, StepResult
 
 S = 1_000_000_000

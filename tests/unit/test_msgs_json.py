@@ -196,7 +196,7 @@ def test_decode_as_names_where():
 
 def test_pure_modules_import_no_rclpy():
     code = (
-        "import sys, msgs_json, bringup.local_engine, bringup.recording, bringup.viz;"
+        "import sys, msgs_json, bringup.engine.local, bringup.recording.bag, bringup.recording.viz_messages;"
         "print('rclpy' in sys.modules)"
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60, check=False)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import csv
 import json
 
-from bringup.cli import main
+from bringup.cli.main import main
 from orbit_clock.contact_plan import read_contact_plan
 
 

@@ -137,7 +137,7 @@ def test_registry_and_file_source(paper_scenario, gps, field, tmp_path):
     raw = msgspec.to_builtins(paper_scenario)
     raw.pop("source_path")
     raw["value"].update(osse_source="file", osse_file=str(f))
-    from bringup.scenario import _validate
+    from bringup.scenario.config import _validate
 
     sc = _validate(raw, str(tmp_path / "s.toml"))
     loaded = osse_from_scenario(sc, gps)

@@ -1,4 +1,4 @@
-"""bringup.plots: every figure writes a non-empty PNG and carries the data it was given."""
+"""bringup.analysis.figures: every figure writes a non-empty PNG and carries the data it was given."""
 
 from __future__ import annotations
 
@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 from matplotlib.collections import PolyCollection
 
-from bringup import plots
-from bringup.plots import PlotError
+from bringup.analysis import figures as plots
+from bringup.analysis.figures import PlotError
 from orbit_clock.contact_plan import Contact, ContactPlan
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"

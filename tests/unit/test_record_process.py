@@ -1,4 +1,4 @@
-"""The local engine's recorder process (bringup/record_process.py).
+"""The local engine's recorder process (bringup/recording/recorder_process.py).
 
 Oracles: the same calls made in-process on a BagWriter + VizFeed write the same MCAP bytes, and
 build_report over the same envelopes gives the same report; a failing child, a SIGINT to the child
@@ -17,11 +17,11 @@ import time
 
 import pytest
 
-from bringup.record_process import Recorder, RecorderError
-from bringup.recording import BagReader, BagWriter
-from bringup.report import RunMeta, build_report
-from bringup.viz_feed import VizFeed
-from bringup.world import World
+from bringup.recording.recorder_process import Recorder, RecorderError
+from bringup.recording.bag import BagReader, BagWriter
+from bringup.analysis.report import RunMeta, build_report
+from bringup.recording.viz_feed import VizFeed
+from bringup.scenario.world import World
 from msgs_json import codec
 from msgs_json import schemas as S
 from msgs_json.envelope import Envelope
@@ -123,7 +123,7 @@ def test_parent_killed_leaves_a_readable_bag(tmp_path):
     bag = tmp_path / "bag"
     code = textwrap.dedent(f"""
         import os, signal
-        from bringup.record_process import Recorder, _BATCH
+        from bringup.recording.recorder_process import Recorder, _BATCH
         from msgs_json.envelope import Envelope
         rec = Recorder({str(bag)!r}, None, report=False)
         k = 0
@@ -142,7 +142,7 @@ def test_parent_killed_leaves_a_readable_bag(tmp_path):
     while time.monotonic() < deadline and os.path.exists(f"/proc/{child}") and \
             "zombie" not in open(f"/proc/{child}/status").read():
         time.sleep(0.05)
-    from bringup.record_process import _BATCH
+    from bringup.recording.recorder_process import _BATCH
 
     with BagReader(bag) as r:
         assert r.count == 3 * _BATCH

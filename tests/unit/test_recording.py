@@ -9,7 +9,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from bringup.errors import UserError
-from bringup.recording import (
+from bringup.recording.bag import (
     CLOCK_TYPE,
     STRING,
     TYPESTORE,
@@ -171,7 +171,7 @@ def test_mcap_file_path_is_accepted(tmp_path):
 def test_bag_info_command(tmp_path, capsys):
     import json
 
-    from bringup.cli import main
+    from bringup.cli.main import main
 
     _write(tmp_path / "bag", _envelopes())
     assert main(["bag-info", str(tmp_path / "bag")]) == 0

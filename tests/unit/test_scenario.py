@@ -11,7 +11,7 @@ from scenario_edit import leaves as _leaves
 from scenario_edit import raw_scenario as _raw
 from scenario_edit import set_key as _set
 
-from bringup.scenario import ScenarioError, load_scenario, sat_names
+from bringup.scenario.config import SCENARIO_DIR, ScenarioError, load_scenario, sat_names
 
 
 def test_paper_scenario_matches_design(paper_scenario):
@@ -43,7 +43,7 @@ _KEYS = [k for k, _ in _leaves(_raw(load_scenario("paper")))]
 
 @pytest.mark.parametrize("key", _KEYS)
 def test_every_field_wrong_in_turn_gives_one_clear_error(paper_scenario, key):
-    from bringup.scenario import _validate
+    from bringup.scenario.config import _validate
 
     raw = _raw(paper_scenario)
     value = dict(_leaves(raw))[key]
@@ -68,7 +68,7 @@ def test_every_field_wrong_in_turn_gives_one_clear_error(paper_scenario, key):
     ],
 )
 def test_out_of_range_values_are_named(paper_scenario, key, value, needle):
-    from bringup.scenario import _validate
+    from bringup.scenario.config import _validate
 
     raw = _raw(paper_scenario)
     _set(raw, key, value)
@@ -78,7 +78,7 @@ def test_out_of_range_values_are_named(paper_scenario, key, value, needle):
 
 
 def test_unknown_key_rejected(paper_scenario):
-    from bringup.scenario import _validate
+    from bringup.scenario.config import _validate
 
     raw = _raw(paper_scenario)
     raw["isl"]["rate_kbps"] = 1
@@ -99,7 +99,7 @@ def test_broken_toml_and_missing_file(tmp_path):
 
 def test_cli_prints_one_line_without_traceback(tmp_path):
     bad = tmp_path / "bad.toml"
-    bad.write_text((__import__("bringup.scenario").scenario.SCENARIO_DIR / "paper.toml").read_text()
+    bad.write_text((SCENARIO_DIR / "paper.toml").read_text()
                    .replace("rate_bps = 1000.0", "rate_bps = -5.0"))
     r = subprocess.run([sys.executable, "-m", "bringup.cli", "constellation", "--scenario", str(bad)],
                        capture_output=True, text=True, timeout=60)

@@ -1,11 +1,11 @@
-"""FastDDS shared-memory cleanup (bringup/shm_cleanup.py): only groups no live process holds go, and
+"""FastDDS shared-memory cleanup (bringup/engine/ros/shm_cleanup.py): only groups no live process holds go, and
 they go whole. Oracle: groups made by hand in a temporary folder, held through this process's own
 descriptors and mappings (which /proc shows like any other process's)."""
 
 import mmap
 import os
 
-from bringup.shm_cleanup import fastdds_groups, held_names, remove_unheld
+from bringup.engine.ros.shm_cleanup import fastdds_groups, held_names, remove_unheld
 
 PORT_A = ["fastrtps_port7000", "fastrtps_port7000_el", "sem.fastrtps_port7000_mutex"]
 PORT_B = ["fastrtps_port12911", "fastrtps_port12911_el", "sem.fastrtps_port12911_mutex"]

@@ -1,7 +1,7 @@
 """The fast paths of issue 5 (speed) give exactly what the plain paths give.
 
 Oracles: rosbags' own Writer.write (the bag file must be byte-identical with and without
-bringup/recording.py's _fast_write), a brute-force settle (every in-flight transmission checked),
+bringup/recording/bag.py's _fast_write), a brute-force settle (every in-flight transmission checked),
 SQLite's own transaction state for the per-step store transaction, and the DP kernel walking each
 path for its path tables.
 """
@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import random
 
-from bringup.recording import BagReader, BagWriter
+from bringup.recording.bag import BagReader, BagWriter
 from msgs_json.envelope import Envelope
 
 
@@ -287,7 +287,7 @@ def test_memoised_qos_parse_equals_rosbags_parse(tmp_path):
     _write(tmp_path / "bag", False)
     with BagReader(tmp_path / "bag") as r:
         fast = [(c.topic, c.ext.offered_qos_profiles) for c in r._r.connections]
-    import bringup.recording as rec
+    import bringup.recording.bag as rec
 
     for m in (md, rec._rosbags_reader, rec._rosbags_mcap):
         m.parse_qos = md._parse_qos_orig
@@ -324,7 +324,7 @@ def test_dp_path_tables_equal_path_walks():
 def test_viz_feed_links_equal_contact_scan():
     from types import SimpleNamespace
 
-    from bringup.viz_feed import VizFeed
+    from bringup.recording.viz_feed import VizFeed
     from orbit_clock.contact_plan import Contact, ContactPlan
 
     rng = random.Random(3)
@@ -437,7 +437,7 @@ def test_wire_encoder_equals_encode_envelope_bytes():
 def test_engine_hands_steps_to_write_envelopes(tmp_path):
     """A BagWriter sink gets each step's list (write_envelopes); the bag equals one made by a sink
     that writes envelope by envelope."""
-    from bringup.local_engine import LocalEngine, run_local
+    from bringup.engine.local import LocalEngine, run_local
     from msgs_json.envelope import Emit, StepResult
 
     class Talker:
@@ -475,7 +475,7 @@ def test_one_satellite_positions_equal_the_mixed_path():
     import numpy as np
 
     from orbit_clock.propagation import build_constellation
-    from bringup.scenario import load_scenario
+    from bringup.scenario.config import load_scenario
 
     c = build_constellation(load_scenario("paper"))
     t = np.array([0.0, 12.345, 3600.5, 21599.999, 7.0])

@@ -1,4 +1,4 @@
-"""Local-run store batches (bringup/store_batches.py): same final rows as per-step commits, the file
+"""Local-run store batches (bringup/engine/store_batches.py): same final rows as per-step commits, the file
 always at a commit (a step boundary), a failed run's open batch dropped, a batch never lost at close.
 
 Oracle: the same scripted writes applied through per-step commits (what a ROS satellite does) on a
@@ -9,7 +9,7 @@ import random
 
 import pytest
 
-from bringup.store_batches import StoreBatches
+from bringup.engine.store_batches import StoreBatches
 from sat_node.dtn.store import BundleStore, StoredBundle
 
 
@@ -129,8 +129,8 @@ def test_start_refuses_a_store_with_an_open_transaction(tmp_path):
 def test_a_local_run_batches_every_satellite_store_and_ends_with_per_step_rows(tmp_path, monkeypatch):
     """Through `constellation run --engine local`: every satellite's store is in the batches (an empty
     store is falsy - len 0 - and must not be left out) and the files end as with per-step commits."""
-    import bringup.store_batches as sb
-    from bringup.cli import main
+    import bringup.engine.store_batches as sb
+    from bringup.cli.main import main
 
     seen = []
     start = sb.StoreBatches.start

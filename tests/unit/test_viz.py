@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from bringup.recording import TYPESTORE, BagReader, BagWriter
-from bringup.viz import (
+from bringup.recording.bag import TYPESTORE, BagReader, BagWriter
+from bringup.recording.viz_messages import (
     FRAME,
     MARKERS_TYPE,
     NAVSAT_TYPE,

@@ -1,4 +1,4 @@
-"""The direct CDR writer of bringup/viz.py (write_viz's path) against rosbags' own serializer.
+"""The direct CDR writer of bringup/recording/viz_messages.py (write_viz's path) against rosbags' own serializer.
 
 Oracle: ``TYPESTORE.serialize_cdr`` of the message objects the plain builders make
 (``viz_messages``, ``navsat_fix``) is the reference; every frame's bytes must equal it exactly
@@ -11,8 +11,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from bringup.recording import TYPESTORE, BagReader, BagWriter
-from bringup.viz import (
+from bringup.recording.bag import TYPESTORE, BagReader, BagWriter
+from bringup.recording.viz_messages import (
     MARKERS_TYPE,
     NAVSAT_TYPE,
     constellation_markers_cdr,

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from bringup.world import World, scenario_key
+from bringup.scenario.world import World, scenario_key
 
 
 @pytest.fixture(scope="module")
@@ -56,7 +56,7 @@ def test_satellite_agents_take_the_scenario_send_order_and_hop_tolerance(world):
     import msgspec
 
     from sat_node.dtn.agent import deadline_delays
-    from sat_node.logic import SatelliteLogic
+    from sat_node.satellite import SatelliteLogic
 
     sat = world.sat_names[0]
     cfg = SatelliteLogic(world, sat, "distributed").agent.config

@@ -1,0 +1,261 @@
+"""The study's comparison (Nag et al., ICAPS SPARK 2019, section 5, Table 2): distributed onboard
+scheduling with DTN vs a centralized ground scheduler vs a non-agile constellation, same scenario,
+same seeds.
+
+Each (mode, seed) is one whole run, ``constellation run`` in a subprocess (local or ROS engine), so
+what is compared is exactly what a user gets from a run: its ``report.json`` (DESIGN.md section 6)
+and its bag. The sweep (``constellation sweep``) instead runs the local engine in this process on a
+scenario variant and builds the report from the envelopes (bringup/analysis/report.py build_report, the same
+function), since it only needs the value figures.
+
+Combining K seeds (``combine``): each mode's entry is the *first* seed's report.json unchanged, plus
+``"seeds": {"seeds": [...], "mean": {key: ...}, "std": {key: ...}, "per_seed": {key: [...]}}``
+over the Table-2 keys (TABLE_KEYS, dotted report.json paths; std is the population standard
+deviation, 0 for one seed; a key missing or null in some seed is averaged over the others).
+Ratios (``ratios``) are formed per seed, numerator and denominator from the same seed, then
+summarised as mean/std/min/max with the per-seed list; a zero or missing denominator gives null for
+that seed.
+
+How we know it is right: tests/unit/test_compare.py - hand-made reports with the means, stds and
+ratios worked out by hand; tests/system/test_compare.py - a reduced real compare (6 sats, 1 h)
+whose JSON has every DESIGN.md report key per mode and whose ratios equal the reports' own values
+divided (an independent recomputation), with agile > non-agile in value.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import subprocess
+import sys
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+
+from bringup.errors import UserError
+
+__all__ = [
+    "MODES",
+    "RATIOS",
+    "TABLE_KEYS",
+    "combine",
+    "compare_result",
+    "get_path",
+    "ratios",
+    "ratios_markdown",
+    "run_in_process",
+    "run_matrix",
+    "run_one",
+    "scenario_variant",
+    "table_markdown",
+]
+
+MODES = ("distributed", "centralized", "nonagile")
+
+# (dotted report.json key, column title, format)
+TABLE_KEYS: tuple[tuple[str, str, str], ...] = (
+    ("value.cumulative", "cumulative value", "{:.0f}"),
+    ("coverage.gp_observed_fraction", "GPs observed", "{:.1%}"),
+    ("observations.count", "observations", "{:.0f}"),
+    ("observations.duplicates_15min", "duplicate obs. (<15 min)", "{:.0f}"),
+    ("value.assumed_error_mean", "assumed-vs-recorded error", "{:.1%}"),
+)
+
+# ratio name -> (report key, numerator mode, denominator mode)
+RATIOS: dict[str, tuple[str, str, str]] = {
+    "value.agile_over_nonagile": ("value.cumulative", "distributed", "nonagile"),
+    "value.centralized_over_nonagile": ("value.cumulative", "centralized", "nonagile"),
+    "value.distributed_over_centralized": ("value.cumulative", "distributed", "centralized"),
+    "coverage.distributed_over_centralized": ("coverage.gp_observed_fraction", "distributed", "centralized"),
+    "coverage.agile_over_nonagile": ("coverage.gp_observed_fraction", "distributed", "nonagile"),
+    "observations.distributed_over_centralized": ("observations.count", "distributed", "centralized"),
+    "assumed_error.distributed_over_centralized": ("value.assumed_error_mean", "distributed", "centralized"),
+}
+
+
+def get_path(rep: dict, key: str):
+    """``rep["a"]["b"]`` for ``key = "a.b"``; None when any part is missing."""
+    d = rep
+    for part in key.split("."):
+        if not isinstance(d, dict) or part not in d:
+            return None
+        d = d[part]
+    return d
+
+
+def _stats(xs: list) -> dict:
+    v = [float(x) for x in xs if x is not None and math.isfinite(float(x))]
+    if not v:
+        return {"mean": None, "std": None, "min": None, "max": None, "n": 0}
+    m = sum(v) / len(v)
+    sd = math.sqrt(sum((x - m) ** 2 for x in v) / len(v))
+    return {"mean": m, "std": sd, "min": min(v), "max": max(v), "n": len(v)}
+
+
+def combine(reports: list[dict], seeds: list[int]) -> dict:
+    """One mode's reports over seeds (same order as ``seeds``) -> first report + ``"seeds"`` summary."""
+    if not reports:
+        raise ValueError("combine: no reports")
+    if len(reports) != len(seeds):
+        raise ValueError(f"combine: {len(reports)} reports for {len(seeds)} seeds")
+    out = json.loads(json.dumps(reports[0]))
+    per = {k: [get_path(r, k) for r in reports] for k, _, _ in TABLE_KEYS}
+    st = {k: _stats(v) for k, v in per.items()}
+    out["seeds"] = {"seeds": list(seeds), "per_seed": per,
+                    "mean": {k: s["mean"] for k, s in st.items()}, "std": {k: s["std"] for k, s in st.items()}}
+    return out
+
+
+def ratios(by_mode: dict[str, list[dict]], seeds: list[int]) -> dict:
+    """Per-seed ratios of RATIOS and their spread; ``by_mode[mode][i]`` is seed ``seeds[i]``'s report."""
+    out = {}
+    for name, (key, num, den) in RATIOS.items():
+        if num not in by_mode or den not in by_mode:
+            continue
+        per = []
+        for a, b in zip(by_mode[num], by_mode[den]):
+            x, y = get_path(a, key), get_path(b, key)
+            per.append(float(x) / float(y) if x is not None and y not in (None, 0) else None)
+        s = _stats(per)
+        out[name] = {"key": key, "numerator": num, "denominator": den, "per_seed": per, "seeds": list(seeds),
+                     "mean": s["mean"], "std": s["std"], "min": s["min"], "max": s["max"]}
+    return out
+
+
+def compare_result(by_mode: dict[str, list[dict]], seeds: list[int]) -> dict:
+    """The ``--json`` object: {"distributed": report, "centralized": report, "nonagile": report, "ratios"}."""
+    res = {m: combine(by_mode[m], seeds) for m in MODES if m in by_mode}
+    res["ratios"] = ratios(by_mode, seeds)
+    return res
+
+
+# ---------------------------------------------------------------------------------------------- runs
+def run_one(*, scenario: str, mode: str, seed: int | None, out: Path, engine: str = "local",
+            sats: int | None = None, hours: float | None = None, plots: bool = False,
+            extra: list[str] | None = None) -> dict:
+    """``constellation run`` in a subprocess; its report.json. Its stderr goes to ``out/run.log``."""
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    cmd = [sys.executable, "-m", "bringup.cli", "run", "--scenario", scenario, "--mode", mode, "--engine", engine,
+           "--out", str(out), "--no-progress"]
+    for flag, v in (("--seed", seed), ("--sats", sats), ("--hours", hours)):
+        if v is not None:
+            cmd += [flag, str(v)]
+    if not plots:
+        cmd.append("--no-plots")
+    cmd += list(extra or [])
+    with open(out / "run.log", "w") as log:
+        rc = subprocess.run(cmd, stdout=log, stderr=subprocess.STDOUT, check=False).returncode
+    rep_path = out / "report.json"
+    if rc != 0 or not rep_path.exists():
+        tail = (out / "run.log").read_text(errors="replace").strip().splitlines()[-1:] or ["?"]
+        raise UserError(f"run {mode} seed {seed} failed (exit {rc}): {tail[0]} (log: {out / 'run.log'})")
+    return json.loads(rep_path.read_text())
+
+
+def run_matrix(*, scenario: str, seeds: list[int | None], out: Path, engine: str = "local", sats=None,
+               hours=None, jobs: int = 1, modes=MODES, say=lambda *a: None) -> dict[str, list[dict]]:
+    """Every mode x seed; ``out/<mode>-s<seed>/``; the first seed's runs also write their plots."""
+    tasks = [(m, i, s) for i, s in enumerate(seeds) for m in modes]
+
+    def one(task):
+        m, i, s = task
+        d = Path(out) / f"{m}-s{s if s is not None else 'default'}"
+        rep = run_one(scenario=scenario, mode=m, seed=s, out=d, engine=engine, sats=sats, hours=hours,
+                      plots=(i == 0))
+        say(f"compare: {m} seed {s}: value {get_path(rep, 'value.cumulative') or 0:.0f}, "
+            f"{(get_path(rep, 'coverage.gp_observed_fraction') or 0) * 100:.1f} % GPs "
+            f"({(get_path(rep, 'runtime.wall_s') or 0):.0f} s)")
+        return task, rep
+
+    res: dict = {}
+    with ThreadPoolExecutor(max_workers=max(1, jobs)) as ex:
+        for (m, i, _), rep in ex.map(one, tasks):
+            res.setdefault(m, [None] * len(seeds))[i] = rep
+    return res
+
+
+# ---------------------------------------------------------------------------------------------- text
+def _fmt(v, f: str) -> str:
+    return "-" if v is None else f.format(v)
+
+
+def table_markdown(result: dict) -> str:
+    """Table 2 equivalent: one row per mode (mean over seeds, ± std when K > 1)."""
+    head = "| mode | " + " | ".join(t for _, t, _ in TABLE_KEYS) + " |"
+    lines = [head, "|" + "---|" * (len(TABLE_KEYS) + 1)]
+    for m in MODES:
+        if m not in result:
+            continue
+        s = result[m]["seeds"]
+        k = len(s["seeds"])
+        cells = []
+        for key, _, f in TABLE_KEYS:
+            c = _fmt(s["mean"][key], f)
+            if k > 1 and s["std"][key] is not None:
+                c += " ± " + _fmt(s["std"][key], f)
+            cells.append(c)
+        lines.append(f"| {m} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
+def ratios_markdown(result: dict) -> str:
+    lines = ["| ratio | mean | std | min | max | seeds |", "|---|---|---|---|---|---|"]
+    for name, r in result.get("ratios", {}).items():
+        lines.append(f"| {name} | {_fmt(r['mean'], '{:.3f}')} | {_fmt(r['std'], '{:.3f}')} | "
+                     f"{_fmt(r['min'], '{:.3f}')} | {_fmt(r['max'], '{:.3f}')} | {len(r['per_seed'])} |")
+    return "\n".join(lines)
+
+
+# ---------------------------------------------------------------------------------------------- sweep
+def scenario_variant(sc, *, replan_period_s: float | None = None, isl_rate_bps: float | None = None,
+                     sats_per_plane: int | None = None, n_stations: int | None = None):
+    """A copy of scenario ``sc`` with one study parameter changed, validated like a file.
+    ``replan_period_s`` also sets the plan lookahead to the period; ``n_stations`` keeps the first
+    N ground stations of the scenario."""
+    import msgspec
+
+    from bringup.scenario.config import _validate
+
+    raw = msgspec.to_builtins(sc)
+    raw.pop("source_path", None)
+    if replan_period_s is not None:
+        # a plan must cover the time to the next replan, else the satellite idles in between:
+        # the lookahead follows the period (the study's 10 min / 10 min)
+        raw["scheduler"]["replan_period_s"] = float(replan_period_s)
+        raw["scheduler"]["plan_lookahead_s"] = float(replan_period_s)
+    if isl_rate_bps is not None:
+        raw["isl"]["rate_bps"] = float(isl_rate_bps)
+    if sats_per_plane is not None:
+        raw["constellation"]["total_sats"] = int(sats_per_plane) * raw["constellation"]["planes"]
+    if n_stations is not None:
+        st = raw["ground"]["stations"]
+        if not 0 <= n_stations <= len(st):
+            raise UserError(f"ground-station count {n_stations}: the scenario has {len(st)} stations")
+        raw["ground"]["stations"] = st[:n_stations]
+    return _validate(raw, sc.source_path or "<variant>")
+
+
+def run_in_process(sc, mode: str, *, store_dir: Path | None = None) -> dict:
+    """One local-engine run of scenario ``sc`` in this process (no bag): its report dict."""
+    import tempfile
+
+    from bringup.engine.local import run_local
+    from bringup.scenario.participants import all_participants
+    from bringup.analysis.report import REPORT_TOPIC_SUFFIXES, RunMeta, build_report
+    from bringup.scenario.world import World
+
+    world = World.build(sc)
+    meta = RunMeta(scenario=sc.name, mode=mode, engine="local", seed=sc.scenario.seed,
+                   horizon_s=sc.scenario.horizon_s, n_sats=len(world.sat_names), n_gp=world.n_gp,
+                   revisit_zero_s=sc.value.revisit_zero_s)
+    envs: list = []
+
+    def sink(env) -> None:
+        if env.topic.endswith(REPORT_TOPIC_SUFFIXES):
+            envs.append(env)
+
+    with tempfile.TemporaryDirectory() as tmp:
+        parts = all_participants(world, mode, store_dir=Path(store_dir or tmp))
+        res = run_local(parts, horizon_ns=sc.horizon_ns,
+                        max_step_ns=round(sc.scenario.lockstep_max_step_s * 1e9), sink=sink)
+    return build_report(envs, meta, {"wall_s": res.wall_s, "real_time_factor": res.real_time_factor})

@@ -1,0 +1,371 @@
+"""report.json from a run's envelopes (DESIGN.md section 6), the same function for a live run and a bag.
+
+Inputs: the envelopes of a run (observations, bundle events, schedules), the run's metadata
+(scenario, mode, engine, seed, horizon, n_sats, n_gp) and the runtime figures. Everything but
+``runtime.*`` is a pure function of the envelopes, so ``constellation report BAG`` rebuilds the
+report written by the run.
+
+Definitions:
+* value.cumulative - Eq. 1 of the study over every executed observation in time order (ties by
+  satellite name): ``recorded / (times seen + 1)``, 0 if the GP was seen within
+  ``revisit_zero_s``; ``recorded`` is the OSSE value the instrument measured (Observation.
+  recorded_value).
+* observations.duplicates_15min - observations of a GP seen (by anyone) less than revisit_zero_s
+  before.
+* value.assumed_error_mean - mean over observations with a true Eq. 1 value > 0 of
+  |assumed - true| / true, where assumed is what the planner expected (Observation.assumed_value).
+* coverage.gp_observed_fraction - distinct GPs observed / GPs of the scenario.
+* dtn.* - sat_node/dtn/stats.py over the bundle events (first delivery per bundle counts).
+* consensus.* - ISL-delayed implicit consensus (Nag et al. section 4; issue 7), see
+  :func:`consensus_figures`: for each pair of successive passes of different satellites over a
+  region, whether the earlier satellite's observations reached the later one (bundle delivered)
+  before it planned the pass (the ``planned_ns`` of the schedule version its first observation of
+  the pass came from), and how many duplicate observations (same GP within ``revisit_zero_s``) the
+  later satellite made of GPs whose news it did not have when planning ("late news").
+
+Oracle: tests/unit/test_report.py - hand-made observation lists with the value worked out by hand,
+and the round trip run -> bag -> report equals the run's report (tests/system).
+"""
+
+from __future__ import annotations
+
+import json
+from collections import defaultdict
+from dataclasses import dataclass
+
+import numpy as np
+
+from msgs_json import codec
+from msgs_json import schemas as S
+from msgs_json.envelope import Envelope
+
+__all__ = ["REPORT_TOPIC_SUFFIXES", "ReportBuilder", "RunMeta", "build_report", "consensus_figures", "flatten", "report_from_bag", "true_values"]
+
+_NS = 1_000_000_000
+REPORT_TOPIC_SUFFIXES = ("/observations", "/dtn/events", "/dtn/counters", "/schedule", "/ground/uplink")
+
+
+@dataclass
+class RunMeta:
+    scenario: str
+    mode: str
+    engine: str
+    seed: int
+    horizon_s: float
+    n_sats: int
+    n_gp: int
+    revisit_zero_s: float = 900.0
+
+    def to_json(self) -> str:
+        return json.dumps(self.__dict__, sort_keys=True)
+
+    @classmethod
+    def from_json(cls, text: str) -> RunMeta:
+        return cls(**json.loads(text))
+
+
+_KIND = {"created": "created", "forwarded": "forwarded", "delivered": "delivered", "dropped": "dropped",
+         "copy_discarded": "discarded"}
+
+
+def _bundle_event(msg):
+    """The agent's event record (what sat_node/dtn/stats.py reads) of a msgs_json bundle event."""
+    from sat_node.dtn.agent import BundleEvent
+
+    kind = _KIND[type(msg).__struct_config__.tag]
+    reason = getattr(msg, "reason", "")
+    if kind == "dropped" and getattr(msg, "detail", "") in ("hop_limit",):
+        reason = msg.detail
+    return BundleEvent(msg.t_ns, kind, msg.sat, msg.bundle_id, msg.priority, msg.dst, msg.creation_ns, reason)
+
+
+def build_report(envelopes, meta: RunMeta, runtime: dict | None = None) -> dict:
+    """The report dict (nested, DESIGN.md keys) from envelopes (any iterable of Envelope)."""
+    b = ReportBuilder()
+    for env in envelopes:
+        b.add(env)
+    return b.build(meta, runtime)
+
+
+class ReportBuilder:
+    """``build_report`` in two halves: ``add`` decodes one envelope as it is written (the local
+    engine's recorder does this beside the run, bringup/recording/recorder_process.py), ``build`` makes the
+    report from what was added. Envelopes off the report's topics are ignored; one that does not
+    decode is counted (``messages_rejected_in_report``)."""
+
+    def __init__(self) -> None:
+        self.obs: list[S.Observation] = []
+        self.events: list = []
+        self.n_schedules = 0
+        self.counters: dict[str, dict] = {}
+        self.cpu_by_planner: dict[str, float] = defaultdict(float)
+        self.bad = 0
+        self.planned: dict[tuple[str, int], int] = {}
+        self.created: dict[str, tuple] = {}
+        self.delivered: dict[str, tuple[str, int]] = {}
+
+    def add(self, env) -> None:
+        t = env.topic
+        try:
+            if t.endswith("/observations"):
+                self.obs.append(codec.decode(t, env.data))
+            elif t.endswith("/dtn/events"):
+                m = codec.decode(t, env.data)
+                self.events.append(_bundle_event(m))
+                if isinstance(m, S.BundleCreated):
+                    self.created[m.bundle_id] = (m.src, m.gp, m.obs_t_ns, m.dst)
+                elif isinstance(m, S.BundleDelivered) and m.bundle_id not in self.delivered:
+                    self.delivered[m.bundle_id] = (m.sat, m.t_ns)
+            elif t.endswith("/dtn/counters"):
+                m = codec.decode(t, env.data)
+                self.counters[m.sat] = m.counters
+            elif t.endswith("/schedule"):
+                self.n_schedules += 1
+                m = codec.decode(t, env.data)
+                self.cpu_by_planner[m.sat] += m.solve_cpu_s
+                self.planned[(m.sat, m.version)] = m.planned_ns
+            elif t == "/ground/uplink":
+                self.cpu_by_planner["ground"] += codec.decode(t, env.data).schedule.solve_cpu_s
+        except ValueError:
+            self.bad += 1
+
+    def build(self, meta: RunMeta, runtime: dict | None = None) -> dict:
+        """The report of everything added so far."""
+        obs, events, counters, cpu_by_planner = self.obs, self.events, self.counters, self.cpu_by_planner
+        rep: dict = {
+            "scenario": meta.scenario, "mode": meta.mode, "engine": meta.engine, "seed": meta.seed,
+            "horizon_s": meta.horizon_s, "n_sats": meta.n_sats,
+        }
+        rep.update(_value_figures(obs, meta))
+        rep["schedules"] = {"count": self.n_schedules}
+        rep["dtn"] = _dtn_figures(events)
+        if counters:
+            # overheard copies are counted by the satellites (DtnCounters), not sent as events
+            over = sum(c.get("discarded.not_next_hop", 0) for c in counters.values())
+            rep["dtn"]["copies_discarded"] = rep["dtn"].get("copies_discarded", 0) + over
+            det = rep["dtn"].setdefault("copies_discarded_detail", {})
+            det["not_next_hop"] = det.get("not_next_hop", 0) + over
+            rep["dtn"]["held_at_end"] = sum(c.get("held", 0) for c in counters.values())
+        if meta.mode == "distributed":
+            rep["consensus"] = consensus_figures(obs, self.created, self.delivered, self.planned, meta.revisit_zero_s)
+        if counters:
+            rej: dict[str, int] = defaultdict(int)
+            for c in counters.values():
+                for k, v in c.items():
+                    if k.startswith(("rejected.", "tx_failed.", "agent.dropped.", "agent.discarded.", "host.")):
+                        rej[k] += v
+            rep["dtn"]["rejections"] = dict(sorted(rej.items()))
+        rep["messages_rejected_in_report"] = self.bad
+        rt = dict(runtime or {})
+        rt["scheduler_cpu_s_per_sat"] = (sum(cpu_by_planner.values()) / meta.n_sats) if meta.n_sats else None
+        rep["runtime"] = rt
+        return rep
+
+
+PASS_GAP_S = 120.0  # observations of one satellite closer than this belong to one pass over one area
+
+
+def _regions_from_passes(obs: list, gap_ns: int) -> dict[int, int]:
+    """GP -> area id, from the observations alone: GPs one satellite observes within ``gap_ns`` of
+    each other are in one area (union-find). The study's regions are thousands of km apart (several
+    minutes of flight), a region's pass takes ~2 min, so each area is one region."""
+    parent: dict[int, int] = {}
+
+    def find(x: int) -> int:
+        parent.setdefault(x, x)
+        while parent[x] != x:
+            parent[x] = parent[parent[x]]
+            x = parent[x]
+        return x
+
+    by_sat: dict[str, list] = defaultdict(list)
+    for o in obs:
+        by_sat[o.sat].append(o)
+    for lst in by_sat.values():
+        lst.sort(key=lambda o: o.t_ns)
+        for a, b in zip(lst, lst[1:]):
+            find(a.gp)
+            if b.t_ns - a.t_ns <= gap_ns:
+                ra, rb = find(a.gp), find(b.gp)
+                if ra != rb:
+                    parent[max(ra, rb)] = min(ra, rb)
+        if lst:
+            find(lst[-1].gp)
+    return {g: find(g) for g in parent}
+
+
+def consensus_figures(obs: list, created: dict, delivered: dict, planned: dict, revisit_zero_s: float,
+                      *, pass_gap_s: float = PASS_GAP_S) -> dict:
+    """ISL-delayed consensus figures (module docstring).
+
+    ``created``: bundle id -> (src, gp, obs_t_ns, dst); ``delivered``: bundle id -> (receiver,
+    t_ns) of its first delivery; ``planned``: (sat, schedule version) -> planned_ns.
+    A *pass* is a run of one satellite's observations in one area with gaps <= ``pass_gap_s``.
+    For successive passes (A then B, A != B) over an area, sorted by their first observation:
+    ``informed`` - at least one of A's pass observations was delivered to B at or before B's
+    planning time; ``fully_informed`` - all of them were; ``planned_before_earlier_pass`` - B planned
+    before A's first observation (no network could have told it); ``no_bundle`` - none of A's
+    observations had B as a destination. Duplicates: B's observations of a GP A observed in its pass
+    less than ``revisit_zero_s`` before; ``late_news`` when the bundle for that observation had not
+    reached B by its planning time, ``despite_news`` otherwise.
+    """
+    gap_ns = int(round(pass_gap_s * _NS))
+    zero_ns = int(round(revisit_zero_s * _NS))
+    area = _regions_from_passes(obs, gap_ns)
+    passes: list[dict] = []
+    by_sat: dict[str, list] = defaultdict(list)
+    for o in obs:
+        by_sat[o.sat].append(o)
+    for sat, lst in by_sat.items():
+        lst.sort(key=lambda o: o.t_ns)
+        cur = None
+        for o in lst:
+            a = area[o.gp]
+            if cur is None or cur["area"] != a or o.t_ns - cur["obs"][-1].t_ns > gap_ns:
+                cur = {"sat": sat, "area": a, "obs": []}
+                passes.append(cur)
+            cur["obs"].append(o)
+    news: dict[tuple[str, str, int, int], int] = {}  # (src, dst, gp, obs_t_ns) -> delivery t_ns at dst
+    dests: set[tuple[str, str, int, int]] = set()
+    for bid, (src, gp, obs_ns, dst) in created.items():
+        dests.add((src, dst, gp, obs_ns))
+        d = delivered.get(bid)
+        if d is not None and d[0] == dst:
+            k = (src, dst, gp, obs_ns)
+            news[k] = min(news.get(k, d[1]), d[1])
+    by_area: dict[int, list] = defaultdict(list)
+    for p in passes:
+        by_area[p["area"]].append(p)
+    n = informed = full = before = no_bundle = dup = late = despite = 0
+    margins = []
+    for lst in by_area.values():
+        lst.sort(key=lambda p: (p["obs"][0].t_ns, p["sat"]))
+        for pa, pb in zip(lst, lst[1:]):
+            if pa["sat"] == pb["sat"]:
+                continue
+            n += 1
+            a, b = pa["sat"], pb["sat"]
+            first_b = pb["obs"][0]
+            t_plan = planned.get((b, first_b.schedule_version), first_b.t_ns)
+            keys = [(a, b, o.gp, o.t_ns) for o in pa["obs"]]
+            got = [news[k] for k in keys if k in news and news[k] <= t_plan]
+            if t_plan < pa["obs"][0].t_ns:
+                before += 1
+            if not any(k in dests for k in keys):
+                no_bundle += 1
+            if got:
+                informed += 1
+                margins.append((t_plan - min(got)) / _NS)
+            if len(got) == len(keys):
+                full += 1
+            seen_a = {o.gp: o.t_ns for o in pa["obs"]}
+            for o in pb["obs"]:
+                ta = seen_a.get(o.gp)
+                if ta is None or o.t_ns - ta >= zero_ns:
+                    continue
+                dup += 1
+                k = (a, b, o.gp, ta)
+                if k in news and news[k] <= t_plan:
+                    despite += 1
+                else:
+                    late += 1
+    return {
+        "areas": len(by_area), "passes": len(passes), "pairs": n,
+        "pairs_informed": informed, "pairs_fully_informed": full,
+        "pairs_informed_fraction": (informed / n) if n else None,
+        "pairs_planned_before_earlier_pass": before, "pairs_no_bundle": no_bundle,
+        "news_margin_s_median": float(np.median(margins)) if margins else None,
+        "duplicates": dup, "duplicates_late_news": late, "duplicates_despite_news": despite,
+    }
+
+
+def true_values(obs: list, revisit_zero_s: float) -> list[tuple]:
+    """[(observation, true Eq. 1 value, was_duplicate)] in time order (ties by satellite, GP)."""
+    obs = sorted(obs, key=lambda o: (o.t_ns, o.sat, o.gp))
+    last: dict[int, int] = {}
+    seen: dict[int, int] = defaultdict(int)
+    zero_ns = int(round(revisit_zero_s * _NS))
+    out = []
+    for o in obs:
+        lt = last.get(o.gp)
+        recent = lt is not None and (o.t_ns - lt) < zero_ns
+        v = 0.0 if recent else o.recorded_value / (seen[o.gp] + 1)
+        seen[o.gp] += 1
+        last[o.gp] = o.t_ns
+        out.append((o, v, recent))
+    return out
+
+
+def _value_figures(obs: list, meta: RunMeta) -> dict:
+    rows = true_values(obs, meta.revisit_zero_s)
+    total = 0.0
+    errs = []
+    per_sat: dict[str, float] = defaultdict(float)
+    for o, v, _ in rows:
+        if v > 0:
+            errs.append(abs(o.assumed_value - v) / v)
+        total += v
+        per_sat[o.sat] += v
+    dup = sum(1 for _, _, d in rows if d)
+    observed = {o.gp for o in obs}
+    return {
+        "value": {
+            "cumulative": total,
+            "assumed_error_mean": float(np.mean(errs)) if errs else None,
+            "assumed_error_median": float(np.median(errs)) if errs else None,
+            "per_sat": dict(sorted(per_sat.items())),
+        },
+        "coverage": {
+            "gp_observed": len(observed),
+            "gp_total": meta.n_gp,
+            "gp_observed_fraction": (len(observed) / meta.n_gp) if meta.n_gp else None,
+        },
+        "observations": {"count": len(obs), "duplicates_15min": dup},
+    }
+
+
+def _dtn_figures(events: list) -> dict:
+    from sat_node.dtn.stats import dtn_report
+
+    flat = dtn_report(events)
+    nested: dict = {}
+    for k, v in flat.items():
+        parts = k.split(".")
+        if parts[0] == "dtn":
+            parts = parts[1:]
+        d = nested
+        for p in parts[:-1]:
+            d = d.setdefault(p, {})
+        d[parts[-1]] = v
+    return nested
+
+
+def flatten(rep: dict, prefix: str = "") -> dict:
+    out = {}
+    for k, v in rep.items():
+        key = f"{prefix}{k}"
+        if isinstance(v, dict):
+            out.update(flatten(v, key + "."))
+        else:
+            out[key] = v
+    return out
+
+
+def report_from_bag(bag_path) -> dict:
+    """Rebuild report.json from a bag alone (metadata from its /run/meta record)."""
+    from bringup.errors import UserError
+    from bringup.recording.bag import BagReader
+
+    with BagReader(bag_path) as bag:
+        names = [t.topic for t in bag.topics()]
+        if "/run/meta" not in names:
+            raise UserError(f"{bag_path}: no /run/meta record: not a bag written by `constellation run`")
+        meta = None
+        runtime = {}
+        for env in bag.envelopes(["/run/meta"]):
+            d = json.loads(env.data)
+            meta = RunMeta(**d["meta"])
+            runtime = d.get("runtime", runtime)
+        wanted = [t for t in names if t.endswith(REPORT_TOPIC_SUFFIXES)]
+        envs: list[Envelope] = list(bag.envelopes(wanted))
+    return build_report(envs, meta, runtime)

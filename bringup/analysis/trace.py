@@ -1,0 +1,37 @@
+"""A run's trace from its bag: what the engine-equivalence, restart and multi-host checks compare.
+
+``observations_from_bag(bag)`` -> sorted [(sat, gp, t_ns)] of every executed observation;
+``deliveries_from_bag(bag)`` -> sorted [(bundle_id, receiver, t_ns)] of every bundle delivery.
+Two runs of the same scenario and seed must give equal traces whatever the engine, the hosts or the
+crashes on the way (DESIGN.md section 3).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+__all__ = ["deliveries_from_bag", "observations_from_bag"]
+
+
+def observations_from_bag(bag: Path) -> list[tuple[str, int, int]]:
+    from bringup.recording.bag import BagReader
+    from msgs_json import codec
+
+    with BagReader(bag) as b:
+        topics = [t.topic for t in b.topics() if t.topic.endswith("/observations")]
+        return sorted((o.sat, o.gp, o.t_ns) for o in (codec.decode(e.topic, e.data) for e in b.envelopes(topics)))
+
+
+def deliveries_from_bag(bag: Path) -> list[tuple[str, str, int]]:
+    from bringup.recording.bag import BagReader
+    from msgs_json import codec
+    from msgs_json import schemas as S
+
+    out = []
+    with BagReader(bag) as b:
+        topics = [t.topic for t in b.topics() if t.topic.endswith("/dtn/events")]
+        for e in b.envelopes(topics):
+            m = codec.decode(e.topic, e.data)
+            if isinstance(m, S.BundleDelivered):
+                out.append((m.bundle_id, m.sat, m.t_ns))
+    return sorted(out)

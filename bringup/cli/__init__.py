@@ -1,0 +1,1 @@
+"""The ``constellation`` command line: the registry (main.py) and one thin module per subcommand."""

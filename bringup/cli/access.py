@@ -1,0 +1,42 @@
+"""`constellation access`: ground-point access windows of every satellite within the field of regard."""
+
+from __future__ import annotations
+
+import csv
+import json
+
+from bringup.cli.common import add_out_arg, add_scenario_args, output_stream, scenario_from_args
+
+HELP = "list GP access windows (off-nadir <= field of regard) of every satellite over the horizon"
+
+_COLUMNS = ["sat", "region", "gp", "lat_deg", "lon_deg", "start_s", "end_s", "min_off_nadir_deg"]
+
+
+def add_arguments(p) -> None:
+    add_scenario_args(p)
+    p.add_argument("--format", choices=["csv", "json"], default="csv", help="output format (default csv)")
+    add_out_arg(p)
+
+
+def run(args) -> int:
+    from orbit_clock.access import access_windows
+    from orbit_clock.ground_points import ground_points
+    from orbit_clock.propagation import build_constellation
+
+    sc = scenario_from_args(args)
+    cons = build_constellation(sc)
+    gps = ground_points(sc)
+    win = access_windows(cons, gps, 0.0, float(sc.scenario.horizon_s), sc.instrument.for_off_nadir_deg)
+    rows = list(win.rows(gps))
+    with output_stream(args.out) as out:
+        if args.format == "csv":
+            w = csv.writer(out, lineterminator="\n")
+            w.writerow(_COLUMNS)
+            for r in rows:
+                w.writerow([r["sat"], r["region"], r["gp"], f"{r['lat_deg']:.6f}", f"{r['lon_deg']:.6f}",
+                            f"{r['start_s']:.3f}", f"{r['end_s']:.3f}", f"{r['min_off_nadir_deg']:.4f}"])
+        else:
+            json.dump({"scenario": sc.name, "epoch_utc": sc.scenario.epoch_utc,
+                       "max_off_nadir_deg": sc.instrument.for_off_nadir_deg, "windows": rows}, out, indent=1)
+            out.write("\n")
+    return 0

@@ -1,0 +1,52 @@
+"""`constellation bag-info BAG`: topics, types, message counts and time span of a recorded bag.
+
+Reads the bag with bringup/recording/bag.py (rosbags; no rclpy). Times are sim time: ns since the
+scenario epoch, also shown in seconds. ``--json`` prints the same as one JSON object.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+HELP = "print a recorded bag's topics, message types, counts and time span"
+
+
+def add_arguments(p) -> None:
+    p.add_argument("bag", type=Path, help="bag directory (metadata.yaml + .mcap) or its .mcap file")
+    p.add_argument("--json", action="store_true", help="print one JSON object instead of a table")
+
+
+def bag_summary(path: Path) -> dict:
+    """{path, messages, start_ns, end_ns, duration_s, topics: [{topic, type, count}]}."""
+    from bringup.recording.bag import BagReader
+
+    with BagReader(path) as r:
+        topics = [{"topic": t.topic, "type": t.msgtype, "count": t.count} for t in r.topics()]
+        return {
+            "path": str(r.path),
+            "messages": r.count,
+            "start_ns": r.start_ns,
+            "end_ns": r.end_ns,
+            "duration_s": (r.end_ns - r.start_ns) / 1e9,
+            "topics": topics,
+        }
+
+
+def run(args) -> int:
+    s = bag_summary(args.bag)
+    if args.json:
+        print(json.dumps(s, indent=2))
+        return 0
+    print(f"bag:       {s['path']}")
+    print(f"messages:  {s['messages']}")
+    print(f"start:     {s['start_ns'] / 1e9:.3f} s ({s['start_ns']} ns since epoch)")
+    print(f"end:       {s['end_ns'] / 1e9:.3f} s ({s['end_ns']} ns since epoch)")
+    print(f"duration:  {s['duration_s']:.3f} s")
+    print(f"topics:    {len(s['topics'])}")
+    if s["topics"]:
+        wt = max(len(t["topic"]) for t in s["topics"])
+        wy = max(len(t["type"]) for t in s["topics"])
+        for t in s["topics"]:
+            print(f"  {t['topic']:<{wt}}  {t['type']:<{wy}}  {t['count']:>9}")
+    return 0

@@ -1,0 +1,106 @@
+"""`constellation compare`: distributed vs centralized vs non-agile on the same scenario and seeds
+(the study's Table 2, Nag et al. 2019 section 5); the logic is bringup/analysis/compare.py.
+
+Writes ``OUT/<mode>-s<seed>/`` (each a whole run: bag, report.json, report.md; the first seed's
+runs also their plots), ``OUT/compare.json`` (the ``--json`` object), ``OUT/compare.md`` (tables),
+``OUT/plots/value_over_time.png`` (the three modes, first seed) and ``OUT/plots/figure5.png``
+(bundle latency vs access gaps by priority, distributed, first seed; bringup/analysis/figure5.py).
+With K seeds each mode's report is the first seed's report.json plus per-key mean/std under
+``"seeds"`` (bringup/analysis/compare.py combine).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+from bringup.cli.common import scenario_from_args
+from bringup.errors import UserError
+
+HELP = "run distributed, centralized and non-agile on the same scenario and seeds; Table 2 with ratios"
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--scenario", default="paper", help="scenario name or TOML path (default: paper)")
+    p.add_argument("--engine", choices=("local", "ros"), default="local")
+    p.add_argument("--seeds", type=int, default=1, help="number of seeds K: the scenario seed, +1, ... (default 1)")
+    p.add_argument("--sats", type=int, default=None, help="number of satellites (default: scenario)")
+    p.add_argument("--hours", type=float, default=None, help="horizon [h] (default: scenario)")
+    p.add_argument("--jobs", type=int, default=1, help="runs at once (default 1; each run is one process)")
+    p.add_argument("--json", action="store_true", help="print exactly one JSON object on stdout")
+    p.add_argument("--out", type=Path, default=None, help="folder (default runs/compare-<scenario>)")
+    p.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
+
+
+def run(args: argparse.Namespace) -> int:
+    from bringup.analysis import compare as C
+
+    if args.seeds < 1:
+        raise UserError(f"--seeds {args.seeds}: must be >= 1")
+    if args.jobs < 1:
+        raise UserError(f"--jobs {args.jobs}: must be >= 1")
+    args.seed = None
+    sc = scenario_from_args(args)  # validates scenario and overrides before any run starts
+    seeds = [sc.scenario.seed + k for k in range(args.seeds)]
+    out = Path(args.out or Path("runs") / f"compare-{sc.name}")
+    out.mkdir(parents=True, exist_ok=True)
+
+    def say(*a) -> None:
+        print(*a, file=sys.stderr)
+
+    say(f"compare: {sc.name}, {sc.constellation.total_sats} satellites, {sc.scenario.horizon_s / 3600:g} h, "
+        f"seeds {seeds}, engine {args.engine} -> {out}")
+    by_mode = C.run_matrix(scenario=args.scenario, seeds=seeds, out=out, engine=args.engine, sats=args.sats,
+                           hours=args.hours, jobs=args.jobs, say=say)
+    res = C.compare_result(by_mode, seeds)
+    extra_plots = []
+    if not args.no_plots:
+        extra_plots = _plots(out, seeds[0], res, sc, args)
+    (out / "compare.json").write_text(json.dumps(res, indent=2, sort_keys=True) + "\n")
+    title = (f"# Compare: {sc.name}, {sc.constellation.total_sats} satellites, {sc.scenario.horizon_s / 3600:g} h, "
+             f"seeds {seeds}, engine {args.engine}")
+    md = [title, "",
+          C.table_markdown(res), "", C.ratios_markdown(res), ""]
+    md += [f"![{p.stem}](plots/{p.name})" for p in extra_plots]
+    (out / "compare.md").write_text("\n".join(md) + "\n")
+    if args.json:
+        print(json.dumps(res, sort_keys=True))
+    else:
+        print(C.table_markdown(res))
+        print()
+        print(C.ratios_markdown(res))
+        print(f"\n-> {out / 'compare.json'}, {out / 'compare.md'}")
+    return 0
+
+
+def _plots(out: Path, seed: int, res: dict, sc, args) -> list[Path]:
+    """Value over time per mode and Figure 5 (first seed), from the runs' bags."""
+    from bringup.analysis import figures as plots
+    from bringup.analysis.figure5 import bundle_rows_from_bag, figure5_data, figure5_summary, plot_figure5
+    from bringup.recording.bag import BagReader
+    from bringup.analysis.report import true_values
+    from bringup.scenario.world import World
+    from msgs_json import codec
+
+    d = out / "plots"
+    d.mkdir(parents=True, exist_ok=True)
+    series = {}
+    for m in ("distributed", "centralized", "nonagile"):
+        bag = out / f"{m}-s{seed}" / "bag"
+        with BagReader(bag) as b:
+            topics = [x.topic for x in b.topics() if x.topic.endswith("/observations")]
+            obs = [codec.decode(e.topic, e.data) for e in b.envelopes(topics)] if topics else []
+        tv = true_values(obs, sc.value.revisit_zero_s)
+        series[m] = ([o.t_ns / 1e9 for o, _, _ in tv], [v for _, v, _ in tv])
+    made = [plots.plot_value_over_time(d / "value_over_time.png", series, horizon_s=sc.scenario.horizon_s)]
+    run_sc = sc.with_overrides(seed=seed)
+    world = World.cached(run_sc, out / f"distributed-s{seed}" / "cache")
+    rows = bundle_rows_from_bag(out / f"distributed-s{seed}" / "bag")
+    if rows:
+        data = figure5_data(rows, world.access, world.ctx.gps.region_index,
+                            replan_period_s=run_sc.scheduler.replan_period_s)
+        res["distributed"]["figure5"] = figure5_summary(data)
+        made.append(plot_figure5(d / "figure5.png", data))
+    return made

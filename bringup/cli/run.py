@@ -1,0 +1,268 @@
+"""`constellation run`: one whole run of a scenario, recorded and reported (DESIGN.md section 6).
+
+``--engine ros`` (default): the clock, the router / ground station and one OS process per satellite
+over DDS (bringup/engine/ros/launcher.py), recording every topic into ``OUT/bag``. ``--engine local``: the same
+node logic in this process (bringup/engine/local.py), recording the same topics. Either way the run
+ends with ``OUT/report.json`` (rebuilt from the bag, bringup/analysis/report.py), ``OUT/report.md`` and
+``OUT/plots/*.png``, and a non-zero exit with a one-line message if anything failed.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import shutil
+import sys
+import time
+from pathlib import Path
+
+from bringup.cli.common import add_scenario_args, scenario_from_args
+from bringup.errors import UserError
+
+HELP = "run a scenario (ROS 2 processes or the local engine), record an MCAP bag, write the report"
+# every file a run writes is closed before run() returns (bag by its writer or recorder process,
+# stores, report.json, report.md, plots): the console script may skip the interpreter's teardown
+# (bringup/cli/main.py entry)
+FAST_EXIT = True
+
+_NS = 1_000_000_000
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    add_scenario_args(p)
+    p.add_argument("--mode", choices=("distributed", "centralized", "nonagile"), default="distributed")
+    p.add_argument("--engine", choices=("ros", "local"), default="ros")
+    p.add_argument("--out", type=Path, default=None, help="run folder (default runs/<scenario>-<mode>)")
+    p.add_argument("--real-time-factor", type=float, default=None,
+                   help="pace the clock at this many sim seconds per wall second (default: as fast as possible)")
+    p.add_argument("--no-progress", action="store_true", help="no progress display")
+    p.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
+    p.add_argument("--isl-delay-s", type=float, default=0.0, help="extra one-way ISL delay [s] added by the router")
+    p.add_argument("--cut", action="append", default=[], metavar="A-B@T1-T2",
+                   help="cut the ISL between satellites A and B from T1 to T2 [s] (repeatable)")
+    p.add_argument("--restart", type=int, default=0, metavar="N",
+                   help="ros engine: restart a crashed process (satellite, router, ground or the clock) up to "
+                        "N times; every process checkpoints each step and resumes from it (default 0: a crash "
+                        "ends the run)")
+
+
+def parse_cut(text: str) -> tuple[str, str, float, float]:
+    try:
+        link, span = text.split("@")
+        a, b = link.split("-")
+        t1, t2 = (float(x) for x in span.split("-"))
+    except ValueError:
+        raise UserError(f"--cut {text!r}: expected A-B@T1-T2, e.g. sat_11-sat_21@600-1200") from None
+    if not t2 > t1:
+        raise UserError(f"--cut {text!r}: T2 must be after T1")
+    return a, b, t1, t2
+
+
+def run(args: argparse.Namespace) -> int:
+    from bringup.analysis.report import RunMeta
+    from bringup.scenario.world import World
+
+    sc = scenario_from_args(args)
+    out = args.out or Path("runs") / f"{sc.name}-{args.mode}"
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    bag_dir = out / "bag"
+    if bag_dir.exists():
+        shutil.rmtree(bag_dir)
+    cuts = [parse_cut(c) for c in args.cut]
+    for a, b, _, _ in cuts:
+        for n in (a, b):
+            if n not in sc.sat_names:
+                raise UserError(f"--cut: {n!r} is not a satellite of the scenario ({sc.sat_names[0]}..)")
+    def say(*a) -> None:
+        print(*a, file=sys.stderr)
+    say(f"run: {sc.name}, {sc.constellation.total_sats} satellites, {sc.scenario.horizon_s / 3600:g} h, "
+        f"mode {args.mode}, engine {args.engine} -> {out}")
+    t0 = time.perf_counter()
+    stores_ready = None
+    if args.engine == "local":  # the ros engine's satellites make their own, in their processes
+        stores_ready = _fresh_store_dir(out / "store", sc.sat_names if args.mode == "distributed" else [])
+    world = World.cached(sc, out / "cache")
+    world_path = out / "cache" / f"world-{world.key}.pkl"
+    if not world_path.exists():
+        world.save(world_path)
+    say(f"run: world ready in {time.perf_counter() - t0:.1f} s ({len(world.isl_plan)} ISL contacts, "
+        f"{len(world.ground_plan)} ground contacts, {world.n_gp} ground points)")
+    meta = RunMeta(scenario=sc.name, mode=args.mode, engine=args.engine, seed=sc.scenario.seed,
+                   horizon_s=sc.scenario.horizon_s, n_sats=len(world.sat_names), n_gp=world.n_gp,
+                   revisit_zero_s=sc.value.revisit_zero_s)
+    router_kw = {"extra_delay_s": args.isl_delay_s, "cuts": cuts} if (args.isl_delay_s or cuts) else None
+    rep = None
+    if args.engine == "local":
+        stores_ready()  # (before the recorder forks: no other thread runs then)
+        runtime, rep = _run_local(world, args, meta, bag_dir, out, router_kw, show=not args.no_progress)
+    else:
+        runtime = _run_ros(world, world_path, args, meta, bag_dir, out, router_kw, show=not args.no_progress)
+    return _finish(out, bag_dir, runtime, world, args, say, rep=rep)
+
+
+def _progress_display(show: bool, horizon_ns: int):
+    """A rich progress bar (sim time, real-time factor, envelopes) or a no-op."""
+    if not show:
+        return None, (lambda **kw: None)
+    from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+
+    prog = Progress(TextColumn("[bold]sim {task.fields[sim]}"), BarColumn(), TextColumn("{task.percentage:>5.1f}%"),
+                    TextColumn("RTF {task.fields[rtf]}"), TextColumn("{task.fields[extra]}"), TimeElapsedColumn(),
+                    transient=False, refresh_per_second=4)
+    task = prog.add_task("run", total=horizon_ns, sim="0:00:00", rtf="-", extra="")
+
+    def update(*, t_ns: int, rtf: float | None, extra: str = ""):
+        s = int(t_ns // _NS)
+        prog.update(task, completed=t_ns, sim=f"{s // 3600}:{s // 60 % 60:02d}:{s % 60:02d}",
+                    rtf=f"{rtf:,.0f}x" if rtf else "-", extra=extra)
+
+    return prog, update
+
+
+def _run_local(world, args, meta, bag_dir: Path, out: Path, router_kw, *, show: bool) -> tuple[dict, dict]:
+    """The run on the local engine; returns its runtime figures and its report (built by the
+    recorder process from the envelopes it wrote: the same body as `constellation report BAG`,
+    tests/system/test_engines_equal.py)."""
+    from bringup.engine.local import run_local
+    from bringup.scenario.participants import all_participants
+    from bringup.recording.recorder_process import Recorder
+    from bringup.engine.store_batches import StoreBatches
+    from msgs_json.envelope import Envelope
+
+    sc = world.scenario
+    store_dir = out / "store"  # (made by run(): _fresh_store_dir)
+    # the recorder (bag, visualisation, report decoding) forks first, before the stores open
+    with Recorder(bag_dir, world) as rec:
+        parts = all_participants(world, args.mode, store_dir=store_dir, router_kw=router_kw)
+        prog, update = _progress_display(show, sc.horizon_ns)
+        in_flight = {"n": 0}
+        rec.write_envelope(Envelope(0, "run", 0, "/run/meta", json.dumps({"meta": meta.__dict__})))
+
+        def progress(p) -> None:
+            router = next((q for q in parts if q.name == "dtn_router"), None)
+            if router is not None:
+                in_flight["n"] = len(router.pending)
+            update(t_ns=p.t_ns, rtf=p.real_time_factor, extra=f"{p.envelopes:,} msgs, {in_flight['n']} bundles in flight")
+
+        # one store commit per satellite every few steps, not every step (bringup/engine/store_batches.py)
+        batches = StoreBatches(s for s in (getattr(getattr(p, "agent", None), "store", None) for p in parts)
+                               if s is not None)
+
+        def on_step(t_ns: int) -> None:
+            rec.step(t_ns)
+            batches.step()
+
+        if prog is not None:
+            prog.start()
+        batches.start()
+        try:
+            res = run_local(parts, horizon_ns=sc.horizon_ns, max_step_ns=int(round(sc.scenario.lockstep_max_step_s * _NS)),
+                            sink=rec.write_envelope, sink_many=rec.write_envelopes, on_step=on_step,
+                            progress=progress, progress_interval_s=0.25)
+        except BaseException:
+            batches.abandon()
+            raise
+        finally:
+            if prog is not None:
+                prog.stop()
+        batches.finish()  # after the participants' finish, before the stores close
+        runtime = {"wall_s": res.wall_s, "real_time_factor": res.real_time_factor, "steps": res.steps,
+                   "envelopes": sum(res.counts_by_topic.values()),
+                   "rejected_messages": sum(getattr(p, "rejected", 0) for p in parts)}
+        rec.write_envelope(Envelope(sc.horizon_ns, "run", 1, "/run/meta",
+                                    json.dumps({"meta": meta.__dict__, "runtime": runtime})))
+        # while the recorder finishes the bag and the report, the satellites' stores close: SQLite
+        # checkpoints each WAL into its file and syncs it, mostly waiting on the disk, so the 24
+        # closes run side by side (~1 s one after the other on the paper run)
+        rep = rec.finish(meta, json.loads(json.dumps(runtime)), meanwhile=lambda: _close_all(parts))
+    return runtime, rep
+
+
+def _fresh_store_dir(store_dir: Path, sats: list[str]):
+    """An empty ``store_dir``, its satellites' new stores started (participants.create_stores: the
+    returned ``wait()``)."""
+    from bringup.scenario.participants import create_stores
+
+    if store_dir.exists():
+        shutil.rmtree(store_dir)
+    store_dir.mkdir()
+    return create_stores(store_dir, sats)
+
+
+def _close_all(parts: list) -> None:
+    from concurrent.futures import ThreadPoolExecutor
+
+    closes = [p.close for p in parts if callable(getattr(p, "close", None))]
+    with ThreadPoolExecutor(max_workers=8, thread_name_prefix="close") as ex:
+        for f in [ex.submit(c) for c in closes]:
+            f.result()
+
+
+def _run_ros(world, world_path: Path, args, meta, bag_dir: Path, out: Path, router_kw, *, show: bool) -> dict:
+    from bringup.engine.ros.launcher import launch
+    from bringup.scenario.participants import FACTORY, roles_for
+    from bringup.engine.ros.run_spec import RunSpec
+
+    sc = world.scenario
+    store_dir = out / "store"
+    if store_dir.exists():
+        shutil.rmtree(store_dir)
+    store_dir.mkdir()
+    spec = RunSpec(factory=FACTORY, roles=roles_for(world, args.mode), scenario=str(Path(sc.source_path).resolve()),
+                   overrides={"sats": args.sats, "hours": args.hours, "seed": args.seed}, mode=args.mode,
+                   real_time_factor=args.real_time_factor, bag_dir=str(bag_dir.resolve()),
+                   max_restarts=args.restart, restart_wait_s=120.0 if args.restart else 0.0,
+                   state_dir=str((out / "state").resolve()) if args.restart else None,
+                   extra={"world": str(world_path.resolve()), "world_key": world.key,
+                          "store_dir": str(store_dir.resolve()), "meta": meta.__dict__,
+                          "router": router_kw})
+    prog, update = _progress_display(show, sc.horizon_ns)
+
+    def progress(p) -> None:
+        extra = f"{p.steps:,} steps, {p.steps_per_s:,.0f} steps/s"
+        if p.in_flight is not None:  # the router's count, from its acks (bringup/engine/ros/host.py)
+            extra += f", {p.in_flight} bundles in flight"
+        update(t_ns=p.t_ns, rtf=p.real_time_factor, extra=extra)
+
+    if prog is not None:
+        prog.start()
+    t0 = time.perf_counter()
+    try:
+        res = launch(spec, out, progress=progress)
+    finally:
+        if prog is not None:
+            prog.stop()
+    wall = time.perf_counter() - t0
+    restarts = getattr(res, "restarts", {}) or {}
+    if not res.ok:
+        raise UserError(f"ROS run failed: {res.message} (logs in {out / 'logs'})")
+    last = res.last
+    return {"wall_s": wall, "real_time_factor": (sc.scenario.horizon_s / wall) if wall > 0 else None,
+            "steps": last.steps if last else None, "domain_id": res.domain_id,
+            "process_restarts": sum(restarts.values())}
+
+
+def _finish(out: Path, bag_dir: Path, runtime: dict, world, args, say, *, rep: dict | None = None) -> int:
+    from bringup.analysis.report import report_from_bag
+    from bringup.analysis.report_md import write_report_md
+
+    if rep is None:  # (the local engine's recorder built it from what it wrote, as report BAG does)
+        rep = report_from_bag(bag_dir)
+    rep["runtime"].update({k: v for k, v in runtime.items() if k not in rep["runtime"]})
+    rep["runtime"].update({"wall_s": runtime.get("wall_s"), "real_time_factor": runtime.get("real_time_factor")})
+    (out / "report.json").write_text(json.dumps(rep, indent=2, sort_keys=True) + "\n")
+    plots = []
+    if not args.no_plots:
+        from bringup.analysis.run_figures import run_plots
+
+        plots = run_plots(out, bag_dir, world, rep)
+    write_report_md(out / "report.md", rep, plots)
+    v = rep["value"]
+    d = rep["dtn"]
+    say(f"run: done in {runtime.get('wall_s', 0):.1f} s "
+        f"(RTF {runtime.get('real_time_factor') or 0:,.0f}x): value {v['cumulative']:.0f}, "
+        f"{rep['observations']['count']} observations, "
+        f"{(rep['coverage']['gp_observed_fraction'] or 0) * 100:.1f} % of GPs, "
+        f"bundles {d.get('bundles_delivered', 0)}/{d.get('bundles_created', 0)} delivered -> {out / 'report.json'}")
+    return 0

@@ -1,0 +1,115 @@
+"""`constellation sweep`: sensitivity of the cumulative value to the study's design parameters.
+
+One table, one row per (parameter, value): replan period [s] and ISL rate [bit/s] (distributed
+mode), satellites per plane (distributed and non-agile), ground-station count (centralized mode).
+Each row is one local-engine run in this process on a scenario variant
+(bringup/analysis/compare.py scenario_variant / run_in_process); the default scenario is reduced (--sats,
+--hours) so the whole sweep runs in minutes. The scenario's own value of each parameter is marked
+with ``*`` (the baseline row).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+from bringup.cli.common import scenario_from_args
+from bringup.errors import UserError
+
+HELP = "value vs replan period, ISL rate, satellites per plane, ground-station count (one table)"
+
+PARAMS = ("replan_period_s", "isl_rate_bps", "sats_per_plane", "n_stations")
+
+
+def _floats(text: str, what: str) -> list[float]:
+    try:
+        v = [float(x) for x in text.split(",") if x.strip()]
+    except ValueError:
+        raise UserError(f"--{what} {text!r}: expected comma-separated numbers") from None
+    if not v or any(x <= 0 and what != "stations" for x in v):
+        raise UserError(f"--{what} {text!r}: expected positive numbers")
+    return v
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--scenario", default="paper", help="scenario name or TOML path (default: paper)")
+    p.add_argument("--sats", type=int, default=12, help="satellites of the baseline (default 12)")
+    p.add_argument("--hours", type=float, default=2.0, help="horizon [h] (default 2)")
+    p.add_argument("--seed", type=int, default=None, help="seed (default: scenario)")
+    p.add_argument("--replan-s", default="300,600,1200", help="replan periods [s] (distributed)")
+    p.add_argument("--isl-rate-bps", default="250,1000,4000", help="ISL rates [bit/s] (distributed)")
+    p.add_argument("--sats-per-plane", default="2,4,8", help="satellites per plane (distributed, non-agile)")
+    p.add_argument("--stations", default="1,2", help="ground-station counts (centralized)")
+    p.add_argument("--only", choices=PARAMS, action="append", default=None, help="sweep only this parameter")
+    p.add_argument("--json", action="store_true", help="print the rows as one JSON object")
+    p.add_argument("--out", type=Path, default=None, help="also write sweep.json and sweep.md here")
+
+
+def _rows_plan(sc, args) -> list[tuple[str, float, str, dict]]:
+    s, i, c = sc.scheduler, sc.isl, sc.constellation
+    only = set(args.only or PARAMS)
+    plan = []
+    if "replan_period_s" in only:
+        plan += [("replan_period_s", v, "distributed", {"replan_period_s": v}) for v in _floats(args.replan_s, "replan-s")]
+    if "isl_rate_bps" in only:
+        plan += [("isl_rate_bps", v, "distributed", {"isl_rate_bps": v}) for v in _floats(args.isl_rate_bps, "isl-rate-bps")]
+    if "sats_per_plane" in only:
+        for v in _floats(args.sats_per_plane, "sats-per-plane"):
+            for m in ("distributed", "nonagile"):
+                plan.append(("sats_per_plane", int(v), m, {"sats_per_plane": int(v)}))
+    if "n_stations" in only:
+        plan += [("n_stations", int(v), "centralized", {"n_stations": int(v)}) for v in _floats(args.stations, "stations")]
+    base = {"replan_period_s": s.replan_period_s, "isl_rate_bps": i.rate_bps, "sats_per_plane": c.sats_per_plane,
+            "n_stations": len(sc.ground.stations)}
+    return [(p, v, m, ch, base[p] == v) for p, v, m, ch in plan]
+
+
+def run(args: argparse.Namespace) -> int:
+    from bringup.analysis.compare import get_path, run_in_process, scenario_variant
+
+    sc = scenario_from_args(args)
+    plan = _rows_plan(sc, args)
+    variants = [scenario_variant(sc, **ch) for _, _, _, ch, _ in plan]  # validate all before running
+    rows = []
+    for (param, v, mode, _, is_base), var in zip(plan, variants):
+        t0 = time.perf_counter()
+        rep = run_in_process(var, mode)
+        row = {"parameter": param, "value": v, "baseline": is_base, "mode": mode,
+               "n_sats": var.constellation.total_sats, "value_cumulative": get_path(rep, "value.cumulative"),
+               "gp_observed_fraction": get_path(rep, "coverage.gp_observed_fraction"),
+               "observations": get_path(rep, "observations.count"),
+               "duplicates_15min": get_path(rep, "observations.duplicates_15min"),
+               "assumed_error_mean": get_path(rep, "value.assumed_error_mean"),
+               "delivery_ratio": get_path(rep, "dtn.delivery_ratio"), "wall_s": time.perf_counter() - t0}
+        rows.append(row)
+        print(f"sweep: {param}={v:g} {mode}: value {row['value_cumulative']:.0f} ({row['wall_s']:.0f} s)",
+              file=sys.stderr)
+    res = {"scenario": sc.name, "sats": sc.constellation.total_sats, "hours": sc.scenario.horizon_s / 3600,
+           "seed": sc.scenario.seed, "rows": rows}
+    md = table_markdown(res)
+    if args.out:
+        args.out.mkdir(parents=True, exist_ok=True)
+        (args.out / "sweep.json").write_text(json.dumps(res, indent=2) + "\n")
+        (args.out / "sweep.md").write_text(md + "\n")
+    print(json.dumps(res) if args.json else md)
+    return 0
+
+
+def table_markdown(res: dict) -> str:
+    def f(x, fmt):
+        return "-" if x is None else fmt.format(x)
+
+    title = (f"Sweep on {res['scenario']} ({res['sats']} sats baseline, {res['hours']:g} h, seed {res['seed']}); "
+             "* = the scenario's own value")
+    head = ("| parameter | value | mode | sats | cumulative value | GPs observed | observations | duplicates | "
+            "assumed error | DTN delivery |")
+    lines = [title, "", head, "|---|---|---|---|---|---|---|---|---|---|"]
+    for r in res["rows"]:
+        lines.append(f"| {r['parameter']} | {r['value']:g}{' *' if r['baseline'] else ''} | {r['mode']} | {r['n_sats']} | "
+                     f"{f(r['value_cumulative'], '{:.0f}')} | {f(r['gp_observed_fraction'], '{:.1%}')} | "
+                     f"{r['observations']} | {r['duplicates_15min']} | {f(r['assumed_error_mean'], '{:.1%}')} | "
+                     f"{f(r['delivery_ratio'], '{:.1%}')} |")
+    return "\n".join(lines)

@@ -1,1 +1,0 @@
-"""One module per `constellation` subcommand (see bringup/cli.py)."""

@@ -1,0 +1,525 @@
+"""The lockstep coordinator of the ROS engine: owns simulated time (DESIGN.md section 3, issue 5).
+
+Publishes /clock (rosgraph_msgs/Clock) and /sim/step, collects one /sim/ack per host process and
+picks the next step with rule 3 of msgs_json/envelope.py (bringup/engine/lockstep.py has the
+protocol). A step ends when every registered host acked it; what was sent in it is counted in the
+acks and the next step message carries the counts, so receivers run the next step only once they
+hold all of it (ROS2_NOTES trap 5). Pacing: as fast as possible, or ``real_time_factor`` sim
+seconds per wall second. Progress: a JSON line on stdout every ``progress_period_s`` (sim time,
+steps, wall time and, when a host holds the DTN router, ``in_flight``: the bundle copies the router
+holds after that step, summed from the acks; bringup/engine/ros/launcher.py reads them). A host that does not
+ack within ``ack_timeout_s`` wall seconds is reported by name (with its participants) and the run
+stops; so does a host that acks an error.
+
+The same process records every topic into a rosbag2 MCAP bag (bringup/recording/bag.py BagWriter):
+/clock and /sim/step as written, /sim/ack and every data topic from raw (CDR) subscriptions, log
+time = the step's / the envelope's t_ns. Data topics are those the hosts subscribe to plus any
+String topic that appears on the graph (polled while waiting); hosts publish on a topic only once
+the recorder's subscription has matched, so the bag holds every envelope. SIGINT/SIGTERM: the
+clock tells the hosts to stop and closes the bag (readable).
+
+Crash and restart (issue 7): with ``restart_wait_s > 0`` a host that misses the ack deadline is
+reported by name on stderr and waited for (bounded by ``restart_wait_s``) while the launcher
+restarts it; the recorder then always listens (bag or not) and keeps the envelopes of the last
+``_RESEND_STEPS`` wire steps. A hello from a host during the run is a rejoin: the clock re-sends it
+(/_lockstep/resend) what it recorded on its topics; the host drops what it already holds. Acks for
+any step but the current one are ignored (a restarted host repeats its last one); the recorder
+keeps one copy per (topic, source, seq), so a re-run step is recorded once.
+
+Clock restart (issue 7): with ``restart_wait_s > 0`` and a ``state_dir`` the clock itself survives
+SIGKILL. It records into a journal (bringup/recording/bag.py BagJournal, ``state_dir/clock.sqlite``)
+instead of straight into the bag, and before publishing wire step k it commits, in one SQLite
+transaction, everything recorded through step k-1 plus its checkpoint: k, t_ns, the step message
+(which carries the per-source seq_end and per-topic sent counts of step k-1), the running totals,
+the hosts' hellos, the recorded topics and the visualisation cursor. It commits only once the
+recorder holds every envelope the acks of step k-1 counted, so the journal has no gap. The
+launcher restarts a clock that crashed; the new one loads the checkpoint (its dedupe keys, counts
+and re-send buffer come from the journal's rows) and publishes step k again. Hosts that had not run
+step k run it; hosts that had (``k == done_k``) answer with their saved ack and re-publish the
+envelopes of that step (bringup/engine/ros/host.py), which receivers drop as duplicates and the new
+recorder records once; no step runs twice. Envelopes the new recorder still misses after 1 s (its
+subscriptions were not matched yet) are asked for again by re-announcing the step. At the end (also
+on error or Ctrl-C) the journal is exported into ``bag_dir`` (one ordinary bag).
+
+Oracle: tests/ros/test_lockstep.py (toy participants over DDS give exactly the local engine's
+envelopes, read back from the bag; a killed host is named within the bounded wait; Ctrl-C leaves
+a readable bag).
+"""
+
+from __future__ import annotations
+
+import faulthandler
+import json
+import pickle
+import signal
+import sys
+import time
+from pathlib import Path
+
+import rclpy
+from rclpy.context import Context
+from rclpy.duration import Duration
+from rclpy.experimental import EventsExecutor
+from rclpy.qos import QoSProfile, ReliabilityPolicy
+from rclpy.serialization import serialize_message
+from rclpy.signals import SignalHandlerOptions
+from rosgraph_msgs.msg import Clock
+from std_msgs.msg import String
+
+from bringup.engine.ros.host import QOS_DATA, QOS_SYNC_PUB, QOS_SYNC_SUB, exit_now
+from bringup.engine.ros.run_spec import RunSpec
+from msgs_json.wire import WireError, decode_envelope
+from bringup.engine.lockstep import (
+    ACK_TOPIC,
+    RESEND_TOPIC,
+    STEP_TOPIC,
+    AckMsg,
+    LockstepError,
+    ResendMsg,
+    StepMsg,
+    decode_ack,
+    encode_msg,
+    next_step_ns,
+)
+
+__all__ = ["ClockError", "LockstepClock", "run_clock"]
+
+_STRING = "std_msgs/msg/String"
+_CLOCK = "rosgraph_msgs/msg/Clock"
+_QOS_CLOCK = QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT)
+_RESEND_STEPS = 6
+# Wall seconds the clock waits for the recorder before re-announcing the step (clock restart).
+_REANNOUNCE_S = 1.0
+
+
+class ClockError(RuntimeError):
+    """The run cannot go on; the message names the host/participants and the step."""
+
+
+class LockstepClock:
+    def __init__(self, spec: RunSpec):
+        self.spec = spec
+        self.roles = list(spec.roles)
+        self.horizon_ns, self.max_step_ns = spec.bounds_ns()
+        self.t0_ns = spec.t0_ns
+        self._stop_requested = False
+        self.ctx = Context()
+        rclpy.init(context=self.ctx, signal_handler_options=SignalHandlerOptions.NO)
+        self.node = rclpy.create_node("orbit_clock", context=self.ctx, start_parameter_services=False)
+        self.executor = EventsExecutor(context=self.ctx)
+        self.executor.add_node(self.node)
+        self.clock_pub = self.node.create_publisher(Clock, "/clock", _QOS_CLOCK)
+        self.step_pub = self.node.create_publisher(String, STEP_TOPIC, QOS_SYNC_PUB)
+        self.acks: dict[str, AckMsg] = {}
+        self.hellos: dict[str, AckMsg] = {}
+        self.node.create_subscription(String, ACK_TOPIC, self._on_ack, QOS_SYNC_SUB, raw=True)
+        self.bag = None
+        self.bag_custom = {"engine": "ros", "roles": ",".join(self.roles)}
+        # clock restart: the journal (bag rows + checkpoint) and the checkpoint found at start, if any
+        self.journal = None
+        self.resumed: tuple[int, dict] | None = None
+        self.reannounces = 0
+        self._incarnation = 0
+        if spec.restart_wait_s > 0 and spec.state_dir:
+            from bringup.recording.bag import BagJournal
+
+            self.journal = self.bag = BagJournal(Path(spec.state_dir) / "clock.sqlite")
+            row = self.journal.load()
+            if row is not None:
+                self.resumed = (row[0], pickle.loads(row[1]))
+        elif spec.bag_dir:
+            from bringup.recording.bag import BagWriter
+
+            self.bag = BagWriter(spec.bag_dir, custom=self.bag_custom)
+        # A `constellation run`: its metadata record and the visualisation topics (bringup/recording/viz_feed.py).
+        self.meta = spec.extra.get("meta")
+        self.viz = None
+        if self.bag is not None and self.meta is not None:
+            from msgs_json.envelope import Envelope
+
+            if self.resumed is None:
+                self.bag.write_envelope(Envelope(self.t0_ns, "run", 0, "/run/meta",
+                                                 json.dumps({"meta": self.meta})))
+            if spec.extra.get("world"):
+                from bringup.recording.viz_feed import VizFeed
+                from bringup.scenario.world import World
+
+                self.viz = VizFeed(World.load(spec.extra["world"], spec.extra.get("world_key")))
+        self.rec_topics: dict[str, object] = {}
+        self.rec_counts: dict[str, int] = {}
+        self.bad_recorded = 0
+        self.totals: dict[str, int] = {}
+        self._next_graph_poll = 0.0
+        self.steps = 0
+        # bundle copies in flight in the DTN router after the last step (from the acks; None: no router)
+        self.in_flight: int | None = None
+        # crash/restart: current wire step, dedupe keys, recent envelopes per topic, rejoin requests
+        self.restart = spec.restart_wait_s > 0
+        self.cur_k = -1
+        self.running = False
+        self._rec_keys: set[tuple[str, str, int]] = set()
+        self.rec_duplicates = 0
+        self.recent: dict[str, list[tuple[int, str]]] = {}
+        self.rejoins: list[AckMsg] = []
+        self.rejoined: dict[str, int] = {}
+        self.stale_acks = 0
+        self.resend_pub = self.node.create_publisher(String, RESEND_TOPIC, QOS_DATA) if self.restart else None
+
+    # -- callbacks ----------------------------------------------------------------------------------
+    def _on_ack(self, raw: bytes) -> None:
+        from rclpy.serialization import deserialize_message
+
+        try:
+            ack = decode_ack(deserialize_message(raw, String).data)
+        except LockstepError as exc:
+            self.node.get_logger().warning(str(exc))
+            return
+        if ack.participant not in self.roles:
+            self.node.get_logger().warning(f"{ACK_TOPIC}: ack from unknown host {ack.participant!r} ignored")
+            return
+        if ack.hello:
+            if self.running:
+                self.rejoins.append(ack)
+            self.hellos[ack.participant] = ack
+        else:
+            if ack.k != self.cur_k:
+                self.stale_acks += 1
+                return
+            if ack.participant in self.acks:  # the same ack again (re-announced step): recorded once
+                return
+            self.acks[ack.participant] = ack
+            if self.bag is not None:
+                self.bag.write_raw(ACK_TOPIC, _STRING, raw, ack.t_ns)
+
+    def _make_rec_cb(self, topic: str):
+        def cb(raw: bytes) -> None:
+            from rclpy.serialization import deserialize_message
+
+            text = deserialize_message(raw, String).data
+            try:
+                env = decode_envelope(text, topic)
+            except WireError:
+                self.bad_recorded += 1
+                return
+            key = (topic, env.source, env.seq)
+            if key in self._rec_keys:
+                self.rec_duplicates += 1
+                return
+            self._rec_keys.add(key)
+            if self.restart:
+                self.recent.setdefault(topic, []).append((self.cur_k, text))
+            self.rec_counts[topic] = self.rec_counts.get(topic, 0) + 1
+            if self.journal is not None:
+                self.journal.write_keyed(topic, _STRING, raw, env.t_ns, env.source, env.seq)
+            elif self.bag is not None:
+                self.bag.write_raw(topic, _STRING, raw, env.t_ns)
+        return cb
+
+    def _record(self, topic: str) -> None:
+        if topic in self.rec_topics or topic in (STEP_TOPIC, ACK_TOPIC, "/clock", "/rosout", "/parameter_events"):
+            return
+        self.rec_topics[topic] = self.node.create_subscription(
+            String, topic, self._make_rec_cb(topic), QOS_DATA, raw=True)
+
+    def _poll_graph(self) -> None:
+        now = time.monotonic()
+        if now < self._next_graph_poll:
+            return
+        self._next_graph_poll = now + 0.1
+        for topic, types in self.node.get_topic_names_and_types():
+            if _STRING in types and not topic.startswith("/_lockstep"):
+                self._record(topic)
+
+    def _serve_rejoins(self) -> None:
+        """Re-send to each restarted host what was recorded on its topics in the last steps."""
+        while self.rejoins:
+            h = self.rejoins.pop(0)
+            n = self.rejoined[h.participant] = self.rejoined.get(h.participant, 0) + 1
+            if n == 1:
+                print(f"clock: host {h.participant} rejoined at step {self.cur_k} "
+                      f"(resumes after step {h.resume_k})", file=sys.stderr, flush=True)
+            for topic in h.subscriptions:
+                wires = [w for _k, w in self.recent.get(topic, ())]
+                self.resend_pub.publish(String(data=encode_msg(ResendMsg(to=h.participant, topic=topic, wires=wires))))
+
+    def _prune_recent(self) -> None:
+        lo = self.cur_k - _RESEND_STEPS
+        for topic, items in self.recent.items():
+            if items and items[0][0] < lo:
+                self.recent[topic] = [it for it in items if it[0] >= lo]
+
+    def request_stop(self, *_args) -> None:
+        self._stop_requested = True
+
+    # -- waiting ------------------------------------------------------------------------------------
+    def _spin_until(self, cond, timeout_s: float, on_timeout) -> None:
+        deadline = time.monotonic() + timeout_s
+        spin = self.executor.spin_once
+        while not cond():
+            if self._stop_requested:
+                raise KeyboardInterrupt
+            if time.monotonic() > deadline:
+                raise ClockError(on_timeout())
+            if self.bag is not None:
+                self._poll_graph()
+            if self.rejoins:
+                self._serve_rejoins()
+            spin(timeout_sec=0.02)
+
+    def _who(self, roles) -> str:
+        parts = []
+        for r in roles:
+            h = self.hellos.get(r)
+            ps = ",".join(h.participants) if h else "?"
+            parts.append(f"{r} (participants {ps})")
+        return "; ".join(parts)
+
+    def _publish_step(self, msg: StepMsg) -> None:
+        if not msg.start and not msg.stop:
+            c = Clock()
+            c.clock.sec, c.clock.nanosec = divmod(msg.t_ns, 1_000_000_000)
+            self.clock_pub.publish(c)
+            if self.bag is not None:
+                self.bag.write_raw("/clock", _CLOCK, serialize_message(c), msg.t_ns)
+                if self.viz is not None:
+                    self.viz.write(self.bag, msg.t_ns)
+        s = String(data=encode_msg(msg))
+        self.step_pub.publish(s)
+        if self.bag is not None:
+            self.bag.write_raw(STEP_TOPIC, _STRING, serialize_message(s), msg.t_ns)
+
+    def _progress(self, t_ns: int, wall_s: float, done: bool = False) -> None:
+        rec = {"t_ns": t_ns, "horizon_ns": self.horizon_ns, "steps": self.steps, "wall_s": round(wall_s, 4)}
+        if self.in_flight is not None:
+            rec["in_flight"] = self.in_flight
+        print(json.dumps({"done" if done else "progress": rec}), flush=True)
+
+    # -- checkpoint (clock restart) -------------------------------------------------------------------
+    def _state(self, k: int, t: int, msg: StepMsg, wall_s: float) -> bytes:
+        return pickle.dumps({
+            "k": k, "t_ns": t, "msg": encode_msg(msg), "totals": dict(self.totals), "steps": self.steps,
+            "hellos": {r: encode_msg(h) for r, h in self.hellos.items()}, "rec_topics": list(self.rec_topics),
+            "wall_s": wall_s, "incarnation": self._incarnation, "rejoined": dict(self.rejoined), "reannounces": self.reannounces,
+            "viz": (self.viz.next_ns, self.viz.written) if self.viz is not None else None,
+        }, protocol=pickle.HIGHEST_PROTOCOL)
+
+    def _restore(self) -> tuple[int, int, StepMsg, float] | None:
+        """State of the checkpoint found at start; the recorder's keys, counts and re-send buffer
+        come back from the journal's rows."""
+        from bringup.recording.bag import string_from_cdr
+        from bringup.engine.lockstep import decode_step
+
+        k, st = self.resumed  # type: ignore[misc]
+        if st.get("done"):
+            print("clock: restarted after the run had finished; exporting the bag", file=sys.stderr, flush=True)
+            return None
+        self.totals = dict(st["totals"])
+        self.steps = int(st["steps"])
+        self.hellos = {r: decode_ack(txt) for r, txt in st["hellos"].items()}
+        self.rejoined = dict(st["rejoined"])
+        self.reannounces = int(st.get("reannounces", 0))
+        self._incarnation = int(st.get("incarnation", 0)) + 1
+        if self.viz is not None and st["viz"] is not None:
+            self.viz.next_ns, self.viz.written = st["viz"]
+        for topic in st["rec_topics"]:
+            self._record(topic)
+        lo = k - _RESEND_STEPS
+        for kk, topic, source, seq, cdr in self.journal.keyed_rows(min_k=lo):
+            self._rec_keys.add((topic, source, seq))
+            self.rec_counts[topic] = self.rec_counts.get(topic, 0) + 1
+            if cdr is not None:
+                self.recent.setdefault(topic, []).append((kk, string_from_cdr(cdr)))
+        print(f"clock: restarted from its checkpoint: resuming at wire step {k} (t = {st['t_ns'] / 1e9:.3f} s), "
+              f"{sum(self.rec_counts.values())} envelopes already recorded", file=sys.stderr, flush=True)
+        return k, int(st["t_ns"]), decode_step(st["msg"]), float(st["wall_s"])
+
+    def _recorded_all(self) -> bool:
+        return all(self.rec_counts.get(tp, 0) >= n for tp, n in self.totals.items())
+
+    def _missing(self) -> dict[str, int]:
+        return {tp: n - self.rec_counts.get(tp, 0) for tp, n in self.totals.items() if self.rec_counts.get(tp, 0) < n}
+
+    def _wait_recorded(self, msg: StepMsg) -> None:
+        """Before checkpointing the next step: the recorder must hold every envelope counted so far.
+        Every ``_REANNOUNCE_S`` without them the step is published again (not recorded): hosts that
+        ran it re-send its envelopes."""
+        spec = self.spec
+        deadline = time.monotonic() + spec.ack_timeout_s + spec.restart_wait_s
+        while not self._recorded_all():
+            try:
+                self._spin_until(self._recorded_all, _REANNOUNCE_S, lambda: "")
+            except ClockError:
+                if time.monotonic() > deadline:
+                    raise ClockError(f"recorder is missing envelopes of step {msg.k}: {self._missing()}") from None
+                self.reannounces += 1
+                print(f"clock: recorder misses {self._missing()} after step {msg.k}; step re-announced",
+                      file=sys.stderr, flush=True)
+                self.step_pub.publish(String(data=encode_msg(msg)))
+
+    # -- the run ------------------------------------------------------------------------------------
+    def run(self) -> int:
+        spec = self.spec
+        if self.resumed is not None:
+            got = self._restore()
+            if got is None:
+                return 0
+            k, t, msg, wall_done = got
+        else:
+            self._spin_until(lambda: len(self.hellos) == len(self.roles), spec.startup_timeout_s,
+                             lambda: "hosts not up: " + self._who(r for r in self.roles if r not in self.hellos))
+            rec = 1 if (self.bag is not None or self.restart) else 0
+            subs: dict[str, int] = {}
+            for h in self.hellos.values():
+                for topic, n in h.subscriptions.items():
+                    subs[topic] = subs.get(topic, 0) + n
+            if rec:
+                for topic in subs:
+                    self._record(topic)
+                    subs[topic] += 1
+            k, t = 0, self.t0_ns
+            msg = StepMsg(k=0, t_ns=t, start=True, subs=subs, subs_default=rec)
+            wall_done = 0.0
+        wall0 = time.monotonic() - wall_done
+        next_progress = time.monotonic() + spec.progress_period_s
+        self.running = True
+        while True:
+            self.acks.clear()
+            self.cur_k = k
+            if self.journal is not None:
+                self.journal.commit(k, self._state(k, t, msg, time.monotonic() - wall0))
+                self.journal.k = k
+            if self.restart and k % _RESEND_STEPS == 0:
+                self._prune_recent()
+            if spec.real_time_factor and not msg.start:
+                due = wall0 + (t - self.t0_ns) / 1e9 / spec.real_time_factor
+                self._spin_until(lambda: time.monotonic() >= due, float("inf"), lambda: "")
+            self._publish_step(msg)
+            self._wait_acks(k, t)
+            failed = [a for a in self.acks.values() if a.error]
+            if failed:
+                raise ClockError("; ".join(f"host {a.participant} failed at step {k}: {a.error}" for a in failed))
+            if not msg.start:
+                self.steps += 1
+            sent: dict[str, int] = {}
+            seq_end: dict[str, int] = {}
+            wakes = []
+            in_flight = None
+            for a in self.acks.values():
+                for topic, n in a.sent.items():
+                    sent[topic] = sent.get(topic, 0) + n
+                    self.totals[topic] = self.totals.get(topic, 0) + n
+                seq_end.update(a.seq_end)
+                wakes.append(a.next_wakeup_ns)
+                if a.in_flight is not None:
+                    in_flight = (in_flight or 0) + a.in_flight
+            self.in_flight = in_flight
+            if self.journal is not None:
+                self._wait_recorded(msg)
+            now = time.monotonic()
+            if now >= next_progress:
+                next_progress = now + spec.progress_period_s
+                self._progress(t, now - wall0)
+            if msg.final:
+                break
+            if msg.start:
+                nt = t
+            else:
+                nt = next_step_ns(t, wakes, self.max_step_ns, self.horizon_ns)
+            k, t = k + 1, nt
+            msg = StepMsg(k=k, t_ns=t, final=t >= self.horizon_ns, sent=sent, seq_end=seq_end)
+        # the recorder must hold everything before the bag closes
+        if self.bag is not None:
+            self._spin_until(self._recorded_all, spec.ack_timeout_s,
+                             lambda: "recorder is missing envelopes: " + str(self._missing()))
+        wall = time.monotonic() - wall0
+        if self.bag is not None and self.meta is not None:
+            from msgs_json.envelope import Envelope
+
+            runtime = {"wall_s": wall, "steps": self.steps,
+                       "real_time_factor": ((t - self.t0_ns) / 1e9 / wall) if wall > 0 else None}
+            if self.journal is not None:
+                runtime["clock_restarts"] = self.clock_restarts()
+            self.bag.write_envelope(Envelope(t, "run", 1, "/run/meta",
+                                             json.dumps({"meta": self.meta, "runtime": runtime})))
+        if self.journal is not None:
+            self.journal.commit(k, pickle.dumps({"done": True}))
+        self._progress(t, wall, done=True)
+        return 0
+
+    def clock_restarts(self) -> int:
+        """How many times this run's clock was restarted (0 without a journal)."""
+        return self._incarnation
+
+    def _wait_acks(self, k: int, t: int) -> None:
+        spec = self.spec
+
+        def all_acked() -> bool:
+            return len(self.acks) == len(self.roles)
+
+        def who() -> str:
+            return (f"no ack for step {k} (t = {t / 1e9:.3f} s) within {{:g}} s from "
+                    + self._who(r for r in self.roles if r not in self.acks))
+        try:
+            self._spin_until(all_acked, spec.ack_timeout_s, lambda: who().format(spec.ack_timeout_s))
+        except ClockError as exc:
+            if not self.restart:
+                raise
+            print(f"clock: {exc}; waiting up to {spec.restart_wait_s:g} s for it to restart",
+                  file=sys.stderr, flush=True)
+            self._spin_until(all_acked, spec.restart_wait_s,
+                             lambda: who().format(spec.ack_timeout_s + spec.restart_wait_s) + " (no restart)")
+
+    def stop_hosts(self, reason: str = "") -> None:
+        try:
+            self.step_pub.publish(String(data=encode_msg(StepMsg(k=0, t_ns=0, stop=True, reason=reason))))
+            self.step_pub.wait_for_all_acked(Duration(seconds=2.0))
+        except Exception:  # noqa: BLE001 - best effort on the way out
+            pass
+
+    def close(self, dds: bool = True) -> None:
+        """Close the bag (or export the journal into it) and (``dds``) destroy the node and the
+        context; a process that exits right after passes ``dds=False`` (bringup/engine/ros/host.py exit_now)."""
+        try:
+            if self.journal is not None:
+                try:
+                    if self.spec.bag_dir:
+                        self.journal.export(self.spec.bag_dir, custom=self.bag_custom)
+                finally:
+                    self.journal.close()
+            elif self.bag is not None:
+                self.bag.close()
+            if not dds:
+                return
+            self.executor.shutdown(timeout_sec=1.0)
+            self.node.destroy_node()
+        finally:
+            if dds:
+                rclpy.try_shutdown(context=self.ctx)
+
+
+def run_clock(spec: RunSpec) -> int:
+    """Process entry of the clock role. Exit code 0 ok, 3 a host failed or went silent (named on
+    stderr), 130 interrupted (hosts told to stop, bag closed)."""
+    # SIGUSR1 writes every thread's Python stack into the log (bringup/engine/ros/launcher.py, before a SIGKILL)
+    faulthandler.register(signal.SIGUSR1, all_threads=True)
+    clock = LockstepClock(spec)
+    signal.signal(signal.SIGTERM, clock.request_stop)
+    signal.signal(signal.SIGINT, clock.request_stop)
+    try:
+        rc = clock.run()
+        clock.stop_hosts()
+    except KeyboardInterrupt:
+        clock.stop_hosts("interrupted")
+        print("clock: interrupted; hosts told to stop, bag closed", file=sys.stderr)
+        rc = 130
+    except ClockError as exc:
+        clock.stop_hosts(str(exc))
+        print(f"clock: error: {exc}", file=sys.stderr)
+        rc = 3
+    except BaseException:
+        clock.close()
+        raise
+    # the bag is closed here; the DDS participant is not destroyed (a FastDDS deadlock: exit_now)
+    clock.close(dds=False)
+    exit_now(rc)
+    return rc  # not reached

@@ -1,0 +1,494 @@
+"""One OS process of the ROS engine hosting one or more lockstep participants (issue 5).
+
+Each participant (msgs_json/envelope.py) gets its own rclpy node with ``use_sim_time`` whose
+/clock subscription is remapped away: the host sets every node's clock from the step it runs
+(``set_ros_time_override``; ROS2_NOTES trap 2), so all nodes of a process see the same time.
+Data topics are std_msgs/String carrying wire envelopes (msgs_json/wire.py), RELIABLE + KEEP_ALL;
+/sim/step and /sim/ack are RELIABLE + TRANSIENT_LOCAL (traps 3-4). Subscription callbacks only
+buffer envelopes; the step itself runs in one loop, participants in list order, each inbox sorted
+by (t_ns, source, seq) (traps 1 and 6). Before running step k the host waits until every inbox holds
+all envelopes of the previous steps, counted from the step message (bringup/engine/lockstep.py, trap
+5). A publisher is used only once it has matched every subscription the run declared for its
+topic (plus the recorder's), so nothing is lost to discovery. A message that does not decode is
+counted per topic and logged, never fatal.
+
+Crash and restart (issue 7): with ``state_path`` the host checkpoints after every wire step
+(bringup/engine/checkpoint.py; in the participant's own SQLite store when it has one, one transaction per
+step). A host started on an existing checkpoint restores its participants and its lockstep state,
+says hello with ``resume_k``, answers again the step it had finished (its saved ack, after
+re-publishing that step's envelopes, kept in memory and in the checkpoint), ignores older steps and
+re-runs the rest. The same answer goes to a restarted clock that publishes again a step the host
+already ran (bringup/engine/ros/clock_node.py): the step is never run twice, and the new recorder gets
+the envelopes it missed (receivers drop them as duplicates by (source, seq)). While its inboxes miss envelopes sent during its outage it repeats the
+hello every ``rejoin_period_s``; the clock answers each with a re-send of what it recorded
+(bringup/engine/lockstep.py ResendMsg); duplicates are dropped by (source, seq).
+
+Progress: a host that holds the DTN router (dtn_router/router.py) puts in each ack the number of
+bundle copies the router holds after the step (``in_flight``, ``len(router.pending)``: accepted,
+arrival still ahead), the figure the local engine's progress display shows; the clock sums it into
+its progress records.
+
+Oracle: tests/ros/test_lockstep.py: toy participants hosted here, driven by the clock node over
+DDS, emit exactly the envelopes the local engine (bringup/engine/local.py) emits for them.
+"""
+
+from __future__ import annotations
+
+import faulthandler
+import os
+import signal
+import sys
+import time
+from collections import deque
+from collections.abc import Sequence
+
+import rclpy
+from rclpy.context import Context
+from rclpy.experimental import EventsExecutor
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.signals import SignalHandlerOptions
+from rclpy.time import Time
+from std_msgs.msg import String
+
+from msgs_json.envelope import Emit, Envelope, Participant, StepResult
+from msgs_json.wire import WireError, decode_envelope, encode_envelope
+from bringup.engine.lockstep import (
+    ACK_TOPIC,
+    RESEND_TOPIC,
+    STEP_TOPIC,
+    AckMsg,
+    LockstepError,
+    StepMsg,
+    TopicInbox,
+    decode_resend,
+    decode_step,
+    encode_msg,
+)
+
+__all__ = ["QOS_DATA", "QOS_SYNC_PUB", "QOS_SYNC_SUB", "HostError", "ParticipantHost", "exit_now", "run_host"]
+
+QOS_DATA = QoSProfile(history=HistoryPolicy.KEEP_ALL, reliability=ReliabilityPolicy.RELIABLE,
+                      durability=DurabilityPolicy.VOLATILE)
+# Writers keep the last few step/ack messages for late joiners (only one is ever outstanding);
+# readers keep all, so simultaneous acks of several hosts are never overwritten (trap 3).
+QOS_SYNC_PUB = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=16, reliability=ReliabilityPolicy.RELIABLE,
+                          durability=DurabilityPolicy.TRANSIENT_LOCAL)
+QOS_SYNC_SUB = QoSProfile(history=HistoryPolicy.KEEP_ALL, reliability=ReliabilityPolicy.RELIABLE,
+                          durability=DurabilityPolicy.TRANSIENT_LOCAL)
+_CLOCK_REMAP = ["--ros-args", "-r", "/clock:=/_lockstep/unused_clock"]
+# Fewer entities per node = smaller wait sets per spin (no parameter services, no /rosout writer).
+_LEAN = {"start_parameter_services": False, "enable_rosout": False}
+_ROUTER_NAME = "dtn_router"
+
+
+class HostError(RuntimeError):
+    """The host cannot go on (protocol broken, participant failed, clock silent); one line."""
+
+
+class _Slot:
+    """One participant with its node, inboxes, publishers and seq counter."""
+
+    def __init__(self, p: Participant, node: Node):
+        self.p = p
+        self.name = p.name
+        self.node = node
+        self.inboxes: list[TopicInbox] = []
+        self.pubs: dict[str, object] = {}
+        self.seq = 0
+
+
+class ParticipantHost:
+    """Hosts ``participants`` in one rclpy context; :meth:`run` follows the clock to the end."""
+
+    def __init__(self, role: str, participants: Sequence[Participant], *, ack_timeout_s: float = 10.0,
+                 startup_timeout_s: float = 60.0, idle_timeout_s: float = 300.0,
+                 state_path: str | None = None, rejoin_period_s: float = 2.0):
+        names = [p.name for p in participants]
+        if not names or len(set(names)) != len(names):
+            raise HostError(f"host {role}: participant names must be unique and non-empty: {names}")
+        self.role = role
+        self.ack_timeout_s = ack_timeout_s
+        self.startup_timeout_s = startup_timeout_s
+        self.idle_timeout_s = idle_timeout_s
+        self._stop_requested = False
+        self.ctx = Context()
+        rclpy.init(context=self.ctx, signal_handler_options=SignalHandlerOptions.NO)
+        self.executor = EventsExecutor(context=self.ctx)
+        self.host_node = rclpy.create_node(f"host_{role}", context=self.ctx, cli_args=_CLOCK_REMAP, **_LEAN)
+        self._steps: deque[StepMsg] = deque()
+        self.host_node.create_subscription(String, STEP_TOPIC, self._on_step, QOS_SYNC_SUB)
+        self.ack_pub = self.host_node.create_publisher(String, ACK_TOPIC, QOS_SYNC_PUB)
+        self.executor.add_node(self.host_node)
+        self.slots: list[_Slot] = []
+        self.inboxes_by_topic: dict[str, list[TopicInbox]] = {}
+        for p in participants:
+            node = rclpy.create_node(
+                p.name, context=self.ctx, cli_args=_CLOCK_REMAP, **_LEAN,
+                parameter_overrides=[Parameter("use_sim_time", Parameter.Type.BOOL, True)],
+            )
+            slot = _Slot(p, node)
+            for topic in dict.fromkeys(p.subscriptions()):
+                box = TopicInbox(topic)
+                node.create_subscription(String, topic, self._make_cb(box), QOS_DATA)
+                slot.inboxes.append(box)
+                self.inboxes_by_topic.setdefault(topic, []).append(box)
+            self.executor.add_node(node)
+            self.slots.append(slot)
+        self.seq_end: dict[str, int] = {}
+        self.subs: dict[str, int] = {}
+        self.subs_default = 0
+        self.decode_errors: dict[str, int] = {}
+        self.duplicates = 0
+        self.rejoin_period_s = rejoin_period_s
+        self.host_node.create_subscription(String, RESEND_TOPIC, self._on_resend, QOS_DATA)
+        # crash/restart: last wire step done (-1 = none), the ack sent for it, the checkpoint store
+        self.done_k = -1
+        self.resume_k = -1
+        self.last_ack: dict | None = None
+        # envelopes (participant, topic, wire text) emitted in step done_k, re-published with its ack
+        self.last_wires: list[tuple[str, str, str]] = []
+        self._step_wires: list[tuple[str, str, str]] = []
+        self.republished = 0
+        self.ckpt = None
+        if state_path is not None:
+            self._open_checkpoint(state_path)
+        # the DTN router's in-flight copies go into every ack (progress display; no extra message).
+        # Its name is dtn_router.router.ROUTER_NAME, not imported: that package costs a toy host 0.3 s.
+        self._routers = [s.p for s in self.slots
+                         if s.name == _ROUTER_NAME and isinstance(getattr(s.p, "pending", None), list)]
+
+    # -- checkpoints (bringup/engine/checkpoint.py) --------------------------------------------------------
+    def _open_checkpoint(self, state_path: str) -> None:
+        from bringup.engine.checkpoint import CheckpointDB, persistent_connection, restore_participant
+
+        conns = [c for c in (persistent_connection(s.p) for s in self.slots) if c is not None]
+        if len(conns) > 1:
+            raise HostError(f"host {self.role}: more than one participant has its own store; "
+                            "one checkpoint transaction cannot span them")
+        self.ckpt = CheckpointDB(conn=conns[0]) if conns else CheckpointDB(state_path)
+        row = self.ckpt.load()
+        if row is None:
+            return
+        k, hs, parts = row
+        if len(parts) != len(self.slots) or hs.get("names") != [s.name for s in self.slots]:
+            raise HostError(f"host {self.role}: checkpoint {state_path} holds participants {hs.get('names')}, "
+                            f"not {[s.name for s in self.slots]}")
+        for slot, blob in zip(self.slots, parts, strict=True):
+            restore_participant(slot.p, blob)
+            slot.seq = hs["seq"][slot.name]
+            for box in slot.inboxes:
+                box.expected, box.delivered, consumed = hs["boxes"][f"{slot.name} {box.topic}"]
+                box.consumed = dict(consumed)
+        self.seq_end = dict(hs["seq_end"])
+        self.subs, self.subs_default = dict(hs["subs"]), hs["subs_default"]
+        self.done_k = self.resume_k = k
+        self.last_ack = hs["ack"]
+        self.last_wires = [tuple(w) for w in hs.get("wires", ())]
+
+    def _checkpoint(self, k: int, ack: dict) -> None:
+        from bringup.engine.checkpoint import snapshot_participant
+
+        hs = {"names": [s.name for s in self.slots], "seq": {s.name: s.seq for s in self.slots},
+              "boxes": {f"{s.name} {b.topic}": (b.expected, b.delivered, dict(b.consumed))
+                        for s in self.slots for b in s.inboxes},
+              "seq_end": dict(self.seq_end), "subs": dict(self.subs), "subs_default": self.subs_default,
+              "ack": ack, "wires": list(self._step_wires)}
+        try:
+            parts = [snapshot_participant(s.p) for s in self.slots]
+        except Exception as exc:
+            raise HostError(f"host {self.role}: checkpoint of step {k} failed: {type(exc).__name__}: {exc}") from exc
+        self.ckpt.commit(k, hs, parts)
+
+    # -- callbacks: buffer only ---------------------------------------------------------------------
+    def _make_cb(self, box: TopicInbox):
+        def cb(msg: String) -> None:
+            try:
+                if not box.add(decode_envelope(msg.data, box.topic)):
+                    self.duplicates += 1
+            except WireError as exc:
+                box.decode_errors += 1
+                n = self.decode_errors[box.topic] = self.decode_errors.get(box.topic, 0) + 1
+                if n == 1 or n % 100 == 0:
+                    self.host_node.get_logger().warning(f"{exc} (rejected, {n} so far on {box.topic})")
+        return cb
+
+    def _on_resend(self, msg: String) -> None:
+        try:
+            r = decode_resend(msg.data)
+        except LockstepError as exc:
+            self.decode_errors[RESEND_TOPIC] = self.decode_errors.get(RESEND_TOPIC, 0) + 1
+            self.host_node.get_logger().warning(str(exc))
+            return
+        if r.to != self.role:
+            return
+        for box in self.inboxes_by_topic.get(r.topic, ()):
+            for w in r.wires:
+                try:
+                    if not box.add(decode_envelope(w, r.topic)):
+                        self.duplicates += 1
+                except WireError:
+                    box.decode_errors += 1
+
+    def _on_step(self, msg: String) -> None:
+        try:
+            self._steps.append(decode_step(msg.data))
+        except LockstepError as exc:
+            self.decode_errors[STEP_TOPIC] = self.decode_errors.get(STEP_TOPIC, 0) + 1
+            self.host_node.get_logger().warning(str(exc))
+
+    def request_stop(self, *_args) -> None:
+        self._stop_requested = True
+
+    # -- helpers ------------------------------------------------------------------------------------
+    def _spin_until(self, cond, timeout_s: float, what: str) -> None:
+        deadline = time.monotonic() + timeout_s
+        spin = self.executor.spin_once
+        while not cond():
+            if self._stop_requested:
+                raise KeyboardInterrupt
+            if time.monotonic() > deadline:
+                raise HostError(f"host {self.role}: {what} (waited {timeout_s:g} s)")
+            spin(timeout_sec=0.05)
+
+    def _wait_envelopes(self, cond, what: str) -> None:
+        """Wait for the previous steps' envelopes; after a restart, ask the clock to re-send them
+        (a hello with ``resume_k``) every ``rejoin_period_s`` while they are missing."""
+        if self.resume_k < 0:
+            self._spin_until(cond, self.ack_timeout_s, what)
+            return
+        deadline = time.monotonic() + self.ack_timeout_s
+        while True:
+            try:
+                self._spin_until(cond, min(self.rejoin_period_s, max(0.0, deadline - time.monotonic())), what)
+                return
+            except HostError:
+                if time.monotonic() >= deadline:
+                    raise
+                self._hello()
+
+    def _hello(self) -> None:
+        subs_count = {topic: len(boxes) for topic, boxes in self.inboxes_by_topic.items()}
+        self._ack(k=0, t_ns=0, hello=True, participants=[s.name for s in self.slots], subscriptions=subs_count,
+                  resume_k=self.resume_k)
+
+    def _publisher(self, slot: _Slot, topic: str):
+        pub = slot.pubs.get(topic)
+        if pub is None:
+            pub = slot.node.create_publisher(String, topic, QOS_DATA)
+            need = self.subs.get(topic, self.subs_default)
+            self._spin_until(lambda: pub.get_subscription_count() >= need, self.startup_timeout_s,
+                             f"{slot.name}: {topic} matched {pub.get_subscription_count()} of {need} subscriptions")
+            slot.pubs[topic] = pub
+        return pub
+
+    def _emit(self, slot: _Slot, emits, t_max_ns: int, where: str, sent: dict[str, int]) -> None:
+        for e in emits or ():
+            if not isinstance(e, Emit):
+                raise HostError(f"{slot.name} {where}: emitted {type(e).__name__}, expected Emit")
+            if type(e.t_ns) is not int or not 0 <= e.t_ns <= t_max_ns:
+                raise HostError(f"{slot.name} {where}: emit on {e.topic} at t_ns={e.t_ns!r} outside [0, {t_max_ns}]")
+            if not isinstance(e.data, (str, bytes)):
+                raise HostError(f"{slot.name} {where}: emit on {e.topic} has {type(e.data).__name__} data")
+            env = Envelope(e.t_ns, slot.name, slot.seq, e.topic, e.data)
+            text = encode_envelope(env)
+            self._publisher(slot, e.topic).publish(String(data=text))
+            self._step_wires.append((slot.name, e.topic, text))
+            slot.seq += 1
+            sent[e.topic] = sent.get(e.topic, 0) + 1
+
+    def _ack(self, **kw) -> None:
+        self.ack_pub.publish(String(data=encode_msg(AckMsg(participant=self.role, **kw))))
+
+    # -- one wire step ------------------------------------------------------------------------------
+    def _run_step(self, m: StepMsg) -> None:
+        if self.ckpt is not None:
+            self.ckpt.begin()
+        self._step_wires = []
+        for topic, n in m.sent.items():
+            for box in self.inboxes_by_topic.get(topic, ()):
+                box.expected += n
+        self.seq_end.update(m.seq_end)
+        sent: dict[str, int] = {}
+        wakes: list[int] = []
+        t = m.t_ns
+        if m.start:
+            self.subs, self.subs_default = dict(m.subs), m.subs_default
+            for slot in self.slots:
+                r = self._call(slot, slot.p.start, t, "start")
+                self._emit(slot, r.emits, t, "start", sent)
+                if r.next_wakeup_ns is not None:
+                    wakes.append(r.next_wakeup_ns)
+        else:
+            boxes = [b for s in self.slots for b in s.inboxes]
+            seq_end = self.seq_end
+
+            def all_ready() -> bool:
+                return all(b.ready(seq_end) for b in boxes)
+
+            if not all_ready():
+                try:
+                    self._wait_envelopes(all_ready, f"step {m.k} at t_ns={t}: envelopes missing")
+                except HostError as exc:
+                    short = {b.topic: b.missing(seq_end) for b in boxes if b.missing(seq_end)}
+                    raise HostError(f"{exc}: {short}") from None
+            tm = Time(nanoseconds=t)
+            for slot in self.slots:
+                slot.node.get_clock().set_ros_time_override(tm)
+            for slot in self.slots:
+                if len(slot.inboxes) == 1:
+                    inbox = slot.inboxes[0].take(seq_end)
+                else:
+                    inbox = [e for b in slot.inboxes for e in b.take(seq_end)]
+                    inbox.sort(key=Envelope.sort_key)
+                r = self._call(slot, slot.p.step, t, f"step at {t}", inbox)
+                self._emit(slot, r.emits, t, f"step at {t}", sent)
+                if r.next_wakeup_ns is not None:
+                    wakes.append(r.next_wakeup_ns)
+            if m.final:
+                for slot in self.slots:
+                    # what the host rejected for this participant, so the participant can report it:
+                    # wire texts that were no envelope, and envelopes never consumed (a source that is
+                    # no participant of the run, e.g. a rogue publisher)
+                    if hasattr(slot.p, "host_rejected"):
+                        rej = {}
+                        for b in slot.inboxes:
+                            leaf = b.topic.rsplit("/", 1)[-1]
+                            if b.decode_errors:
+                                rej[f"{leaf}.malformed"] = rej.get(f"{leaf}.malformed", 0) + b.decode_errors
+                            if b.pending:
+                                rej[f"{leaf}.unknown_source"] = rej.get(f"{leaf}.unknown_source", 0) + len(b.pending)
+                        slot.p.host_rejected = rej
+                    try:
+                        emits = slot.p.finish(t)
+                    except Exception as exc:
+                        raise HostError(f"{slot.name} failed in finish({t}): {type(exc).__name__}: {exc}") from exc
+                    self._emit(slot, emits, t, "finish", sent)
+        ack = dict(k=m.k, t_ns=t, next_wakeup_ns=min(wakes) if wakes else None, sent=sent,
+                   seq_end={s.name: s.seq for s in self.slots if s.seq})
+        if self._routers:
+            ack["in_flight"] = sum(len(p.pending) for p in self._routers)
+        if self.ckpt is not None:
+            self._checkpoint(m.k, ack)
+        self.done_k, self.last_ack, self.last_wires = m.k, ack, self._step_wires
+        self._ack(**ack)
+
+    @staticmethod
+    def _call(slot: _Slot, fn, t: int, where: str, *args) -> StepResult:
+        try:
+            r = fn(t, *args)
+        except Exception as exc:
+            raise HostError(f"{slot.name} failed in {where}: {type(exc).__name__}: {exc}") from exc
+        if not isinstance(r, StepResult):
+            raise HostError(f"{slot.name} {where}: returned {type(r).__name__}, expected StepResult")
+        w = r.next_wakeup_ns
+        if w is not None and (type(w) is not int or w < 0):
+            raise HostError(f"{slot.name} {where}: next_wakeup_ns must be a non-negative int or None, got {w!r}")
+        return r
+
+    # -- main loop ----------------------------------------------------------------------------------
+    def run(self) -> int:
+        """Say hello, run every step the clock sends until ``stop``; 0 on a clean end."""
+        self._hello()
+        while True:
+            if not self._steps:
+                self._spin_until(lambda: bool(self._steps), self.idle_timeout_s, "no step message from the clock")
+            m = self._steps.popleft()
+            if m.stop:
+                if m.reason:
+                    print(f"host {self.role}: stopped by the clock: {m.reason}", file=sys.stderr)
+                return 0
+            if m.k <= self.done_k:
+                # a step already done (the step writer's history, after a restart): answer the one
+                # the clock may still wait for, ignore older ones
+                if m.k == self.done_k and self.last_ack is not None:
+                    self._republish_last()
+                    self._ack(**self.last_ack)
+                continue
+            if m.k != self.done_k + 1:
+                raise HostError(f"host {self.role}: step {m.k} arrived after step {self.done_k}; "
+                                f"steps {self.done_k + 1}..{m.k - 1} were never received")
+            try:
+                self._run_step(m)
+            except HostError as exc:
+                # Tell the clock why before leaving, so the run's error names us and the cause.
+                self._ack(k=m.k, t_ns=m.t_ns, error=str(exc))
+                self._flush_acks()
+                raise
+
+    def _republish_last(self) -> None:
+        """Publish again the envelopes of step ``done_k`` (same source and seq)."""
+        slots = {s.name: s for s in self.slots}
+        for name, topic, text in self.last_wires:
+            self._publisher(slots[name], topic).publish(String(data=text))
+        self.republished += len(self.last_wires)
+
+    def _flush_acks(self) -> None:
+        from rclpy.duration import Duration
+
+        try:
+            self.ack_pub.wait_for_all_acked(Duration(seconds=2.0))
+        except Exception:  # noqa: BLE001 - best effort on the way out
+            pass
+
+    def close(self, dds: bool = True) -> None:
+        """Close the checkpoint store and (``dds``) destroy the nodes and the context. A process
+        that exits right after passes ``dds=False`` and leaves with :func:`exit_now` (see there)."""
+        if not dds:
+            if self.ckpt is not None:
+                self.ckpt.close()
+            return
+        try:
+            if self.ckpt is not None:
+                self.ckpt.close()
+            self.executor.shutdown(timeout_sec=1.0)
+            for s in self.slots:
+                s.node.destroy_node()
+            self.host_node.destroy_node()
+        finally:
+            rclpy.try_shutdown(context=self.ctx)
+
+
+def exit_now(code: int) -> None:
+    """End a node process (host or clock) once its files are closed, without destroying its DDS
+    participant. That destruction (rclpy destroy_node of the last node -> rmw destroy_participant
+    -> FastDDS 2.14 ``DomainParticipant::set_listener``) can deadlock when discovery traffic
+    arrives meanwhile, which it does at the end of a run, when every process of the run leaves at
+    once: a FastDDS receive thread waits in ``onReaderDiscovery`` for a mutex while set_listener
+    spins waiting for that listener call to end, forever (gdb stacks of a host and of the clock,
+    under load, about 1 host in 30 runs), with the GIL held, so SIGTERM goes unhandled. The
+    participant only frees memory and tells peers it left; peers of a finished run do not need it
+    (they drop it at lease expiry), so the process skips it: stdout/stderr flushed, ``os._exit``."""
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (OSError, ValueError):
+            pass
+    os._exit(code)
+
+
+def run_host(role: str, participants: Sequence[Participant], **kw) -> int:
+    """Process entry: host ``participants`` until the clock stops the run, then end the process
+    (:func:`exit_now`). Exit code: 0 ok, 1 the host failed (message on stderr naming the
+    participant), 130 interrupted."""
+    # SIGUSR1 writes every thread's Python stack into the log (stderr): the launcher sends it before
+    # it kills a host that ignored SIGTERM.
+    faulthandler.register(signal.SIGUSR1, all_threads=True)
+    host = ParticipantHost(role, participants, **kw)
+    signal.signal(signal.SIGTERM, host.request_stop)
+    signal.signal(signal.SIGINT, host.request_stop)
+    try:
+        rc = host.run()
+    except KeyboardInterrupt:
+        print(f"host {role}: interrupted", file=sys.stderr)
+        rc = 130
+    except (HostError, LockstepError) as exc:
+        print(f"host {role}: error: {exc}", file=sys.stderr)
+        rc = 1
+    except BaseException:
+        host.close()
+        raise
+    host.close(dds=False)
+    exit_now(rc)
+    return rc  # not reached

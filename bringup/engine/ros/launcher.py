@@ -1,0 +1,415 @@
+"""Launcher of the ROS engine: the clock process plus one process per participant group (issue 5).
+
+``launch(spec, out_dir)`` writes the run spec to ``out_dir/run_spec.json`` and starts, each as
+``python -m bringup.cli node --run-spec ... --role R``: the clock (lockstep coordinator and MCAP
+recorder into ``spec.bag_dir``) and one process per role (N satellites, router, ground station;
+what a role hosts comes from the spec's participant factory). Every child gets
+``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST`` (no packet leaves loopback), a run-unique
+``ROS_DOMAIN_ID`` (1..101, held by an fcntl lock file for the whole run so parallel runs on one
+host never share one) and ``FASTRTPS_DEFAULT_PROFILES_FILE`` = bringup/engine/ros/dds/fastdds_profile.xml.
+Progress (sim time, real-time factor, steps/s, bundles in flight in the router) goes to a
+callback. Ctrl-C / SIGTERM: the clock is asked to stop first (it tells the hosts and closes the
+bag, which stays readable), then the hosts; a child that fails is named in the result's message
+and the result is non-zero. A child still running 5 s after SIGTERM gets SIGUSR1 (node processes
+then write their Python stacks into their log) and SIGKILL, and its log says so.
+End of a run: after the clock exits 0 the hosts get 10 s to leave (they take ~0.1 s), then
+SIGTERM. A host that had to be killed then is not a failure of the run (it acked the final step,
+so everything it sent is in the bag and its per-step state is committed); it is listed in the
+result's ``lingered``. Seen under load: about one host in 30 runs hung in FastDDS participant
+destruction during its teardown (blocked in C, so SIGTERM went unhandled), which failed a complete
+run with "process 'sat_12' failed (exit code -9): no message"; node processes now skip that
+destruction (bringup/engine/ros/host.py exit_now), and this rule keeps any other hang at exit from
+failing a complete run.
+Each child's stderr goes to ``out_dir/logs/<role>.log`` (appended across restarts) and its pid to
+``out_dir/logs/<role>.pid``.
+
+Crash and restart (issue 7): when the spec has ``max_restarts > 0`` a host process that dies
+(any exit but 0, e.g. SIGKILL) while the clock runs is started again with the same command, up to
+``max_restarts`` times per role; it resumes from its checkpoint (bringup/engine/ros/host.py) and the clock
+waits for it (``restart_wait_s``). Restarts are counted per role in the result.
+The clock too: with ``restart_wait_s > 0`` and a ``state_dir`` it checkpoints every step
+(bringup/engine/ros/clock_node.py), and when it crashes (killed by a signal we did not send, or an
+unexpected exit code; not its own decisions 0, 2, 3, 130) it is started again, up to
+``max_restarts`` times, with a new progress reader; the hosts wait for it (their idle timeout).
+When the clock crashes once more than ``max_restarts`` allows, the launcher exports its journal
+(``state_dir/clock.sqlite``: every step committed before the crash) into ``bag_dir`` itself, the
+same export a clock does at its end, and the result's message says where that partial bag is.
+Checkpoints of an earlier run in ``state_dir`` (``clock.sqlite``, ``<role>.state.sqlite``) are
+removed when a launch starts, so a new run never resumes an old one.
+
+Multi-host: ``wrap(role, argv, env) -> (argv, env)`` rewrites each child's command and environment,
+e.g. ``ip netns exec NS ...`` with per-host ``ROS_STATIC_PEERS`` (tests/multihost).
+
+Oracle: tests/ros/test_launcher.py (a toy run completes and its bag equals the local engine's
+envelopes; a killed host is named; a host that will not exit after a clean run is killed, named
+in ``lingered`` with its stacks in its log, and the run stands; SIGINT leaves a readable bag; two
+leases never share an id;
+progress carries the router's bundles in flight, equal step by step to the local engine's figure,
+tests/ros/test_progress_in_flight.py); tests/faults/test_restart_clock.py (a clock killed more
+often than allowed leaves a partial bag that equals the local engine's run up to its last step).
+"""
+
+from __future__ import annotations
+
+import fcntl
+import json
+import os
+import random
+import signal
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+from bringup.errors import UserError
+from bringup.engine.ros.run_spec import CLOCK_ROLE, RunSpec
+from bringup.engine.ros.shm_cleanup import remove_unheld
+
+__all__ = [
+    "FASTDDS_PROFILE",
+    "DomainLease",
+    "LaunchProgress",
+    "LaunchResult",
+    "child_env",
+    "launch",
+    "lease_domain_id",
+]
+
+REPO = Path(__file__).resolve().parents[3]
+FASTDDS_PROFILE = Path(__file__).resolve().parent / "dds" / "fastdds_profile.xml"
+_LOCK_DIR = Path(tempfile.gettempdir()) / "agile_dtn_ros_domains"
+
+
+class DomainLease:
+    """A ROS_DOMAIN_ID held by an exclusive fcntl lock until :meth:`release` (or process exit)."""
+
+    def __init__(self, domain_id: int, fd: int):
+        self.domain_id = domain_id
+        self._fd: int | None = fd
+
+    def release(self) -> None:
+        if self._fd is not None:
+            fcntl.flock(self._fd, fcntl.LOCK_UN)
+            os.close(self._fd)
+            self._fd = None
+
+    def __enter__(self) -> DomainLease:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.release()
+
+
+def lease_domain_id(lo: int = 1, hi: int = 101) -> DomainLease:
+    """Lock a free domain id in ``[lo, hi]`` (random start, so parallel runs spread)."""
+    _LOCK_DIR.mkdir(parents=True, exist_ok=True)
+    ids = list(range(lo, hi + 1))
+    start = random.randrange(len(ids))
+    for d in ids[start:] + ids[:start]:
+        fd = os.open(_LOCK_DIR / f"domain_{d}.lock", os.O_CREAT | os.O_RDWR, 0o666)
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            os.close(fd)
+            continue
+        return DomainLease(d, fd)
+    raise UserError(f"no free ROS_DOMAIN_ID in {lo}..{hi} (all locked under {_LOCK_DIR})")
+
+
+def child_env(domain_id: int) -> dict[str, str]:
+    """Environment of every process of a run: loopback discovery, the run's domain, the profile."""
+    env = dict(os.environ)
+    env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+    env["ROS_DOMAIN_ID"] = str(domain_id)
+    env["FASTRTPS_DEFAULT_PROFILES_FILE"] = str(FASTDDS_PROFILE)
+    env["PYTHONPATH"] = os.pathsep.join(p for p in (str(REPO), env.get("PYTHONPATH", "")) if p)
+    env["PYTHONUNBUFFERED"] = "1"
+    return env
+
+
+@dataclass(frozen=True)
+class LaunchProgress:
+    t_ns: int
+    horizon_ns: int
+    steps: int
+    wall_s: float
+    # bundle copies in flight in the DTN router after step t_ns (None: the run has no router)
+    in_flight: int | None = None
+
+    @property
+    def real_time_factor(self) -> float:
+        return self.t_ns / 1e9 / self.wall_s if self.wall_s > 0 else 0.0
+
+    @property
+    def steps_per_s(self) -> float:
+        return self.steps / self.wall_s if self.wall_s > 0 else 0.0
+
+
+@dataclass
+class LaunchResult:
+    returncode: int
+    message: str
+    domain_id: int
+    out_dir: Path
+    last: LaunchProgress | None
+    failed_roles: list[str]
+    restarts: dict[str, int] = None  # type: ignore[assignment]
+    # hosts that did not exit after a run the clock completed and were killed (the run stands)
+    lingered: list[str] = None  # type: ignore[assignment]
+
+    def __post_init__(self) -> None:
+        if self.restarts is None:
+            self.restarts = {}
+        if self.lingered is None:
+            self.lingered = []
+
+    @property
+    def ok(self) -> bool:
+        return self.returncode == 0
+
+
+class _Child:
+    def __init__(self, role: str, proc: subprocess.Popen, log: Path):
+        self.role, self.proc, self.log = role, proc, log
+
+    def last_error(self) -> str:
+        try:
+            lines = [ln for ln in self.log.read_text(errors="replace").splitlines() if ln.strip()]
+        except OSError:
+            return ""
+        errs = [ln for ln in lines if "error" in ln.lower() or "Error" in ln]
+        return (errs or lines or [""])[-1].strip()
+
+
+def _terminate(children: list[_Child], timeout_s: float) -> list[str]:
+    """SIGTERM every live child; one still running ``timeout_s`` later is killed (SIGKILL), after
+    a SIGUSR1 that makes a node process (bringup/cli/node.py via ros_host / clock_node:
+    faulthandler) write its Python stacks into its log. Returns the roles that had to be killed;
+    each log says so."""
+    for c in children:
+        if c.proc.poll() is None:
+            c.proc.send_signal(signal.SIGTERM)
+    deadline = time.monotonic() + timeout_s
+    killed: list[str] = []
+    for c in children:
+        try:
+            c.proc.wait(timeout=max(0.0, deadline - time.monotonic()))
+        except subprocess.TimeoutExpired:
+            with open(c.log, "a") as fh:
+                fh.write(f"launcher: {c.role} still running {timeout_s:g} s after SIGTERM; its stacks, then SIGKILL\n")
+            c.proc.send_signal(signal.SIGUSR1)
+            try:
+                c.proc.wait(timeout=1.0)
+            except subprocess.TimeoutExpired:
+                pass
+            c.proc.kill()
+            c.proc.wait()
+            killed.append(c.role)
+    return killed
+
+
+def _signame(sig: int) -> str:
+    try:
+        return signal.Signals(sig).name
+    except ValueError:
+        return f"signal {sig}"
+
+
+# Wall seconds hosts get to exit after the clock ended the run (they normally take ~0.1 s).
+_HOST_EXIT_GRACE_S = 10.0
+
+# Clock exit codes that are its own decision (ok, user error, a host failed, interrupted): never restarted.
+_CLOCK_DECIDED = (0, 2, 3, 130)
+
+
+def _partial_bag(spec: RunSpec) -> str:
+    """The clock crashed for good: export what its journal committed (every step before the one it
+    died in; bringup/recording/bag.py BagJournal, the same export a restarted clock ends with) into
+    ``spec.bag_dir``. Returns the clause for the run's one-line error."""
+    import pickle
+
+    from bringup.recording.bag import BagJournal
+
+    path = Path(spec.state_dir) / "clock.sqlite"  # type: ignore[arg-type]
+    if not path.exists():
+        return "no bag: the clock recorded nothing"
+    try:
+        j = BagJournal(path)
+        try:
+            row = j.load()
+            state = pickle.loads(row[1]) if row is not None else {}
+            n = j.export(spec.bag_dir, custom={"engine": "ros", "roles": ",".join(spec.roles),  # type: ignore[arg-type]
+                                               "partial": "clock crashed; exported from its journal by the launcher"})
+        finally:
+            j.close()
+    except Exception as exc:  # noqa: BLE001 - the run has failed already; say why there is no bag
+        return f"no bag: exporting the clock's journal {path} failed: {type(exc).__name__}: {exc}"
+    # the checkpoint of step k holds every step before it (k's own messages were rolled back)
+    upto = f"steps before t = {state['t_ns'] / 1e9:g} s, " if "t_ns" in state else ""
+    return f"partial bag ({upto}{n} messages) in {spec.bag_dir}"
+
+
+def _clear_checkpoints(state_dir: Path, roles: list[str]) -> None:
+    names = ["clock.sqlite", *(f"{r}.state.sqlite" for r in roles)]
+    for name in names:
+        for suffix in ("", "-wal", "-shm"):
+            (state_dir / (name + suffix)).unlink(missing_ok=True)
+
+
+Wrap = Callable[[str, list[str], dict[str, str]], tuple[list[str], dict[str, str]]]
+
+
+def launch(spec: RunSpec, out_dir: Path, *, progress: Callable[[LaunchProgress], None] | None = None,
+           domain_id: int | None = None, python: str = sys.executable, wrap: Wrap | None = None) -> LaunchResult:
+    """Run the whole ROS-engine run described by ``spec``; returns when every child has exited."""
+    spec.check()
+    out_dir = Path(out_dir)
+    (out_dir / "logs").mkdir(parents=True, exist_ok=True)
+    spec_path = out_dir / "run_spec.json"
+    spec.to_file(spec_path)
+    if spec.state_dir:
+        _clear_checkpoints(Path(spec.state_dir), [CLOCK_ROLE, *spec.roles])
+    # FastDDS shared-memory files that no live process holds are leftovers of killed processes; a port
+    # file a process was killed while creating stays empty, and the next participant to pick its port
+    # number waits on it forever ("hosts not up"): remove them, whole groups only (shm_cleanup.py)
+    remove_unheld()
+    lease = lease_domain_id() if domain_id is None else None
+    dom = lease.domain_id if lease else int(domain_id)  # type: ignore[arg-type]
+    env = child_env(dom)
+    last: list[LaunchProgress | None] = [None]
+    children: list[_Child] = []
+
+    restarts: dict[str, int] = {}
+    lingered: list[str] = []
+
+    def start(role: str, **kw) -> _Child:
+        log = out_dir / "logs" / f"{role}.log"
+        fh = open(log, "ab")
+        argv = [python, "-m", "bringup.cli", "node", "--run-spec", str(spec_path), "--role", role]
+        cenv = dict(env)
+        if wrap is not None:
+            argv, cenv = wrap(role, argv, cenv)
+        proc = subprocess.Popen(argv, env=cenv, cwd=str(REPO), stderr=fh, stdin=subprocess.DEVNULL, **kw)
+        fh.close()
+        (out_dir / "logs" / f"{role}.pid").write_text(f"{proc.pid}\n")
+        return _Child(role, proc, log)
+
+    def read_progress(stream) -> None:
+        for line in stream:
+            try:
+                rec = json.loads(line)
+            except ValueError:
+                continue
+            body = rec.get("progress") or rec.get("done")
+            if not isinstance(body, dict):
+                continue
+            fl = body.get("in_flight")
+            p = LaunchProgress(int(body["t_ns"]), int(body["horizon_ns"]), int(body["steps"]), float(body["wall_s"]),
+                               None if fl is None else int(fl))
+            last[0] = p
+            if progress is not None:
+                progress(p)
+
+    old_term = None
+    if threading.current_thread() is threading.main_thread():
+        def _on_term(*_a):
+            raise KeyboardInterrupt
+        old_term = signal.signal(signal.SIGTERM, _on_term)
+    try:
+        clock = start(CLOCK_ROLE, stdout=subprocess.PIPE, text=True)
+        reader = threading.Thread(target=read_progress, args=(clock.proc.stdout,), daemon=True)
+        reader.start()
+        clock_restartable = spec.max_restarts > 0 and spec.restart_wait_s > 0 and bool(spec.state_dir)
+        hosts = [start(r, stdout=subprocess.DEVNULL) for r in spec.roles]
+        children = [clock, *hosts]
+        failed: list[str] = []
+        message = ""
+        rc = 0
+        try:
+            while True:
+                crc = clock.proc.poll()
+                dead = [h for h in hosts if h.proc.poll() not in (None, 0)]
+                if dead and crc is None and spec.max_restarts > 0:
+                    for h in [h for h in dead if restarts.get(h.role, 0) < spec.max_restarts]:
+                        restarts[h.role] = restarts.get(h.role, 0) + 1
+                        with open(h.log, "a") as fh:
+                            fh.write(f"launcher: {h.role} exited with code {h.proc.returncode}; "
+                                     f"restart {restarts[h.role]} of {spec.max_restarts}\n")
+                        remove_unheld()  # what the dead process left unheld (an empty port if it died starting)
+                        new = start(h.role, stdout=subprocess.DEVNULL)
+                        hosts[hosts.index(h)] = new
+                        children[children.index(h)] = new
+                    dead = [h for h in hosts if h.proc.poll() not in (None, 0)]
+                if dead and crc is None:
+                    failed = [h.role for h in dead]
+                    message = "; ".join(
+                        f"process '{h.role}' failed (exit code {h.proc.returncode}): {h.last_error() or 'no message'}"
+                        for h in dead)
+                    rc = 1
+                    _terminate([clock], 10.0)
+                    _terminate(hosts, 5.0)
+                    break
+                if (crc is not None and crc not in _CLOCK_DECIDED and clock_restartable
+                        and restarts.get(CLOCK_ROLE, 0) < spec.max_restarts):
+                    restarts[CLOCK_ROLE] = restarts.get(CLOCK_ROLE, 0) + 1
+                    with open(clock.log, "a") as fh:
+                        fh.write(f"launcher: {CLOCK_ROLE} exited with code {crc}; "
+                                 f"restart {restarts[CLOCK_ROLE]} of {spec.max_restarts}\n")
+                    reader.join(timeout=2.0)
+                    remove_unheld()
+                    new = start(CLOCK_ROLE, stdout=subprocess.PIPE, text=True)
+                    children[children.index(clock)] = new
+                    clock = new
+                    reader = threading.Thread(target=read_progress, args=(clock.proc.stdout,), daemon=True)
+                    reader.start()
+                    continue
+                if crc is not None:
+                    crashed = crc not in _CLOCK_DECIDED and clock_restartable
+                    if crc != 0:
+                        rc = crc
+                        failed = [CLOCK_ROLE] + [h.role for h in hosts if h.proc.poll() not in (None, 0)]
+                        message = clock.last_error() or f"clock exited with code {crc}"
+                        if crashed:
+                            how = f"killed by {_signame(-crc)}" if crc < 0 else f"exited with code {crc}"
+                            message = (f"clock {how} and was restarted {restarts.get(CLOCK_ROLE, 0)} of "
+                                       f"{spec.max_restarts} times")
+                    # hosts leave on the clock's stop message; give them a moment, then insist
+                    deadline = time.monotonic() + _HOST_EXIT_GRACE_S
+                    while time.monotonic() < deadline and any(h.proc.poll() is None for h in hosts):
+                        time.sleep(0.05)
+                    stuck = _terminate(hosts, 5.0)
+                    # After a clean end (clock exit 0) every host has acked the final step, so its
+                    # envelopes are in the bag and its per-step state is committed: a host killed
+                    # here only failed to leave (seen: stuck in rclpy destroy_node, SIGTERM
+                    # unhandled). Its log says so and the result carries it, but the run stands.
+                    bad = [h for h in hosts if h.role not in stuck
+                           and h.proc.returncode not in (0, -signal.SIGTERM, 130)]
+                    if crc == 0:
+                        lingered = [f"process '{h.role}' did not exit within {_HOST_EXIT_GRACE_S:g} s of the "
+                                    f"end of the run (nor 5 s after SIGTERM) and was killed; see its log {h.log}"
+                                    for h in hosts if h.role in stuck]
+                    if crc == 0 and bad:
+                        rc = 1
+                        failed = [h.role for h in bad]
+                        message = "; ".join(f"process '{h.role}' failed (exit code {h.proc.returncode}): "
+                                            f"{h.last_error() or 'no message'}" for h in bad)
+                    if crashed and spec.bag_dir:
+                        message += "; " + _partial_bag(spec)
+                    break
+                time.sleep(0.05)
+        except KeyboardInterrupt:
+            _terminate([clock], 15.0)
+            _terminate(hosts, 5.0)
+            rc, message, failed = 130, "interrupted: every process stopped, bag closed", []
+        reader.join(timeout=2.0)
+        return LaunchResult(rc, message, dom, out_dir, last[0], failed, restarts, lingered)
+    finally:
+        _terminate(children, 5.0)
+        if old_term is not None:
+            signal.signal(signal.SIGTERM, old_term)
+        if lease is not None:
+            lease.release()

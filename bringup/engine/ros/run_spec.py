@@ -1,0 +1,116 @@
+"""Run spec: the JSON file every process of a ROS-engine run is started with.
+
+``constellation node --run-spec FILE --role ROLE`` reads it (bringup/cli/node.py); the launcher
+(bringup/engine/ros/launcher.py) writes it. It names the scenario (path or name, with overrides), mode, seed,
+the roles (one OS process each, besides the ``clock`` role) and a participant factory as a dotted
+path ``"module:function"``; ``function(spec, role) -> list[Participant]`` returns the participants
+one role hosts, so tests can plug in toy participants.
+
+Oracle: round trip (write -> read is identity) and one-line errors on bad files
+(tests/ros/test_launcher.py).
+"""
+
+from __future__ import annotations
+
+import importlib
+from pathlib import Path
+from typing import Any
+
+import msgspec
+
+from bringup.errors import UserError
+
+__all__ = ["CLOCK_ROLE", "RunSpec", "load_factory"]
+
+CLOCK_ROLE = "clock"
+
+
+class RunSpec(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
+    factory: str
+    roles: list[str]
+    scenario: str | None = None
+    overrides: dict[str, Any] = {}
+    mode: str = "distributed"
+    seed: int | None = None
+    # Explicit lockstep bounds; None = from the scenario (horizon, lockstep_max_step_s).
+    horizon_ns: int | None = None
+    max_step_ns: int | None = None
+    t0_ns: int = 0
+    # Pacing: None = as fast as possible, else sim seconds per wall second.
+    real_time_factor: float | None = None
+    # A host that does not ack a step within this wall time is reported by name.
+    ack_timeout_s: float = 10.0
+    startup_timeout_s: float = 60.0
+    # Crash/restart (issue 7): > 0 = the clock waits this long (wall s) for a silent host to come
+    # back, the launcher restarts a host that died (at most max_restarts times per role), and hosts
+    # checkpoint every step into state_dir (or their participant's own store).
+    restart_wait_s: float = 0.0
+    max_restarts: int = 0
+    state_dir: str | None = None
+    bag_dir: str | None = None
+    progress_period_s: float = 0.5
+    extra: dict[str, Any] = {}
+
+    def to_file(self, path: Path) -> None:
+        path.write_bytes(msgspec.json.format(msgspec.json.encode(self), indent=2))
+
+    @classmethod
+    def from_file(cls, path: Path) -> RunSpec:
+        try:
+            spec = msgspec.json.decode(Path(path).read_bytes(), type=cls)
+        except FileNotFoundError:
+            raise UserError(f"run spec {path}: no such file") from None
+        except (msgspec.DecodeError, msgspec.ValidationError) as exc:
+            raise UserError(f"run spec {path}: {exc}") from None
+        spec.check(str(path))
+        return spec
+
+    def check(self, where: str = "run spec") -> None:
+        if not self.roles:
+            raise UserError(f"{where}: 'roles' is empty")
+        if CLOCK_ROLE in self.roles or len(set(self.roles)) != len(self.roles):
+            raise UserError(f"{where}: 'roles' must be unique and must not contain '{CLOCK_ROLE}'")
+        if ":" not in self.factory:
+            raise UserError(f"{where}: 'factory' must be 'module:function', got {self.factory!r}")
+        if self.restart_wait_s < 0 or self.max_restarts < 0:
+            raise UserError(f"{where}: 'restart_wait_s' and 'max_restarts' must be >= 0")
+        if self.real_time_factor is not None and self.real_time_factor <= 0:
+            raise UserError(f"{where}: 'real_time_factor' must be > 0")
+
+    def load_scenario(self):
+        """The scenario with overrides (None when the spec names none, e.g. toy runs)."""
+        if self.scenario is None:
+            return None
+        from bringup.scenario.config import load_scenario
+
+        sc = load_scenario(self.scenario)
+        ov = {k: self.overrides.get(k) for k in ("sats", "hours", "seed")}
+        if self.seed is not None:
+            ov["seed"] = self.seed
+        if any(v is not None for v in ov.values()):
+            sc = sc.with_overrides(**ov)
+        return sc
+
+    def bounds_ns(self) -> tuple[int, int]:
+        """(horizon_ns, max_step_ns): explicit values, else the scenario's."""
+        horizon, max_step = self.horizon_ns, self.max_step_ns
+        if horizon is None or max_step is None:
+            sc = self.load_scenario()
+            if sc is None:
+                raise UserError("run spec: give horizon_ns and max_step_ns, or a scenario")
+            horizon = sc.horizon_ns if horizon is None else horizon
+            max_step = int(round(sc.scenario.lockstep_max_step_s * 1e9)) if max_step is None else max_step
+        return int(horizon), int(max_step)
+
+
+def load_factory(dotted: str):
+    """Import ``"module:function"``; one-line UserError when it is not there."""
+    mod_name, _, fn_name = dotted.partition(":")
+    try:
+        mod = importlib.import_module(mod_name)
+    except ImportError as exc:
+        raise UserError(f"participant factory {dotted!r}: cannot import {mod_name}: {exc}") from None
+    fn = getattr(mod, fn_name, None)
+    if not callable(fn):
+        raise UserError(f"participant factory {dotted!r}: {mod_name} has no function {fn_name}")
+    return fn

@@ -1,0 +1,304 @@
+"""Scenario files: TOML with units in every key, validated on load (DESIGN.md section 1).
+
+A scenario is named (``paper`` -> ``bringup/scenario/toml/paper.toml``) or given as a path. Loading
+validates every field with msgspec (types, ranges, unknown keys) and cross-field rules below; any
+problem raises :class:`ScenarioError` with one line naming the file, the key and what is wrong.
+
+Oracle: ``tests/unit/test_scenario.py`` breaks every field of paper.toml in turn and expects one
+ScenarioError naming that key.
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+import tomllib
+from pathlib import Path
+from typing import Annotated, List, Literal
+
+import msgspec
+
+__all__ = [
+    "ScenarioError",
+    "Scenario",
+    "load_scenario",
+    "scenario_path",
+    "SCENARIO_DIR",
+    "sat_names",
+]
+
+SCENARIO_DIR = Path(__file__).resolve().parent / "toml"
+
+Pos = Annotated[float, msgspec.Meta(gt=0)]
+NonNeg = Annotated[float, msgspec.Meta(ge=0)]
+Lat = Annotated[float, msgspec.Meta(ge=-90, le=90)]
+Lon = Annotated[float, msgspec.Meta(ge=-180, le=180)]
+Frac = Annotated[float, msgspec.Meta(ge=0, le=1)]
+Name = Annotated[str, msgspec.Meta(min_length=1)]
+
+
+class ScenarioError(ValueError):
+    """A scenario file that cannot be used; the message is one line naming file and key."""
+
+
+class _S(msgspec.Struct, forbid_unknown_fields=True, frozen=True, kw_only=True):
+    pass
+
+
+class ScenarioMeta(_S, kw_only=True):
+    name: Name
+    epoch_utc: str
+    horizon_s: Pos
+    seed: Annotated[int, msgspec.Meta(ge=0)] = 1
+    lockstep_max_step_s: Pos = 10.0
+
+
+class ConstellationCfg(_S, kw_only=True):
+    pattern: Literal["star", "delta"] = "star"
+    total_sats: Annotated[int, msgspec.Meta(ge=1, le=99)]
+    planes: Annotated[int, msgspec.Meta(ge=1, le=9)]
+    phasing_f: Annotated[int, msgspec.Meta(ge=0)] = 1
+    altitude_km: Annotated[float, msgspec.Meta(gt=150, lt=40000)]
+    inclination_deg: Annotated[float, msgspec.Meta(ge=0, le=180)]
+    raan0_deg: Annotated[float, msgspec.Meta(ge=0, lt=360)] = 0.0
+
+    @property
+    def sats_per_plane(self) -> int:
+        return self.total_sats // self.planes
+
+
+class InstrumentCfg(_S, kw_only=True):
+    footprint_km: Pos = 8.0
+    for_off_nadir_deg: Annotated[float, msgspec.Meta(gt=0, lt=90)] = 55.0
+
+
+class AcsCfg(_S, kw_only=True):
+    slew_coeffs_s: Annotated[list[float], msgspec.Meta(min_length=1, max_length=8)]
+    slew_margin_s: NonNeg = 0.0
+
+
+class Region(_S, kw_only=True):
+    name: Name
+    lat_deg: Lat
+    lon_deg: Lon
+    size_km: Annotated[float, msgspec.Meta(gt=0, le=2000)]
+
+
+class RegionsCfg(_S, kw_only=True):
+    gp_spacing_km: NonNeg = 0.0
+    list: Annotated[List[Region], msgspec.Meta(min_length=1)]
+
+
+class ValueCfg(_S, kw_only=True):
+    osse_source: Literal["synthetic", "file"] = "synthetic"
+    osse_file: str = ""
+    slot_s: Pos = 900.0
+    revisit_zero_s: NonNeg = 900.0
+    belief_sigma_min: Frac = 0.02
+    belief_sigma_max: Frac = 0.08
+
+
+class SchedulerCfg(_S, kw_only=True):
+    replan_period_s: Pos = 600.0
+    dp_step_s: Pos = 1.0
+    plan_lookahead_s: Pos = 600.0
+
+
+class IslCfg(_S, kw_only=True):
+    rate_bps: Pos = 1000.0
+    bundle_bits: Annotated[int, msgspec.Meta(gt=0)] = 2000
+    grazing_height_km: NonNeg = 80.0
+    max_range_km: Pos = 6000.0
+    ttl_p1_s: Pos = 900.0
+    ttl_p2_3_s: Pos = 1800.0
+    ttl_p4_15_s: Pos = 3000.0
+    send_order: Literal["priority", "deadline"] = "priority"
+    hop_tolerance_s: NonNeg = 0.0
+
+    def ttl_s(self, priority: int) -> float:
+        """Bundle lifetime [s] for a priority 1..15 (DESIGN.md section 1)."""
+        if priority <= 1:
+            return self.ttl_p1_s
+        if priority <= 3:
+            return self.ttl_p2_3_s
+        return self.ttl_p4_15_s
+
+
+class Station(_S, kw_only=True):
+    name: Name
+    lat_deg: Lat
+    lon_deg: Lon
+    alt_m: float = 0.0
+
+
+class GroundCfg(_S, kw_only=True):
+    min_elevation_deg: Annotated[float, msgspec.Meta(ge=0, lt=90)] = 10.0
+    rate_bps: Pos = 1.0e6
+    stations: list[Station] = []
+
+
+class Scenario(_S, kw_only=True):
+    scenario: ScenarioMeta
+    constellation: ConstellationCfg
+    instrument: InstrumentCfg = InstrumentCfg()
+    acs: AcsCfg
+    regions: RegionsCfg
+    value: ValueCfg = ValueCfg()
+    scheduler: SchedulerCfg = SchedulerCfg()
+    isl: IslCfg = IslCfg()
+    ground: GroundCfg = GroundCfg()
+    # Where the file was loaded from (set by load_scenario; not a TOML key).
+    source_path: str = ""
+
+    # ---- derived, read-only helpers -------------------------------------------------------
+    @property
+    def name(self) -> str:
+        return self.scenario.name
+
+    @property
+    def epoch(self) -> _dt.datetime:
+        return _parse_epoch(self.scenario.epoch_utc)
+
+    @property
+    def horizon_ns(self) -> int:
+        return int(round(self.scenario.horizon_s * 1e9))
+
+    @property
+    def gp_spacing_km(self) -> float:
+        return self.regions.gp_spacing_km or self.instrument.footprint_km
+
+    @property
+    def sat_names(self) -> list[str]:
+        return sat_names(self.constellation.planes, self.constellation.sats_per_plane)
+
+    def with_overrides(self, *, sats: int | None = None, hours: float | None = None,
+                       seed: int | None = None) -> "Scenario":
+        """A copy with the CLI overrides applied (``--sats``, ``--hours``, ``--seed``).
+
+        ``sats`` keeps the number of planes when it divides evenly, else uses one plane per
+        ``ceil(sats / sats_per_plane)``; the result is validated like a file.
+        """
+        raw = msgspec.to_builtins(self)
+        raw.pop("source_path", None)
+        if sats is not None:
+            c = raw["constellation"]
+            planes = c["planes"]
+            if sats % planes != 0:
+                planes = max(1, min(planes, sats))
+                while sats % planes:
+                    planes -= 1
+            c["total_sats"], c["planes"] = sats, planes
+        if hours is not None:
+            raw["scenario"]["horizon_s"] = float(hours) * 3600.0
+        if seed is not None:
+            raw["scenario"]["seed"] = int(seed)
+        return _validate(raw, self.source_path or "<overrides>")
+
+
+def sat_names(planes: int, per_plane: int) -> list[str]:
+    """Satellite names ``sat_PS`` (plane P 1.., slot S 1..), as the study's Sat11..Sat38."""
+    return [f"sat_{p}{s}" for p in range(1, planes + 1) for s in range(1, per_plane + 1)]
+
+
+def scenario_path(name_or_path: str | Path) -> Path:
+    """Resolve a scenario name (``paper``) or a path to a TOML file."""
+    p = Path(name_or_path)
+    if p.suffix == ".toml" or p.exists():
+        return p
+    cand = SCENARIO_DIR / f"{name_or_path}.toml"
+    if cand.exists():
+        return cand
+    known = ", ".join(sorted(q.stem for q in SCENARIO_DIR.glob("*.toml")))
+    raise ScenarioError(f"scenario '{name_or_path}': no such file or built-in scenario (built-in: {known})")
+
+
+def load_scenario(name_or_path: str | Path) -> Scenario:
+    """Load and validate a scenario; raises ScenarioError with a one-line message."""
+    path = scenario_path(name_or_path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except OSError as exc:
+        raise ScenarioError(f"{path}: cannot read: {exc.strerror or exc}") from None
+    try:
+        raw = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise ScenarioError(f"{path}: not valid TOML: {exc}") from None
+    return _validate(raw, str(path))
+
+
+def _parse_epoch(s: str) -> _dt.datetime:
+    if not s.endswith("Z"):
+        raise ValueError("must be UTC ISO 8601 ending in 'Z', e.g. 2000-01-01T11:59:28Z")
+    t = _dt.datetime.fromisoformat(s[:-1])
+    return t.replace(tzinfo=_dt.timezone.utc)
+
+
+def _key_of(path: str) -> str:
+    """msgspec '$.isl.rate_bps' / '$.regions.list[2].lat_deg' -> 'isl.rate_bps' etc."""
+    return path[2:] if path.startswith("$.") else path.lstrip("$") or "<top level>"
+
+
+_MISSING = object()
+
+
+def _lookup(raw: dict, key: str):
+    """Value at a dotted key with [i] indices, or _MISSING."""
+    cur = raw
+    for part in key.replace("[", ".[").split("."):
+        if not part:
+            continue
+        try:
+            cur = cur[int(part[1:-1])] if part.startswith("[") else cur[part]
+        except (KeyError, IndexError, TypeError, ValueError):
+            return _MISSING
+    return cur
+
+
+def _validate(raw: dict, where: str) -> Scenario:
+    try:
+        sc = msgspec.convert(raw, Scenario, strict=True)
+    except msgspec.ValidationError as exc:
+        msg = str(exc)
+        if " - at `" in msg:
+            what, at = msg.rsplit(" - at `", 1)
+            key = _key_of(at.rstrip("`"))
+            got = _lookup(raw, key)
+            got_s = "" if got is _MISSING or "unknown field" in what else f" (got {got!r})"
+            raise ScenarioError(f"{where}: key '{key}': {what}{got_s}") from None
+        if msg.startswith("Object missing required field"):
+            raise ScenarioError(f"{where}: {msg}") from None
+        raise ScenarioError(f"{where}: {msg}") from None
+    _cross_checks(sc, where)
+    return msgspec.structs.replace(sc, source_path=where)
+
+
+def _cross_checks(sc: Scenario, where: str) -> None:
+    def bad(key: str, why: str) -> None:
+        raise ScenarioError(f"{where}: key '{key}': {why}")
+
+    try:
+        _parse_epoch(sc.scenario.epoch_utc)
+    except ValueError as exc:
+        bad("scenario.epoch_utc", f"{exc} (got {sc.scenario.epoch_utc!r})")
+    c = sc.constellation
+    if c.total_sats % c.planes:
+        bad("constellation.total_sats", f"{c.total_sats} satellites do not split evenly into {c.planes} planes")
+    if c.sats_per_plane > 9:
+        bad("constellation.total_sats", f"at most 9 satellites per plane (names sat_PS), got {c.sats_per_plane}")
+    if c.phasing_f >= c.planes and c.planes > 1:
+        bad("constellation.phasing_f", f"must be in 0..P-1 = 0..{c.planes - 1}, got {c.phasing_f}")
+    v = sc.value
+    if v.belief_sigma_min > v.belief_sigma_max:
+        bad("value.belief_sigma_min", f"{v.belief_sigma_min} is above belief_sigma_max {v.belief_sigma_max}")
+    if v.osse_source == "file" and not v.osse_file:
+        bad("value.osse_file", "osse_source is 'file' but no osse_file is given")
+    if sc.scheduler.dp_step_s > sc.scheduler.replan_period_s:
+        bad("scheduler.dp_step_s", "is longer than scheduler.replan_period_s")
+    i = sc.isl
+    if not (i.ttl_p1_s <= i.ttl_p2_3_s <= i.ttl_p4_15_s):
+        bad("isl.ttl_p1_s", "TTLs must not shrink with priority number (p1 <= p2_3 <= p4_15)")
+    names = [r.name for r in sc.regions.list]
+    if len(set(names)) != len(names):
+        bad("regions.list", f"region names repeat: {names}")
+    gs = [s.name for s in sc.ground.stations]
+    if len(set(gs)) != len(gs):
+        bad("ground.stations", f"station names repeat: {gs}")

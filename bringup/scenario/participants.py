@@ -1,0 +1,93 @@
+"""Which participants a run has, and which process (role) hosts each (DESIGN.md section 2).
+
+Roles: one per satellite (``sat_PS``, one OS process each under the ROS engine), ``router`` (the
+ISL medium; distributed mode only) and ``ground`` (the ground segment; centralized mode only).
+``build(spec, role)`` is the run-spec participant factory the ROS engine's processes call;
+``all_participants(world, mode)`` gives the same participants, in the same order, for the local
+engine. Both build the satellites from the same World pickle, so every process sees identical
+inputs.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from bringup.errors import UserError
+from bringup.engine.ros.run_spec import RunSpec
+from bringup.scenario.world import World
+
+__all__ = ["FACTORY", "roles_for", "build", "all_participants", "MODES"]
+
+FACTORY = "bringup.scenario.participants:build"
+MODES = ("distributed", "centralized", "nonagile")
+ROUTER_ROLE = "router"
+GROUND_ROLE = "ground"
+
+
+def roles_for(world_or_sats, mode: str) -> list[str]:
+    sats = list(world_or_sats.sat_names) if hasattr(world_or_sats, "sat_names") else list(world_or_sats)
+    if mode not in MODES:
+        raise UserError(f"--mode {mode!r}: expected one of {', '.join(MODES)}")
+    roles = list(sats)
+    if mode == "distributed":
+        roles.append(ROUTER_ROLE)
+    if mode == "centralized":
+        roles.append(GROUND_ROLE)
+    return roles
+
+
+def _make(world: World, role: str, mode: str, *, store_dir: Path | None, router_kw: dict | None):
+    from dtn_router.router import RouterLogic
+    from ground_station.ground_segment import GroundLogic
+    from sat_node.satellite import SatelliteLogic
+
+    if role == ROUTER_ROLE:
+        return RouterLogic(world, **(router_kw or {}))
+    if role == GROUND_ROLE:
+        return GroundLogic(world)
+    if role in world.sat_names:
+        store = str(store_path(store_dir, role)) if store_dir is not None and mode == "distributed" else None
+        return SatelliteLogic(world, role, mode, store_path=store)
+    raise UserError(f"role {role!r}: not a satellite of the scenario, nor '{ROUTER_ROLE}'/'{GROUND_ROLE}'")
+
+
+def store_path(store_dir: Path, sat: str) -> Path:
+    """The bundle store file of satellite ``sat`` in a run's store folder."""
+    return Path(store_dir) / f"{sat}.sqlite"
+
+
+def create_stores(store_dir: Path, sats: list[str]):
+    """Start creating the satellites' empty bundle stores (SQLite files in WAL mode) in worker
+    threads; returns ``wait()``, which returns when they are all made (their worker threads ended)
+    and raises the first failure. Making one takes ~25 ms, nearly all of it waiting for the disk (the
+    WAL switch syncs the file), so the local run starts them before it builds the world and they
+    overlap with it; the satellites then open files that are ready (sat_node/dtn/store.py)."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    from sat_node.dtn.store import BundleStore
+
+    ex = ThreadPoolExecutor(max_workers=8, thread_name_prefix="store")
+    futs = [ex.submit(lambda p: BundleStore(p).close(), store_path(store_dir, s)) for s in sats]
+
+    def wait() -> None:
+        ex.shutdown(wait=True)
+        for f in futs:
+            f.result()
+
+    return wait
+
+
+def all_participants(world: World, mode: str, *, store_dir: Path | None = None,
+                     router_kw: dict | None = None) -> list:
+    return [_make(world, r, mode, store_dir=store_dir, router_kw=router_kw) for r in roles_for(world, mode)]
+
+
+def build(spec: RunSpec, role: str) -> list:
+    """Run-spec factory: the participants ``role`` hosts (one each)."""
+    path = spec.extra.get("world")
+    if not path:
+        raise UserError("run spec: extra.world (path of the world pickle) is missing")
+    world = World.load(Path(path), spec.extra.get("world_key"))
+    store_dir = spec.extra.get("store_dir")
+    return [_make(world, role, spec.mode, store_dir=Path(store_dir) if store_dir else None,
+                  router_kw=spec.extra.get("router"))]

@@ -1,0 +1,138 @@
+"""The ground segment of the centralized mode as a lockstep participant (Nag et al., section 5).
+
+The ground station learns what the satellites observed only when they downlink at a pass over a
+ground station (``/ground/downlink``), and commands them only at a pass (``/ground/uplink``). At
+each downlink it schedules that satellite with the same DP as onboard
+(sat_node/scheduler) from what the ground knows: every downlinked observation, plus the plans it
+uplinked to the other satellites, all treated as commitments that outrank the satellite being
+planned (so two satellites are not sent to the same GP within 15 min, whatever their rank: the
+onboard rank rule, where a lower-ranked satellite yields, does not hold here because that satellite
+cannot be told until its own next pass), and uplinks the
+plan covering the time until that satellite's next pass (plus one replan period of overlap). At
+the start it uplinks a first plan to every satellite (as commanded before the run).
+
+Value knowledge: the OSSE field as the ground knows it at planning time (persistence), through the
+ground's own seeded belief noise - the same model as onboard, with a much older cut-off.
+
+Oracle: the centralized system run: every executed observation of a satellite belongs to the last
+plan it received; no GP is planned for two satellites within 15 min by the ground.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from msgs_json import codec, schemas as S, topics as T
+from msgs_json.envelope import Emit, Envelope, StepResult
+from sat_node.value import Belief, KnownObservation
+
+__all__ = ["GroundLogic", "GROUND_NAME"]
+
+GROUND_NAME = "ground_station"
+# Source of the uplinked plans of other satellites when the ground plans one satellite: sorts before
+# every satellite name, so the rank rule of sat_node.value.prior_state makes them outrank everyone.
+COMMITTED = ""
+_NS = 1_000_000_000
+
+
+class GroundLogic:
+    name = GROUND_NAME
+
+    def __init__(self, world):
+        self.world = world
+        sc = world.scenario
+        self.sc = sc
+        self.sats = list(world.sat_names)
+        self.belief = Belief.from_scenario(sc, GROUND_NAME, world.n_gp, world.osse.n_slots)
+        self.downlinked: list[KnownObservation] = []
+        self.planned: dict[str, list[KnownObservation]] = {s: [] for s in self.sats}
+        self.version = 0
+        self.scheduler_cpu_s = 0.0
+        self.rejected = 0
+        passes: dict[str, list[tuple[int, int, str]]] = {s: [] for s in self.sats}
+        for c in world.ground_plan.contacts:
+            if c.src in passes:
+                passes[c.src].append((int(round(c.start_s * _NS)), int(round(c.end_s * _NS)), c.dst))
+        self.passes = {s: sorted(v) for s, v in passes.items()}
+        self.margin_ns = int(round(sc.scheduler.replan_period_s * _NS))
+
+    def subscriptions(self) -> list[str]:
+        return [T.GROUND_DOWNLINK]
+
+    def start(self, t0_ns: int) -> StepResult:
+        emits = []
+        for sat in self.sats:
+            station = self.world.station_nodes[0] if self.world.station_nodes else "gs_ground"
+            emits.append(self._plan_and_uplink(sat, t0_ns, station))
+        return StepResult(emits, None)
+
+    def step(self, t_ns: int, inbox: list[Envelope]) -> StepResult:
+        emits = []
+        for env in inbox:
+            try:
+                dl = codec.decode(env.topic, env.data)
+            except ValueError:
+                self.rejected += 1
+                continue
+            if dl.sat not in self.planned:
+                self.rejected += 1
+                continue
+            for o in dl.observations:
+                self.downlinked.append(KnownObservation(o.t_ns / _NS, o.gp, o.sat))
+            # what it planned for that satellite up to the pass is now known as executed (or not)
+            self.planned[dl.sat] = [k for k in self.planned[dl.sat] if k.t_s * _NS > dl.t_ns]
+            emits.append(self._plan_and_uplink(dl.sat, t_ns, dl.station))
+        return StepResult(emits, None)
+
+    def finish(self, t_ns: int) -> list[Emit]:
+        return []
+
+    def _next_pass_after(self, sat: str, t_ns: int) -> int | None:
+        for s, e, _ in self.passes[sat]:
+            if s > t_ns:
+                return s
+        return None
+
+    def _plan_and_uplink(self, sat: str, t_ns: int, station: str) -> Emit:
+        from sat_node.satellite import PersistenceOsse
+        from sat_node.scheduler import solve_dp
+        from sat_node.scheduler.problem import OrbitContext, instance_from_orbit
+
+        c0 = time.process_time()
+        horizon_ns = self.world.scenario.horizon_ns
+        nxt = self._next_pass_after(sat, t_ns)
+        end_ns = min(horizon_ns, (nxt if nxt is not None else horizon_ns) + self.margin_ns)
+        window_s = (end_ns - t_ns) / _NS
+        items: list[S.ScheduleItem] = []
+        plan = None
+        if window_s > 0:
+            known = list(self.downlinked)
+            for other, ks in self.planned.items():
+                if other != sat:
+                    # Plans already uplinked are commitments: the other satellite executes them until
+                    # its next pass, whatever its rank. Claimed under COMMITTED (sorts before every
+                    # satellite name), sat_node.value.prior_state makes the GP worth 0 within 15 min
+                    # before or after them for every satellite planned later.
+                    known += [KnownObservation(k.t_s, k.gp, COMMITTED, planned=True) for k in ks]
+            ctx = self.world.ctx
+            view = OrbitContext(scenario=ctx.scenario, constellation=ctx.constellation, gps=ctx.gps,
+                                osse=PersistenceOsse(ctx.osse, t_ns / _NS), slew=ctx.slew)
+            ids = self.world.candidate_gp_ids(sat, t_ns / _NS, t_ns / _NS + window_s)
+            p = None
+            if len(ids):
+                p = instance_from_orbit(view, sat=sat, t0_s=t_ns / _NS, window_s=window_s, known=known,
+                                        belief=self.belief, gp_ids=ids)
+            plan = solve_dp(p, check=True) if p is not None else None
+        if plan is not None:
+            self.planned[sat] = [KnownObservation(t_s, int(gp), sat, planned=True) for gp, t_s in plan.as_list()]
+            items = [S.ScheduleItem(gp=int(gp), t_ns=int(round(t_s * _NS)), value=max(0.0, float(v)))
+                     for (gp, t_s), v in zip(plan.as_list(), plan.values)]
+        cpu = time.process_time() - c0
+        self.scheduler_cpu_s += cpu
+        self.version += 1
+        sched = S.Schedule(sat=sat, version=self.version, mode="centralized", planned_ns=t_ns,
+                           cutoff_ns=t_ns, items=items, solve_cpu_s=cpu)
+        up = S.GroundUplink(station=station, sat=sat, t_ns=t_ns, schedule=sched)
+        return Emit(T.GROUND_UPLINK, codec.encode(up), t_ns)

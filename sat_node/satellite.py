@@ -1,0 +1,526 @@
+"""One satellite's flight software as a lockstep participant (msgs_json/envelope.py contract).
+
+Pure logic, no rclpy: the ROS engine hosts it in a satellite process (bringup/engine/ros/host.py), the
+local engine in one process. It owns the satellite's three functions of DESIGN.md section 2:
+
+* scheduler - distributed mode: replans every ``scheduler.replan_period_s`` over
+  ``plan_lookahead_s`` with the DP (sat_node/scheduler) from what it knows: its own observations
+  and those the DTN delivered (implicit consensus, Nag et al. section 4); centralized mode:
+  executes the plan the ground uplinked at its last pass and downlinks its observations at each
+  pass; non-agile mode: observes what passes under the nadir footprint;
+* ACS - tracks the pointing target and reports each slew (/sat_XX/acs/state);
+* DTN bundle agent - one BPv7 bundle per executed observation and destination satellite
+  (the satellites next on scene over the observed region, priority 1 = next), routed by CGR
+  (sat_node/dtn/agent.py); arriving bundles update what it knows.
+
+Value knowledge: the planner sees the OSSE field as it was at planning time (persistence forecast:
+it cannot know the future flood state) through its seeded belief noise; the instrument records the
+true OSSE value at the observation time. Onboard that lag is at most one replan period; for the
+centralized ground it is up to an orbit, which is what the study's assumed-vs-recorded error shows.
+
+Timing: an observation planned at t is emitted at the step covering t, stamped t (rule 2 of the
+contract); the DTN radio's transmissions are computed in continuous time up to the step time and
+emitted stamped with their start times, so no figure depends on the step length.
+
+How we know it is right: tests/unit/test_sat_logic.py (plans obey the slew model and FOR, every
+executed observation is emitted once with its exact time, bundles go to the priority order's
+destinations) and the engine-equivalence system test (local vs ROS, identical traces).
+
+Transmission status (issue 7): the ISL medium (dtn_router) reports a transmission that did not get
+through (contact ended mid-transmission, e.g. an ISL cut; no contact; radio busy) on
+``/sat_XX/dtn/status``; the satellite hands it to its agent (``transmission_failed``) so the bundle
+goes back to its queue, re-routed without that contact. The report may come after the attempt's end,
+when the agent already counted the bundle as gone; the satellite keeps each transmission (and the
+agent's record of it) until it is confirmed, and puts it back first. Oracle: tests/faults/
+test_link_faults.py (a cut ending a contact mid-transmission; conservation created = delivered +
+dropped by reason + held).
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from msgs_json import codec, schemas as S, topics as T
+from msgs_json.envelope import Emit, Envelope, StepResult
+from sat_node.value import Belief, KnownObservation
+
+__all__ = ["SatelliteLogic", "PersistenceOsse", "observation_payload", "parse_observation_payload"]
+
+_NS = 1_000_000_000
+_NO_INFO = object()  # sentinel: no _ev_info entry for an event
+# a transmission's status report comes at most a few lockstep steps after its end; keep it this long
+
+
+class PersistenceOsse:
+    """The OSSE field as a planner knows it at ``t_known_s``: every later time reads that instant."""
+
+    def __init__(self, osse, t_known_s: float):
+        self._osse = osse
+        self._t = float(t_known_s)
+        self.slot_s = osse.slot_s
+        self.n_slots = osse.n_slots
+
+    def value_at(self, gp_idx, t_s):
+        t = np.broadcast_to(np.asarray(t_s, np.float64), np.broadcast(np.asarray(gp_idx), np.asarray(t_s)).shape)
+        return self._osse.value_at(gp_idx, np.minimum(t, self._t))
+
+    def slot_of(self, t_s):
+        return self._osse.slot_of(np.minimum(np.asarray(t_s, np.float64), self._t))
+
+
+def observation_payload(sat: str, gp: int, t_ns: int, value: float) -> bytes:
+    """Bundle payload for one observation (the 'inference' of the study: who saw which GP when)."""
+    return json.dumps({"src": sat, "gp": int(gp), "t_ns": int(t_ns), "v": round(float(value), 3)},
+                      separators=(",", ":")).encode()
+
+
+def parse_observation_payload(data: bytes) -> tuple[str, int, int]:
+    d = json.loads(data)
+    src, gp, t_ns = d["src"], d["gp"], d["t_ns"]
+    if not isinstance(src, str) or not isinstance(gp, int) or not isinstance(t_ns, int) or gp < 0 or t_ns < 0:
+        raise ValueError("observation payload: bad src/gp/t_ns")
+    return src, gp, t_ns
+
+
+@dataclass
+class _Item:
+    gp: int
+    t_ns: int
+    value: float
+    version: int
+
+
+class SatelliteLogic:
+    """Participant for satellite ``name``; ``world`` is a bringup.scenario.world.World."""
+
+    def __init__(self, world, name: str, mode: str = "distributed", *, store_path: str | None = None,
+                 dtn: bool | None = None):
+        from sat_node.dtn.agent import AgentConfig, BundleAgent
+        from sat_node.dtn.store import BundleStore
+
+        if mode not in ("distributed", "centralized", "nonagile"):
+            raise ValueError(f"mode {mode!r}: expected distributed, centralized or nonagile")
+        self.name = name
+        self.world = world
+        self.mode = mode
+        sc = world.scenario
+        self.sc = sc
+        self.belief = Belief.from_scenario(sc, name, world.n_gp, world.osse.n_slots)
+        self.known: list[KnownObservation] = []
+        self._known_keys: set[tuple[int, int, str]] = set()
+        self.plan: list[_Item] = []
+        self.plan_version = 0
+        self.target_km: np.ndarray | None = None  # what the boresight points at (None: nadir)
+        self.last_obs_ns = -1
+        self.replan_ns = int(round(sc.scheduler.replan_period_s * _NS))
+        self.next_replan_ns: int | None = None
+        self.scheduler_cpu_s = 0.0
+        self._last_cpu_s = 0.0
+        self._news_conflict = False
+        self.news_replans_due = 0
+        self.host_rejected: dict[str, int] = {}
+        self.rejected = 0
+        self.dtn = (mode == "distributed") if dtn is None else dtn
+        self.pending_downlink: list[S.Observation] = []
+        self.ground_passes = sorted({int(round(c.start_s * _NS)) for c in world.ground_plan.contacts
+                                     if c.src == name})
+        self._next_pass_i = 0
+        self.agent = None
+        if self.dtn:
+            i = sc.isl
+            # the router's report of a failed transmission comes a few lockstep steps after it (the
+            # copy reaches the router at the next step, the report the sender at the one after, and
+            # transmissions are computed retroactively up to the step): the agent keeps a sent bundle
+            # for twelve of the longest steps before it forgets it (56 s seen at 10 s steps)
+            cfg = AgentConfig.for_policy(
+                i.send_order, i.hop_tolerance_s, ttl_s_by_priority={1: i.ttl_p1_s, 3: i.ttl_p2_3_s, 15: i.ttl_p4_15_s},
+                bundle_bits=i.bundle_bits, settle_delay_s=12 * sc.scenario.lockstep_max_step_s)
+            store = BundleStore(store_path) if store_path else None
+            self.agent = BundleAgent(name, world.isl_plan, cfg, store=store)
+            self._ev_done = 0
+            self._creations: dict[str, tuple[int, int]] = {}
+            self._ev_info: dict[int, dict | None] = {}
+            self.overheard = 0
+            self._next_hop: dict[str, str] = {}
+            self.tx_failed: dict[str, int] = {}
+        self.rejected_by_reason: dict[str, int] = {}
+        self._topics: tuple[str, str] | None = None  # (status, in) topic names, made on first use
+        self._radio_topics: tuple[str, str] | None = None  # (dtn out, dtn events), made on first use
+
+    # ------------------------------------------------------------------ contract
+    def subscriptions(self) -> list[str]:
+        subs = []
+        if self.dtn:
+            subs.append(T.dtn_in_topic(self.name))
+            subs.append(T.dtn_status_topic(self.name))
+        if self.mode == "centralized":
+            subs.append(T.GROUND_UPLINK)
+        return subs
+
+    def start(self, t0_ns: int) -> StepResult:
+        emits: list[Emit] = []
+        if self.mode == "distributed":
+            self.next_replan_ns = t0_ns
+            emits += self._replan(t0_ns)
+        elif self.mode == "nonagile":
+            emits += self._plan_nonagile(t0_ns)
+        return StepResult(emits, self._wakeup(t0_ns))
+
+    def step(self, t_ns: int, inbox: list[Envelope]) -> StepResult:
+        store = self.agent.store if self.agent is not None else None
+        own_tx = store is not None and store.begin()  # one store transaction per step (unless a
+        # caller's is open: the ROS host's checkpoint, or a local run's batch, bringup/engine/store_batches.py)
+        try:
+            return self._step(t_ns, inbox)
+        finally:
+            if own_tx:
+                store.commit()
+
+    def _step(self, t_ns: int, inbox: list[Envelope]) -> StepResult:
+        emits: list[Emit] = []
+        for env in inbox:
+            try:
+                self._on_message(env, t_ns)
+            except (ValueError, KeyError, TypeError) as exc:  # a bad message never kills the node
+                self.rejected += 1
+                reason = f"{env.topic.rsplit('/', 1)[-1]}.{type(exc).__name__}"
+                self.rejected_by_reason[reason] = self.rejected_by_reason.get(reason, 0) + 1
+                self.last_error = f"{env.topic}: {exc}"
+        emits += self._execute(t_ns)
+        periodic = self.next_replan_ns is not None and t_ns >= self.next_replan_ns
+        if self.mode == "distributed" and (periodic or self._news_conflict):
+            emits += self._replan(t_ns, periodic=periodic)
+            if self.agent is not None and periodic:
+                emits.append(self._counters_emit(t_ns))
+        if self.mode == "centralized":
+            emits += self._downlink(t_ns)
+        if self.agent is not None:
+            emits += self._radio(t_ns)
+        return StepResult(emits, self._wakeup(t_ns))
+
+    def finish(self, t_ns: int) -> list[Emit]:
+        store = self.agent.store if self.agent is not None else None
+        own_tx = store is not None and store.begin()
+        try:
+            return self._finish(t_ns)
+        finally:
+            if own_tx:
+                store.commit()
+
+    def _finish(self, t_ns: int) -> list[Emit]:
+        emits = self._execute(t_ns)
+        if self.agent is not None:
+            emits += self._radio(t_ns)
+            emits.append(self._counters_emit(t_ns))
+        return emits
+
+    def close(self) -> None:
+        """Close the bundle store (after ``finish``; the file keeps every committed step)."""
+        store = self.agent.store if self.agent is not None else None
+        if store is not None:
+            store.close()
+
+    def _counters_emit(self, t_ns: int) -> Emit:
+        c = {"discarded.not_next_hop": self.overheard, "held": self.agent.held_count(),
+             "rejected_messages": self.rejected}
+        for k, v in self.rejected_by_reason.items():
+            c[f"rejected.{k}"[:64]] = v
+        for k, v in self.agent.counters.items():
+            if k.startswith(("dropped.", "discarded.")) and k != "discarded.not_next_hop":
+                c[f"agent.{k}"[:64]] = v
+        for k, v in self.tx_failed.items():
+            c[f"tx_failed.{k}"] = v
+        for k, v in self.host_rejected.items():  # set by the ROS host before finish (bringup/engine/ros/host.py)
+            c[f"host.{k}"[:64]] = v
+        msg = S.DtnCounters(sat=self.name, t_ns=t_ns, counters=c)
+        return Emit(T.dtn_counters_topic(self.name), codec.encode(msg), t_ns)
+
+    # ------------------------------------------------------------------ inputs
+    def _on_message(self, env: Envelope, t_ns: int) -> None:
+        topics = self._topics
+        if topics is None:
+            topics = self._topics = (T.dtn_status_topic(self.name), T.dtn_in_topic(self.name))
+        if self.agent is not None and env.topic == topics[0]:
+            self._on_status(codec.decode(env.topic, env.data), t_ns)
+        elif self.agent is not None and env.topic == topics[1]:
+            if not isinstance(env.data, bytes):
+                raise ValueError("bundle topic carries text")
+            if self.agent.overheard(env.data, env.t_ns):  # a copy for another node (broadcast medium)
+                self.overheard += 1
+                return
+            n_ev = len(self.agent.events)
+            outcome = self.agent.receive(env.data, env.source, env.t_ns)
+            if outcome == "discarded.not_next_hop":
+                # overheard on the broadcast medium: counted (DtnCounters), not one event per copy
+                self.overheard += 1
+                for ev in self.agent.events[n_ev:]:
+                    self._ev_info[id(ev)] = None
+                return
+            if outcome == "delivered" or outcome.startswith("discarded"):
+                from sat_node.dtn.bpv7 import BundleError, decode_bundle
+
+                b = self.agent.last_received  # what receive() decoded from env.data (not altered)
+                if b is None:
+                    try:
+                        b = decode_bundle(env.data)
+                    except BundleError:
+                        b = None
+                if b is not None:
+                    info = self._bundle_info(b)
+                    for ev in self.agent.events[n_ev:]:
+                        self._ev_info[id(ev)] = info
+                if outcome == "delivered" and b is not None:
+                    src, gp, obs_ns = parse_observation_payload(b.payload)
+                    self._learn(gp, obs_ns, src)
+                    self._check_news(gp, obs_ns)
+        elif env.topic == T.GROUND_UPLINK:
+            up = codec.decode(env.topic, env.data)
+            if up.sat != self.name:
+                return
+            start = max(t_ns, self.last_obs_ns + 1)
+            self.plan_version = up.schedule.version
+            self.plan = [_Item(it.gp, it.t_ns, it.value, up.schedule.version)
+                         for it in up.schedule.items if it.t_ns >= start]
+
+    def _check_news(self, gp: int, obs_ns: int) -> None:
+        """News that makes a look of the current plan worthless (the GP seen by another satellite
+        within revisit_zero_s of it) triggers a replan at this step, before the periodic one: the
+        scheduler "replans as news arrives" (Nag et al., section 4)."""
+        zero_ns = int(round(self.sc.value.revisit_zero_s * _NS))
+        for it in self.plan:
+            if it.gp == gp and it.t_ns > self.last_obs_ns and abs(it.t_ns - obs_ns) < zero_ns:
+                self._news_conflict = True
+                self.news_replans_due += 1
+                return
+
+    def _learn(self, gp: int, obs_ns: int, src: str) -> None:
+        key = (gp, obs_ns, src)
+        if key not in self._known_keys:
+            self._known_keys.add(key)
+            self.known.append(KnownObservation(obs_ns / _NS, gp, src))
+
+    # ------------------------------------------------------------------ planning
+    def _instance(self, t0_ns: int, window_s: float):
+        from sat_node.scheduler.problem import OrbitContext, instance_from_orbit
+
+        ctx = self.world.ctx
+        view = OrbitContext(scenario=ctx.scenario, constellation=ctx.constellation, gps=ctx.gps,
+                            osse=PersistenceOsse(ctx.osse, t0_ns / _NS), slew=ctx.slew)
+        t0_s = t0_ns / _NS
+        ids = self.world.candidate_gp_ids(self.name, t0_s, t0_s + window_s)
+        if len(ids) == 0:
+            return None
+        return instance_from_orbit(view, sat=self.name, t0_s=t0_s, window_s=window_s, known=self.known,
+                                   belief=self.belief, init_target_km=self.target_km, gp_ids=ids)
+
+    def _replan(self, t_ns: int, *, periodic: bool = True) -> list[Emit]:
+        """Plan [t_ns, t_ns + lookahead) with what is known now. A periodic replan sets the next
+        one; a replan for news (``periodic=False``) leaves the periodic schedule as it is."""
+        from sat_node.scheduler import solve_dp
+
+        c0 = time.process_time()
+        self._news_conflict = False
+        horizon_ns = self.world.scenario.horizon_ns
+        if periodic:
+            self.next_replan_ns = t_ns + self.replan_ns
+            window_s = min(self.sc.scheduler.plan_lookahead_s, (horizon_ns - t_ns) / _NS)
+        else:  # keep the current plan's end: the next periodic replan takes over from there
+            window_s = (min(horizon_ns, (self.next_replan_ns or t_ns) - self.replan_ns
+                            + int(self.sc.scheduler.plan_lookahead_s * _NS)) - t_ns) / _NS
+        if window_s <= 0:
+            return []
+        p = self._instance(t_ns, window_s)
+        plan = solve_dp(p, check=True) if p is not None else None
+        self._last_cpu_s = time.process_time() - c0
+        self.scheduler_cpu_s += self._last_cpu_s
+        self.plan_version += 1
+        items = []
+        for (gp, t_s), v in (zip(plan.as_list(), plan.values) if plan is not None else ()):
+            items.append(_Item(int(gp), int(round(t_s * _NS)), float(v), self.plan_version))
+        self.plan = [it for it in items if it.t_ns > self.last_obs_ns]
+        return [self._schedule_emit(t_ns, t_ns)]
+
+    def _plan_nonagile(self, t0_ns: int) -> list[Emit]:
+        from sat_node.scheduler import solve_nonagile
+
+        c0 = time.process_time()
+        window_s = (self.world.scenario.horizon_ns - t0_ns) / _NS
+        p = self._instance(t0_ns, window_s)
+        plan = solve_nonagile(p, self.sc.instrument.footprint_km) if p is not None else None
+        self._last_cpu_s = time.process_time() - c0
+        self.scheduler_cpu_s += self._last_cpu_s
+        self.plan_version = 1
+        self.plan = [_Item(int(gp), int(round(t_s * _NS)), float(v), 1)
+                     for (gp, t_s), v in (zip(plan.as_list(), plan.values) if plan is not None else ())]
+        return [self._schedule_emit(t0_ns, t0_ns)]
+
+    def _schedule_emit(self, t_ns: int, cutoff_ns: int) -> Emit:
+        msg = S.Schedule(sat=self.name, version=self.plan_version, mode=self.mode, planned_ns=t_ns,
+                         cutoff_ns=cutoff_ns, solve_cpu_s=self._last_cpu_s,
+                         items=[S.ScheduleItem(gp=it.gp, t_ns=it.t_ns, value=max(0.0, it.value)) for it in self.plan])
+        return Emit(T.schedule_topic(self.name), codec.encode(msg), t_ns)
+
+    # ------------------------------------------------------------------ execution
+    def _execute(self, t_ns: int) -> list[Emit]:
+        emits: list[Emit] = []
+        gps = self.world.gps
+        osse = self.world.osse
+        while self.plan and self.plan[0].t_ns <= t_ns:
+            it = self.plan.pop(0)
+            if it.t_ns <= self.last_obs_ns:
+                continue
+            recorded = float(osse.value_at(np.array([it.gp]), np.array([it.t_ns / _NS]))[0])
+            target = gps.ecef_km[it.gp]
+            angle = self._slew_angle(it.t_ns, target)
+            self.target_km = target
+            self.last_obs_ns = it.t_ns
+            obs = S.Observation(sat=self.name, gp=it.gp, t_ns=it.t_ns, assumed_value=max(0.0, it.value),
+                                recorded_value=recorded, schedule_version=it.version)
+            emits.append(Emit(T.observations_topic(self.name), codec.encode(obs), it.t_ns))
+            state = S.AcsState(sat=self.name, t_ns=it.t_ns, mode="settled", target_gp=it.gp,
+                               slew_angle_deg=float(min(180.0, angle)))
+            emits.append(Emit(T.acs_state_topic(self.name), codec.encode(state), it.t_ns))
+            self._learn(it.gp, it.t_ns, self.name)
+            if self.mode == "centralized":
+                self.pending_downlink.append(obs)
+            if self.agent is not None:
+                emits += self._originate(it.gp, it.t_ns, recorded)
+        return emits
+
+    def _slew_angle(self, t_ns: int, target: np.ndarray) -> float:
+        from sat_node.acs import angle_between_deg, nadir_unit, unit_vectors
+
+        pos = self.world.ctx.track_ecef_km(self.name, np.array([t_ns / _NS]))[0]
+        new = unit_vectors(target - pos)
+        old = nadir_unit(pos) if self.target_km is None else unit_vectors(self.target_km - pos)
+        return float(angle_between_deg(old[None, :], new[None, :])[0])
+
+    # ------------------------------------------------------------------ DTN
+    def _originate(self, gp: int, t_ns: int, value: float) -> list[Emit]:
+        payload = observation_payload(self.name, gp, t_ns, value)
+        for dest, prio in self.world.destinations(gp, t_ns / _NS, self.name):
+            bid = self.agent.originate(payload, dest, prio, t_ns)
+            self._creations[bid] = (gp, t_ns)
+        return []
+
+    def _radio(self, t_ns: int) -> list[Emit]:
+        emits: list[Emit] = []
+        self.agent.expire(t_ns)
+        radio_topics = self._radio_topics
+        if radio_topics is None:
+            radio_topics = self._radio_topics = (T.dtn_out_topic(self.name), T.dtn_events_topic(self.name))
+        out_topic, topic = radio_topics
+        for tx in self.agent.transmissions_until(t_ns):
+            emits.append(Emit(out_topic, tx.bundle_bytes, tx.start_ns))
+            self._next_hop[tx.bundle_id] = tx.next_hop
+        evs = self.agent.events
+        if len(evs) > self._ev_done:
+            encode = codec.encode
+            for ev in evs[self._ev_done:]:
+                msg = self._event_msg(ev)
+                if msg is not None:
+                    emits.append(Emit(topic, encode(msg), min(ev.t_ns, t_ns)))
+        self._ev_done = len(evs)
+        if len(evs) > 4096:  # keep memory flat over long runs
+            del evs[:]
+            self._ev_done = 0
+            self._ev_info.clear()
+        return emits
+
+    def _on_status(self, st, t_ns: int) -> None:
+        """The medium says a transmission failed: give the bundle back to the agent (see module doc)."""
+        if st.sat != self.name:
+            raise ValueError(f"status for {st.sat} on {self.name}'s topic")
+        tx = self.agent.in_flight(st.bundle_id)
+        if tx is None or tx.start_ns != st.start_ns or tx.next_hop != st.next_hop:
+            raise ValueError(f"status names no transmission of ours: {st.bundle_id} at {st.start_ns}")
+        self.tx_failed[st.reason] = self.tx_failed.get(st.reason, 0) + 1
+        self.agent.transmission_failed(tx, t_ns)
+
+    def _bundle_info(self, b) -> dict:
+        from orbit_clock.contact_plan import node_name
+        from sat_node.dtn.agent import PRIORITY_BLOCK, priority_of
+
+        blk = b.block(PRIORITY_BLOCK)
+        info = {"bundle_id": b.bundle_id, "src": node_name(b.src[0]), "dst": node_name(b.dest[0]),
+                "priority": priority_of(blk.data) if blk is not None else 0,
+                "creation_ns": (b.creation_ms - self.agent.config.epoch_dtn_ms) * 1_000_000,
+                "hop_count": (b.hop_count[1] if b.hop_count else 0)}
+        try:
+            nh = b.next_hop
+            if nh is not None:
+                info["next_hop"] = node_name(nh)
+        except ValueError:
+            pass
+        return info
+
+    def _event_msg(self, ev):
+        """The agent's event as a msgs_json bundle event (None when it names no bundle we can tell)."""
+        info = self._ev_info.pop(id(ev), _NO_INFO)
+        if info is None:  # marked: an overheard copy's event, reported as a counter only
+            return None
+        if info is _NO_INFO:
+            info = None
+        base = {"sat": self.name, "t_ns": ev.t_ns}
+        if info is not None:
+            bid, src, dst, prio, created = (info["bundle_id"], info["src"], info["dst"], info["priority"],
+                                            info["creation_ns"])
+        else:
+            if ev.bundle_id == "?":
+                return S.BundleDropped(**base, bundle_id="?", src=self.name, dst=self.name, priority=0,
+                                       creation_ns=0, reason="malformed" if ev.kind == "dropped" else "other",
+                                       detail=f"{ev.kind}.{ev.reason}") if ev.kind == "dropped" else None
+            from orbit_clock.contact_plan import node_name
+
+            src = node_name(int(ev.bundle_id[3:].split(".", 1)[0]))
+            bid, dst, prio, created = ev.bundle_id, ev.dest or self.name, ev.priority, ev.created_ns
+        common = dict(base, bundle_id=bid, src=src, dst=dst, priority=prio, creation_ns=min(created, ev.t_ns))
+        if ev.kind == "created":
+            gp, obs_ns = self._creations.pop(bid, (0, ev.t_ns))
+            return S.BundleCreated(**common, gp=gp, obs_t_ns=obs_ns,
+                                   lifetime_ns=int(self.sc.isl.ttl_s(max(1, prio)) * _NS),
+                                   size_bits=self.sc.isl.bundle_bits)
+        if ev.kind == "forwarded":
+            return S.BundleForwarded(**common, next_hop=self._next_hop.pop(bid, dst))
+        if ev.kind == "delivered":
+            return S.BundleDelivered(**common, hop_count=(info or {}).get("hop_count", 0))
+        if ev.kind == "dropped":
+            reason = ev.reason if ev.reason in S.DROP_REASONS else "other"
+            return S.BundleDropped(**common, reason=reason, detail=ev.reason)
+        if ev.kind == "discarded":
+            reason = ev.reason if ev.reason in ("not_next_hop", "duplicate") else "other"
+            return S.CopyDiscarded(**common, reason=reason, intended_next_hop=(info or {}).get("next_hop"))
+        return None
+
+    # ------------------------------------------------------------------ centralized
+    def _downlink(self, t_ns: int) -> list[Emit]:
+        emits: list[Emit] = []
+        while self._next_pass_i < len(self.ground_passes) and self.ground_passes[self._next_pass_i] <= t_ns:
+            pass_ns = self.ground_passes[self._next_pass_i]
+            self._next_pass_i += 1
+            station = self._station_at(pass_ns)
+            msg = S.GroundDownlink(station=station, sat=self.name, t_ns=pass_ns,
+                                   observations=[o for o in self.pending_downlink if o.t_ns <= pass_ns])
+            self.pending_downlink = [o for o in self.pending_downlink if o.t_ns > pass_ns]
+            emits.append(Emit(T.GROUND_DOWNLINK, codec.encode(msg), pass_ns))
+        return emits
+
+    def _station_at(self, pass_ns: int) -> str:
+        for c in self.world.ground_plan.contacts:
+            if c.src == self.name and int(round(c.start_s * _NS)) == pass_ns:
+                return c.dst
+        raise ValueError(f"{self.name}: no ground contact starts at {pass_ns} ns")
+
+    # ------------------------------------------------------------------ timing
+    def _wakeup(self, t_ns: int) -> int | None:
+        cands = []
+        if self.mode == "distributed" and self.next_replan_ns is not None:
+            cands.append(self.next_replan_ns)
+        if self.mode == "centralized" and self._next_pass_i < len(self.ground_passes):
+            cands.append(self.ground_passes[self._next_pass_i])
+        cands = [c for c in cands if c > t_ns]
+        return min(cands) if cands else None
