@@ -21,7 +21,7 @@ It also announces contact windows on ``/orbit/contacts`` as they open and close 
 each stamped with its edge time and emitted at the step covering it (edges do not add steps).
 
 Oracle: the system test checks from the bag that every delivery on /sat_YY/dtn/in lies inside a
-contact from its sender with the link delay (tests/system/test_run_local.py).
+contact from its sender with the link delay (tests/system/test_engines_equal.py).
 """
 
 from __future__ import annotations

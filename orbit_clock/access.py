@@ -234,7 +234,7 @@ def access_windows(constellation: Constellation, gps: GroundPoints, t0_s: float,
 
 def access_windows_bruteforce(constellation: Constellation, gps: GroundPoints, t0_s: float, t1_s: float,
                               max_off_nadir_deg: float, *, step_s: float = 1.0, sats=None) -> AccessWindows:
-    """Reference: every GP of every satellite on a uniform grid (no prefilter). Slow; for tests/bench."""
+    """Reference: every GP of every satellite on a uniform grid (no prefilter). Slow; the oracle of the tests and benchmarks."""
     sat_list = np.arange(len(constellation)) if sats is None else np.asarray(sats, dtype=int)
     t = _grid(t0_s, t1_s, step_s)
     out = {k: [] for k in ("sat", "gp", "start", "end", "min")}

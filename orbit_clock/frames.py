@@ -10,7 +10,7 @@ Implements:
 - WGS-84 geodetic latitude/longitude/height <-> ECEF (closed form one way, Bowring iteration the
   other) and topocentric elevation with respect to the ellipsoid normal.
 
-How we know it is right: tests/unit/test_orbit_frames.py compares ECEF positions and station
+How we know it is right: tests/unit/test_orbit_propagation.py compares ECEF positions and station
 elevations against skyfield (independent implementation, test-only dependency) to metres / 1e-6 deg,
 and checks geodetic -> ECEF -> geodetic round trips.
 

@@ -8,7 +8,7 @@ section 1). Found on a coarse grid (default 10 s) and refined by bisection with 
 Each pass gives two directed contacts (sat -> gs_<name> downlink, gs_<name> -> sat uplink) at
 scenario.ground.rate_bps with range_light_s = mean slant range over the pass / c.
 
-How we know it is right (tests/unit/test_orbit_ground_passes.py): pass edges against skyfield
+How we know it is right (tests/unit/test_orbit_isl.py): pass edges against skyfield
 ``find_events`` at the same elevation mask within 2 s; invariants (both directions, ordered,
 inside the horizon).
 """

@@ -11,9 +11,9 @@ ellipsoid (height 0).
 Global GP id 0..n-1: region order of the scenario, then row (north to south), then column (west to
 east). ``GroundPoints.region_names[region_index[g]]`` is the region of GP g.
 
-How we know it is right: tests/unit/test_orbit_ground_points.py checks the paper's counts (100 per
-region, 500 in all), that neighbours are ``spacing_km`` apart by great-circle distance on the
-ellipsoid surface (independent haversine with the local radius, to 0.1 %) and the id order.
+How we know it is right: tests/unit/test_orbit_propagation.py checks the paper's counts (100 per
+region, 500 in all), that neighbours are ``spacing_km`` apart (chord on the ellipsoid, to 0.1 %),
+the region's extent and the id order.
 """
 
 from __future__ import annotations

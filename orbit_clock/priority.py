@@ -7,7 +7,7 @@ priority above 15). A satellite already in access at t counts from t. Satellites
 to the region before the end of the windows' horizon are not destinations; the source is excluded.
 Ties break by satellite name so the order is deterministic.
 
-How we know it is right (tests/unit/test_orbit_priority.py): a hand-built set of windows with the
+How we know it is right (tests/unit/test_orbit_isl.py): a hand-built set of windows with the
 expected order, and on the paper scenario the brute-force check "every satellite's first window
 start after t" sorted.
 """

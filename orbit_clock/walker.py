@@ -7,9 +7,9 @@ In both, the S = T/P satellites of a plane are 360/S apart in argument of latitu
 phased F*360/T deg ahead of plane p-1. Satellites are named ``sat_PS`` (plane P, slot S, from 1),
 in the scenario's ``sat_names`` order (plane-major).
 
-How we know it is right: tests/unit/test_orbit_walker.py checks the paper's 24/3/1 values by hand
-(RAAN 0/60/120, 45 deg in-plane spacing, 15 deg inter-plane phase) and that every element set is
-distinct and the circular orbit radius is 6378.137 + altitude km.
+How we know it is right: tests/unit/test_orbit_propagation.py checks the paper's 24/3/1 values by
+hand (RAAN 0/60/120, 45 deg in-plane spacing, 15 deg inter-plane phase, semi-major axis 6378.137 +
+altitude km), a 6/3/2 delta pattern worked by hand, and that SGP4 flies the orbits it was given.
 """
 
 from __future__ import annotations

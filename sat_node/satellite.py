@@ -22,17 +22,16 @@ Timing: an observation planned at t is emitted at the step covering t, stamped t
 contract); the DTN radio's transmissions are computed in continuous time up to the step time and
 emitted stamped with their start times, so no figure depends on the step length.
 
-How we know it is right: tests/unit/test_sat_logic.py (plans obey the slew model and FOR, every
-executed observation is emitted once with its exact time, bundles go to the priority order's
-destinations) and the engine-equivalence system test (local vs ROS, identical traces).
+How we know it is right: the engine-equivalence system test (local vs ROS, identical traces,
+tests/system/test_engines_equal.py); hostile or malformed messages are rejected and counted
+(tests/faults/test_faults_hostile.py).
 
 Transmission status (issue 7): the ISL medium (dtn_router) reports a transmission that did not get
 through (contact ended mid-transmission, e.g. an ISL cut; no contact; radio busy) on
 ``/sat_XX/dtn/status``; the satellite hands it to its agent (``transmission_failed``) so the bundle
 goes back to its queue, re-routed without that contact. The report may come after the attempt's end,
 when the agent already counted the bundle as gone; the satellite keeps each transmission (and the
-agent's record of it) until it is confirmed, and puts it back first. Oracle: tests/faults/
-test_link_faults.py (a cut ending a contact mid-transmission; conservation created = delivered +
+agent's record of it) until it is confirmed, and puts it back first. Oracle: tests/faults/test_faults_link.py (a cut ending a contact mid-transmission; conservation created = delivered +
 dropped by reason + held).
 """
 

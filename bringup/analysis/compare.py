@@ -17,7 +17,7 @@ summarised as mean/std/min/max with the per-seed list; a zero or missing denomin
 that seed.
 
 How we know it is right: tests/unit/test_compare.py - hand-made reports with the means, stds and
-ratios worked out by hand; tests/system/test_compare.py - a reduced real compare (6 sats, 1 h)
+ratios worked out by hand; tests/system/test_compare_modes.py - a reduced real compare (6 sats, 1 h)
 whose JSON has every DESIGN.md report key per mode and whose ratios equal the reports' own values
 divided (an independent recomputation), with agile > non-agile in value.
 """

@@ -23,8 +23,10 @@ Definitions:
   the pass came from), and how many duplicate observations (same GP within ``revisit_zero_s``) the
   later satellite made of GPs whose news it did not have when planning ("late news").
 
-Oracle: tests/unit/test_report.py - hand-made observation lists with the value worked out by hand,
-and the round trip run -> bag -> report equals the run's report (tests/system).
+Oracle: the consensus figures on a hand-worked pair of passes (tests/faults/test_faults_link.py);
+the report built beside the run equals ``build_report`` over the same envelopes
+(tests/unit/test_record_process.py), and the report rebuilt from a run's bag equals the run's own,
+on both engines (tests/system/test_engines_equal.py).
 """
 
 from __future__ import annotations
@@ -92,6 +94,8 @@ class ReportBuilder:
     engine's recorder does this beside the run, bringup/recording/recorder_process.py), ``build`` makes the
     report from what was added. Envelopes off the report's topics are ignored; one that does not
     decode is counted (``messages_rejected_in_report``)."""
+
+    TOPIC_SUFFIXES = REPORT_TOPIC_SUFFIXES  # the topics ``add`` reads; a recorder passes it only these
 
     def __init__(self) -> None:
         self.obs: list[S.Observation] = []

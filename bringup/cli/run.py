@@ -127,13 +127,14 @@ def _run_local(world, args, meta, bag_dir: Path, out: Path, router_kw, *, show: 
     from bringup.engine.local import run_local
     from bringup.scenario.participants import all_participants
     from bringup.recording.recorder_process import Recorder
+    from bringup.analysis.report import ReportBuilder
     from bringup.engine.store_batches import StoreBatches
     from msgs_json.envelope import Envelope
 
     sc = world.scenario
     store_dir = out / "store"  # (made by run(): _fresh_store_dir)
     # the recorder (bag, visualisation, report decoding) forks first, before the stores open
-    with Recorder(bag_dir, world) as rec:
+    with Recorder(bag_dir, world, report=ReportBuilder) as rec:
         parts = all_participants(world, args.mode, store_dir=store_dir, router_kw=router_kw)
         prog, update = _progress_display(show, sc.horizon_ns)
         in_flight = {"n": 0}
@@ -201,7 +202,8 @@ def _close_all(parts: list) -> None:
 
 def _run_ros(world, world_path: Path, args, meta, bag_dir: Path, out: Path, router_kw, *, show: bool) -> dict:
     from bringup.engine.ros.launcher import launch
-    from bringup.scenario.participants import FACTORY, roles_for
+    from bringup.engine.ros.factory import FACTORY
+    from bringup.scenario.participants import roles_for
     from bringup.engine.ros.run_spec import RunSpec
 
     sc = world.scenario

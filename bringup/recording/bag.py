@@ -31,6 +31,9 @@ Reader API::
         bag.envelopes(topics=None) -> iter of Envelope (String topics carrying wire envelopes)
         bag.typed(topics=None) -> iter of (topic, log_time_ns, rosbags message object)
 
+Why one module: the writer, the reader and the journal share the topic QoS table, the CDR helpers
+and the MCAP record layouts (the writer's fast paths write the records the reader's parse).
+
 Oracle: tests/unit/test_recording.py writes a bag in tmp_path and reads it back with BOTH the
 ``mcap`` reader (+ mcap-ros2-support decoding, an independent implementation) and ``rosbags``;
 the hand-written std_msgs/String CDR is checked byte for byte against rosbags' serializer.

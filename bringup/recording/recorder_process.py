@@ -37,6 +37,8 @@ import signal
 from pathlib import Path
 
 from bringup.errors import UserError
+from bringup.recording.bag import BagWriter
+from bringup.recording.viz_feed import VizFeed
 from msgs_json.envelope import Envelope
 
 __all__ = ["Recorder", "RecorderError"]
@@ -52,7 +54,10 @@ class Recorder:
     """Parent side: ``write_envelope``/``write_envelopes``/``step`` buffer, ``finish`` returns the
     report, ``close`` ends the child (idempotent). Use as a context manager."""
 
-    def __init__(self, bag_dir: str | Path, world=None, *, viz: bool = True, report: bool = True):
+    def __init__(self, bag_dir: str | Path, world=None, *, viz: bool = True, report=None):
+        """``report``: None (no report), or a class whose instances ``add(env)`` each envelope on
+        one of its ``TOPIC_SUFFIXES`` and ``build(meta, runtime)`` the report at ``finish``
+        (bringup/analysis/report.py ReportBuilder: the recorder does not know what a report holds)."""
         self.bag_dir = Path(bag_dir)
         if self.bag_dir.exists():
             raise UserError(f"bag {self.bag_dir}: already exists, not overwriting")
@@ -176,24 +181,20 @@ class Recorder:
         self._conn.close()
 
 
-def _child_main(conn, parent_conn, bag_dir: str, world, report: bool) -> None:
+def _child_main(conn, parent_conn, bag_dir: str, world, report) -> None:
     """The recorder process: replay the parent's bag calls, decode the report's envelopes."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent decides when the bag closes
     signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
-    from bringup.recording.bag import BagWriter
-    from bringup.analysis.report import REPORT_TOPIC_SUFFIXES, ReportBuilder
-
     parent_conn.close()
     gc.freeze()  # the inherited heap is never garbage; only what this process makes is scanned
     gc.set_threshold(50_000, 50, 1000)
-    builder = ReportBuilder() if report else None
+    builder = report() if report is not None else None
+    suffixes = tuple(report.TOPIC_SUFFIXES) if report is not None else ()
     wanted: dict[str, bool] = {}
     reply = None
     try:
         viz = None
         if world is not None:
-            from bringup.recording.viz_feed import VizFeed
-
             viz = VizFeed(world)
         with BagWriter(bag_dir) as bag:
             while True:
@@ -219,7 +220,7 @@ def _child_main(conn, parent_conn, bag_dir: str, world, report: bool) -> None:
                         for env in envs:
                             w = wanted.get(env.topic)
                             if w is None:
-                                w = wanted[env.topic] = env.topic.endswith(REPORT_TOPIC_SUFFIXES)
+                                w = wanted[env.topic] = env.topic.endswith(suffixes)
                             if w:
                                 builder.add(env)
     except BaseException as exc:  # noqa: BLE001 - reported to the parent, which raises it

@@ -2,10 +2,10 @@
 
 Roles: one per satellite (``sat_PS``, one OS process each under the ROS engine), ``router`` (the
 ISL medium; distributed mode only) and ``ground`` (the ground segment; centralized mode only).
-``build(spec, role)`` is the run-spec participant factory the ROS engine's processes call;
-``all_participants(world, mode)`` gives the same participants, in the same order, for the local
-engine. Both build the satellites from the same World pickle, so every process sees identical
-inputs.
+``make_participant(world, role, mode)`` makes one; the ROS engine's processes call it through
+their run spec's factory (bringup/engine/ros/factory.py), one role each; ``all_participants(world,
+mode)`` gives the same participants, in the same order, for the local engine. Both build the
+satellites from the same World pickle, so every process sees identical inputs.
 """
 
 from __future__ import annotations
@@ -13,12 +13,10 @@ from __future__ import annotations
 from pathlib import Path
 
 from bringup.errors import UserError
-from bringup.engine.ros.run_spec import RunSpec
 from bringup.scenario.world import World
 
-__all__ = ["FACTORY", "roles_for", "build", "all_participants", "MODES"]
+__all__ = ["MODES", "all_participants", "make_participant", "roles_for"]
 
-FACTORY = "bringup.scenario.participants:build"
 MODES = ("distributed", "centralized", "nonagile")
 ROUTER_ROLE = "router"
 GROUND_ROLE = "ground"
@@ -36,7 +34,7 @@ def roles_for(world_or_sats, mode: str) -> list[str]:
     return roles
 
 
-def _make(world: World, role: str, mode: str, *, store_dir: Path | None, router_kw: dict | None):
+def make_participant(world: World, role: str, mode: str, *, store_dir: Path | None, router_kw: dict | None):
     from dtn_router.router import RouterLogic
     from ground_station.ground_segment import GroundLogic
     from sat_node.satellite import SatelliteLogic
@@ -79,15 +77,5 @@ def create_stores(store_dir: Path, sats: list[str]):
 
 def all_participants(world: World, mode: str, *, store_dir: Path | None = None,
                      router_kw: dict | None = None) -> list:
-    return [_make(world, r, mode, store_dir=store_dir, router_kw=router_kw) for r in roles_for(world, mode)]
+    return [make_participant(world, r, mode, store_dir=store_dir, router_kw=router_kw) for r in roles_for(world, mode)]
 
-
-def build(spec: RunSpec, role: str) -> list:
-    """Run-spec factory: the participants ``role`` hosts (one each)."""
-    path = spec.extra.get("world")
-    if not path:
-        raise UserError("run spec: extra.world (path of the world pickle) is missing")
-    world = World.load(Path(path), spec.extra.get("world_key"))
-    store_dir = spec.extra.get("store_dir")
-    return [_make(world, role, spec.mode, store_dir=Path(store_dir) if store_dir else None,
-                  router_kw=spec.extra.get("router"))]

@@ -37,6 +37,10 @@ pays only where relays queue. case1 with earliest-expiry order: 100 % delivered 
 (tolerance 0), 2.76x (300 s), 2.56x (600 s), 2.52x (900 s), 2.72x (1500 s); transmissions per bundle
 2.43 -> 2.15 at 900 s. case4, lightly loaded, loses: 1.19x -> 1.29x at 900 s (strict priority).
 
+Why one module: RFC 9171 section 5's processing steps (receive, forward, transmit, expire, the
+failure path) all act on one bundle store and one set of queues; the routing decision itself is in
+cgr.py, the codec in bpv7.py, the store in store.py.
+
 Conservation (tested): created = delivered + dropped (by reason) + held (queued or in flight).
 
 Bundles are 'forwarded' when their transmission starts; the sender forgets them (and deletes them

@@ -14,6 +14,10 @@ What is here:
 Not done: fragmentation (decoded and kept, never created), dtn: EIDs other than dtn:none,
 status reports, the ``dtn://`` scheme.
 
+Why one module: the codec is one grammar (RFC 9171 section 4 CDDL): the block encoders, the decoder
+with its fast path and the CRCs share the CBOR helpers and the encoding caches, and each half is
+tested against the other (decode(encode(b)) == b); split, the halves would import each other.
+
 How we know it is right: exact-bytes golden encodings of small bundles written out by hand from
 the RFC's CDDL (tests/unit/test_bpv7.py), CRC check values of the standard catalogue ("123456789"
 -> CRC-16/X-25 0x906E, CRC-32C 0xE3069283), decode(encode(b)) == b on random bundles (hypothesis),

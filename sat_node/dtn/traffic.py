@@ -6,7 +6,7 @@ columns hold the bundle priority for that destination (-1: not a destination, 0:
 file row, then priority, then destination name.
 
 How we know it is right: the study's README counts (traffic_case4: 7430 bundles; case1: 52413),
-checked in tests/unit/test_dtn_traffic.py.
+checked in tests/unit/test_dtn_des.py.
 """
 
 from __future__ import annotations

@@ -68,7 +68,8 @@ def reference(tmp_path_factory):
 
 def _ros_run_with_kill(reference: Path, out: Path, victim: str, kill_step: int):
     from bringup.engine.ros.launcher import launch
-    from bringup.scenario.participants import FACTORY, roles_for
+    from bringup.engine.ros.factory import FACTORY
+    from bringup.scenario.participants import roles_for
     from bringup.analysis.report import RunMeta
     from bringup.engine.ros.run_spec import RunSpec
     from bringup.scenario.world import World

@@ -38,7 +38,8 @@ def test_scenario_across_namespace_hosts_equals_single_host(tmp_path):
     from test_restart_ros import _deliveries, _observations
 
     from bringup.engine.ros.launcher import CLOCK_ROLE, launch
-    from bringup.scenario.participants import FACTORY, roles_for
+    from bringup.engine.ros.factory import FACTORY
+    from bringup.scenario.participants import roles_for
     from bringup.analysis.report import RunMeta
     from bringup.engine.ros.run_spec import RunSpec
     from bringup.scenario.world import World

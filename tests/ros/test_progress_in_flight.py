@@ -66,7 +66,8 @@ def test_router_name_matches_the_host_constant():
 
 def test_ros_progress_in_flight_equals_local_engine_step_by_step(world, tmp_path):
     from bringup.engine.ros.launcher import launch
-    from bringup.scenario.participants import FACTORY, roles_for
+    from bringup.engine.ros.factory import FACTORY
+    from bringup.scenario.participants import roles_for
     from bringup.engine.ros.run_spec import RunSpec
 
     w, world_path, _ = world

@@ -19,7 +19,7 @@ import pytest
 
 from bringup.recording.recorder_process import Recorder, RecorderError
 from bringup.recording.bag import BagReader, BagWriter
-from bringup.analysis.report import RunMeta, build_report
+from bringup.analysis.report import ReportBuilder, RunMeta, build_report
 from bringup.recording.viz_feed import VizFeed
 from bringup.scenario.world import World
 from msgs_json import codec
@@ -73,7 +73,7 @@ def test_same_bag_and_report_as_in_process(world, tmp_path):
             bag.write_clock(t)
             viz.write(bag, t)
             kept += envs
-    with Recorder(tmp_path / "b" / "bag", world) as rec:
+    with Recorder(tmp_path / "b" / "bag", world, report=ReportBuilder) as rec:
         for t, envs in _steps(world):
             rec.write_envelopes(envs)
             rec.step(t)
@@ -89,7 +89,7 @@ def test_same_bag_and_report_as_in_process(world, tmp_path):
 def test_child_failure_is_named(world, tmp_path):
     blocker = tmp_path / "file"
     blocker.write_text("not a folder")
-    rec = Recorder(blocker / "bag", None)  # the child cannot make its bag under a file
+    rec = Recorder(blocker / "bag", None, report=ReportBuilder)  # the child cannot make its bag under a file
     with pytest.raises(RecorderError, match=r"recorder for .*file/bag failed: .*") as ei:
         for t, envs in _steps(world, 200):
             rec.write_envelopes(envs)
@@ -101,7 +101,7 @@ def test_child_failure_is_named(world, tmp_path):
 
 
 def test_child_ignores_sigint_and_parent_closes_the_bag(world, tmp_path):
-    with Recorder(tmp_path / "bag", None, report=False) as rec:
+    with Recorder(tmp_path / "bag", None) as rec:
         steps = list(_steps(world, 50))
         for t, envs in steps[:25]:
             rec.write_envelopes(envs)
@@ -125,7 +125,7 @@ def test_parent_killed_leaves_a_readable_bag(tmp_path):
         import os, signal
         from bringup.recording.recorder_process import Recorder, _BATCH
         from msgs_json.envelope import Envelope
-        rec = Recorder({str(bag)!r}, None, report=False)
+        rec = Recorder({str(bag)!r}, None)
         k = 0
         for b in range(3):
             rec.write_envelopes([Envelope(k + i, "sat_11", k + i, "/sat_11/dtn/out", b"x" * 50)
