@@ -86,7 +86,7 @@ class RouterLogic:
         return [T.dtn_out_topic(s) for s in self.sats]
 
     def start(self, t0_ns: int) -> StepResult:
-        return StepResult(self._announce(t0_ns), self._wakeup(t0_ns))
+        return StepResult(self._announce(t0_ns), self._wakeup(t0_ns), len(self.pending))
 
     def step(self, t_ns: int, inbox: list[Envelope]) -> StepResult:
         for env in inbox:
@@ -98,7 +98,7 @@ class RouterLogic:
         while self.status_pending and self.status_pending[0][0] <= t_ns:
             at, _, sender, text = heapq.heappop(self.status_pending)
             emits.append(Emit(self._status_topic[sender], text, at))
-        return StepResult(emits, self._wakeup(t_ns))
+        return StepResult(emits, self._wakeup(t_ns), len(self.pending))
 
     def finish(self, t_ns: int) -> list[Emit]:
         return []

@@ -5,8 +5,9 @@ plain Python object with no rclpy in it. An engine drives all participants throu
 sequence of steps ``t_0 < t_1 < ...`` (integer ns since the scenario epoch):
 
 * ``local`` engine: one process, an in-memory bus (bringup/engine/local.py);
-* ``ros`` engine: one OS process per satellite, DDS in between, the orbit_clock node running the
-  barrier (a step ends only when every participant acked it and all it sent was received).
+* ``ros`` engine: one OS process per satellite, DDS in between, a clock node running the barrier
+  (a step ends only when every participant acked it and all it sent was received;
+  bringup/engine/ros/).
 
 Rules, identical in both engines, which is what makes their runs equal:
 
@@ -22,6 +23,9 @@ Rules, identical in both engines, which is what makes their runs equal:
    ``finish(horizon_ns)`` is called once and its envelopes are emitted (delivered to no one, but
    recorded).
 4. ``seq`` is a per-source counter starting at 0, assigned by the engine in emission order.
+
+Both engines check what a participant gives them, and choose the steps, with one module
+(bringup/engine/contract.py): a participant that breaks these rules fails the same way under either.
 
 Envelope payloads are JSON text (msgs_json schemas) or raw bytes (BPv7 bundles); the topic decides
 which (msgs_json/topics.py). On DDS and in the bag both travel as the wire envelope of
@@ -62,8 +66,13 @@ class Emit(NamedTuple):
 
 @dataclass(slots=True)
 class StepResult:
+    """What ``start``/``step`` return: envelopes to emit, when to be woken next (None: no need), and
+    optionally how many items the participant holds to emit later (``in_flight``, e.g. bundle
+    copies still travelling in the ISL medium): engines show the sum in their progress, nothing else."""
+
     emits: list[Emit] = field(default_factory=list)
     next_wakeup_ns: int | None = None
+    in_flight: int | None = None
 
 
 @runtime_checkable

@@ -137,14 +137,13 @@ def _run_local(world, args, meta, bag_dir: Path, out: Path, router_kw, *, show: 
     with Recorder(bag_dir, world, report=ReportBuilder) as rec:
         parts = all_participants(world, args.mode, store_dir=store_dir, router_kw=router_kw)
         prog, update = _progress_display(show, sc.horizon_ns)
-        in_flight = {"n": 0}
         rec.write_envelope(Envelope(0, "run", 0, "/run/meta", json.dumps({"meta": meta.__dict__})))
 
         def progress(p) -> None:
-            router = next((q for q in parts if q.name == "dtn_router"), None)
-            if router is not None:
-                in_flight["n"] = len(router.pending)
-            update(t_ns=p.t_ns, rtf=p.real_time_factor, extra=f"{p.envelopes:,} msgs, {in_flight['n']} bundles in flight")
+            extra = f"{p.envelopes:,} msgs"
+            if p.in_flight is not None:  # the ISL medium's copies still travelling (StepResult.in_flight)
+                extra += f", {p.in_flight} bundles in flight"
+            update(t_ns=p.t_ns, rtf=p.real_time_factor, extra=extra)
 
         # one store commit per satellite every few steps, not every step (bringup/engine/store_batches.py)
         batches = StoreBatches(s for s in (getattr(getattr(p, "agent", None), "store", None) for p in parts)
@@ -223,7 +222,7 @@ def _run_ros(world, world_path: Path, args, meta, bag_dir: Path, out: Path, rout
 
     def progress(p) -> None:
         extra = f"{p.steps:,} steps, {p.steps_per_s:,.0f} steps/s"
-        if p.in_flight is not None:  # the router's count, from its acks (bringup/engine/ros/host.py)
+        if p.in_flight is not None:  # the ISL medium's copies still travelling, from the hosts' acks
             extra += f", {p.in_flight} bundles in flight"
         update(t_ns=p.t_ns, rtf=p.real_time_factor, extra=extra)
 

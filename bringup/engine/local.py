@@ -7,11 +7,15 @@ ROS run must match:
 2. At step k every participant's ``step(t_k, inbox)`` is called once, in list order; ``inbox`` holds
    the envelopes emitted during step k-1 (or by ``start`` for k = 0) on the topics it subscribes
    to, sorted by ``(t_ns, source, seq)``. Nothing emitted in step k is seen before step k+1.
-3. ``t_{k+1} = max(t_k + 1, min(wakeups returned at step k, t_k + max_step_ns, horizon_ns))``; the
-   last step is at ``horizon_ns``, then ``finish(horizon_ns)`` is called once and its emits are
+3. The next step comes from the contract's step rule (bringup/engine/contract.py ``next_step_ns``):
+   the earliest wakeup, at most ``max_step_ns`` ahead, never past the horizon, at least 1 ns on;
+   the last step is at ``horizon_ns``, then ``finish(horizon_ns)`` is called once and its emits are
    recorded (delivered to no one).
-4. ``seq`` is a per-source counter from 0 in emission order; an emit's ``t_ns`` must be in
-   ``[0, t_k]`` (``[0, t0]`` in start, ``[0, horizon]`` in finish), else EngineError.
+4. ``seq`` is a per-source counter from 0 in emission order.
+
+What a participant returns and emits is checked by the contract module (the ROS host uses the same
+checks): a violation, or an exception in a participant, is an :class:`EngineError` that names the
+participant and the call.
 
 Usage::
 
@@ -25,11 +29,13 @@ Usage::
 Every emitted envelope goes to ``sink`` (or into ``res.envelopes``) in the order it is delivered:
 per step, sorted by ``(t_ns, source, seq)``; ``sink_many`` (e.g. BagWriter.write_envelopes), when
 given, gets each step's list in one call instead, same order. Per-step overhead is a few microseconds plus
-O(messages): routing is a precomputed topic -> subscribers table.
+O(messages): routing is a precomputed topic -> subscribers table. ``Progress.in_flight`` is the sum
+of the participants' last ``StepResult.in_flight`` (None when none reports one).
 
 Oracle: tests/unit/test_local_engine.py drives toy participants whose behaviour is known by hand
 (echo, ping-pong, timer) and checks each rule: next-step delivery, ordering, wakeup choice, max step,
-at-least-1-ns advance, finish, seq numbering, bad emits rejected, determinism across runs.
+at-least-1-ns advance, finish, seq numbering, bad emits rejected, determinism across runs;
+tests/unit/test_contract.py checks that its errors are the ROS host's, word for word.
 """
 
 from __future__ import annotations
@@ -40,13 +46,19 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from operator import attrgetter
 
-from msgs_json.envelope import Emit, Envelope, Participant, StepResult
+from bringup.engine.contract import (
+    ContractError,
+    EngineError,
+    check_emits,
+    check_names,
+    check_result,
+    check_subscriptions,
+    failed,
+    next_step_ns,
+)
+from msgs_json.envelope import Envelope, Participant, StepResult
 
-__all__ = ["EngineError", "LocalEngine", "Progress", "RunResult", "run_local"]
-
-
-class EngineError(ValueError):
-    """A participant broke the lockstep contract (or failed); the message names it and the step."""
+__all__ = ["ContractError", "EngineError", "LocalEngine", "Progress", "RunResult", "run_local"]
 
 
 @dataclass(frozen=True, slots=True)
@@ -58,6 +70,7 @@ class Progress:
     steps: int
     envelopes: int
     wall_s: float
+    in_flight: int | None = None
 
     @property
     def real_time_factor(self) -> float:
@@ -106,9 +119,7 @@ class LocalEngine:
             raise EngineError(f"local engine: need 0 <= t0_ns <= horizon_ns, got {t0_ns}, {horizon_ns}")
         if max_step_ns < 1:
             raise EngineError(f"local engine: max_step_ns must be >= 1, got {max_step_ns}")
-        names = [p.name for p in participants]
-        if len(set(names)) != len(names) or not all(isinstance(n, str) and n for n in names):
-            raise EngineError(f"local engine: participant names must be unique non-empty strings: {names}")
+        names = check_names(participants)
         self.participants = list(participants)
         self.horizon_ns = int(horizon_ns)
         self.max_step_ns = int(max_step_ns)
@@ -123,48 +134,27 @@ class LocalEngine:
         # topic -> indices of subscribers (list order), fixed for the run
         self._subs: dict[str, list[int]] = {}
         for i, p in enumerate(self.participants):
-            for topic in dict.fromkeys(p.subscriptions()):
+            for topic in check_subscriptions(p.name, p.subscriptions()):
                 self._subs.setdefault(topic, []).append(i)
         self._seq: dict[str, int] = {n: 0 for n in names}
         self.counts_by_topic: dict[str, int] = {}
 
     # -- helpers -----------------------------------------------------------------------------------
-    def _stamp(self, name: str, emits, t_max_ns: int, where: str | None) -> list[Envelope]:
-        """Turn a participant's emits into envelopes (seq assigned), checking the contract."""
-        if not emits:
-            return []
-        if where is None:
-            where = f"step at {t_max_ns}"  # (made here, not per call: only error messages use it)
+    def _stamp(self, name: str, emits, t_max_ns: int, where: str) -> list[Envelope]:
+        """Turn a participant's emits into envelopes (seq assigned), checked by the contract."""
+        emits = check_emits(name, emits, t_max_ns, where)
         out = []
         append = out.append
         seq = self._seq[name]
         counts = self.counts_by_topic
         get = counts.get
         for e in emits:
-            if type(e) is not Emit and not isinstance(e, Emit):
-                raise EngineError(f"{name} {where}: emitted {type(e).__name__}, expected Emit")
-            t = e.t_ns
-            if type(t) is not int or t < 0 or t > t_max_ns:
-                raise EngineError(f"{name} {where}: emit on {e.topic} at t_ns={t!r} outside [0, {t_max_ns}]")
-            d = e.data
-            td = type(d)
-            if td is not bytes and td is not str and not isinstance(d, (str, bytes)):
-                raise EngineError(f"{name} {where}: emit on {e.topic} has {type(d).__name__} data")
             topic = e.topic
-            append(Envelope(t, name, seq, topic, d))
+            append(Envelope(e.t_ns, name, seq, topic, e.data))
             seq += 1
             counts[topic] = get(topic, 0) + 1
         self._seq[name] = seq
         return out
-
-    @staticmethod
-    def _result(name: str, r, where: str) -> StepResult:
-        if not isinstance(r, StepResult):
-            raise EngineError(f"{name} {where}: returned {type(r).__name__}, expected StepResult")
-        w = r.next_wakeup_ns
-        if w is not None and type(w) is not int:
-            raise EngineError(f"{name} {where}: next_wakeup_ns must be int or None, got {w!r}")
-        return r
 
     # -- the loop ----------------------------------------------------------------------------------
     def run(self) -> RunResult:
@@ -198,15 +188,13 @@ class LocalEngine:
         next_report = wall0 + self.progress_interval_s
         n_env = 0
 
-        def call(i: int, fn, *args):
+        def call(i: int, fn, where: str, t_ns: int):
             try:
-                return fn(*args)
+                return fn(t_ns)
             except EngineError:
                 raise
             except Exception as exc:
-                raise EngineError(
-                    f"{ps[i].name} failed in {fn.__name__}({args[0]}): {type(exc).__name__}: {exc}"
-                ) from exc
+                raise failed(ps[i].name, where, exc) from exc
 
         names = [p.name for p in ps]
         steps_fn = [p.step for p in ps]
@@ -214,10 +202,13 @@ class LocalEngine:
         t = self.t0_ns
         pending: list[Envelope] = []
         wake: list[int | None] = [None] * n
+        flight: list[int | None] = [None] * n
         for i, p in enumerate(ps):
-            r = self._result(p.name, call(i, p.start, t), "start")
-            pending.extend(self._stamp(p.name, r.emits, t, "start"))
+            where = f"start at {t}"
+            r = check_result(p.name, call(i, p.start, where, t), where)
+            pending.extend(self._stamp(p.name, r.emits, t, where))
             wake[i] = r.next_wakeup_ns
+            flight[i] = r.in_flight
 
         steps = 0
         while True:
@@ -240,40 +231,33 @@ class LocalEngine:
             if on_step is not None:
                 on_step(t)
             i = 0
+            where = f"step at {t}"
             try:
                 for i in range(n):
                     r = steps_fn[i](t, inboxes[i] if inboxes else [])
-                    if type(r) is not StepResult:
-                        self._result(ps[i].name, r, f"step at {t}")
+                    check_result(names[i], r, where)
                     if r.emits:
-                        pending.extend(self._stamp(names[i], r.emits, t, None))
-                    w = r.next_wakeup_ns
-                    if w is not None and type(w) is not int:
-                        self._result(names[i], r, f"step at {t}")
-                    wake[i] = w
+                        pending.extend(self._stamp(names[i], r.emits, t, where))
+                    wake[i] = r.next_wakeup_ns
+                    flight[i] = r.in_flight
             except EngineError:
                 raise
             except Exception as exc:
-                raise EngineError(f"{names[i]} failed in step({t}): {type(exc).__name__}: {exc}") from exc
+                raise failed(names[i], where, exc) from exc
             steps += 1
             if progress is not None:
                 now = time.perf_counter()
                 if now >= next_report:
                     next_report = now + self.progress_interval_s
-                    progress(Progress(t, horizon, steps, n_env, now - wall0))
+                    progress(Progress(t, horizon, steps, n_env, now - wall0, _sum(flight)))
             if t >= horizon:
                 break
-            nxt = t + max_step
-            for w in wake:
-                if w is not None and w < nxt:
-                    nxt = w
-            nxt = min(nxt, horizon)
-            t = nxt if nxt > t else t + 1
+            t = next_step_ns(t, wake, max_step, horizon)
 
         # finish: emits recorded, delivered to no one (the last step's emits too)
         for i, p in enumerate(ps):
-            emits = call(i, p.finish, horizon)
-            pending.extend(self._stamp(p.name, emits, horizon, "finish"))
+            where = f"finish at {horizon}"
+            pending.extend(self._stamp(p.name, call(i, p.finish, where, horizon), horizon, where))
         pending.sort(key=_KEY)
         if sink_many is not None:
             sink_many(pending)
@@ -283,8 +267,14 @@ class LocalEngine:
         n_env += len(pending)
         wall = time.perf_counter() - wall0
         if progress is not None:
-            progress(Progress(horizon, horizon, steps, n_env, wall))
+            progress(Progress(horizon, horizon, steps, n_env, wall, _sum(flight)))
         return RunResult(steps, self.t0_ns, horizon, wall, keep, dict(self.counts_by_topic))
+
+
+def _sum(values: list[int | None]) -> int | None:
+    """Sum of the numbers given, None when there are none."""
+    got = [v for v in values if v is not None]
+    return sum(got) if got else None
 
 
 def run_local(participants: Sequence[Participant], **kw) -> RunResult:

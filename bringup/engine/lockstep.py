@@ -14,7 +14,8 @@ msgs_json/envelope.py for participants spread over several OS processes, with on
   those (as deltas), so a receiver knows how many envelopes of the previous steps it must hold on
   each topic before it runs the step, and which early arrivals (``seq >= seq_end[src]``) belong to a
   later step (trap 6).
-* rule 3: :func:`next_step_ns`.
+* rule 3, the step rule, is the engine contract's (bringup/engine/contract.py ``next_step_ns``): the
+  clock applies it to the earliest wakeup the hosts acked.
 * crash and restart (issue 7): a host checkpoints after every step (bringup/engine/checkpoint.py) and, when
   restarted, says hello with ``resume_k`` = the last wire step it committed; the clock then re-sends
   (on :data:`RESEND_TOPIC`, :class:`ResendMsg`) the envelopes it recorded on that host's topics
@@ -29,7 +30,7 @@ msgs_json/envelope.py for participants spread over several OS processes, with on
 
 Oracle: tests/ros/test_lockstep.py runs toy participants under this protocol over DDS and checks the
 envelopes equal those of the in-process local engine (bringup/engine/local.py) for the same
-participants; :class:`TopicInbox` and :func:`next_step_ns` are exercised by the same runs.
+participants; :class:`TopicInbox` is exercised by the same runs.
 """
 
 from __future__ import annotations
@@ -54,7 +55,6 @@ __all__ = [
     "decode_resend",
     "decode_step",
     "encode_msg",
-    "next_step_ns",
 ]
 
 STEP_TOPIC = "/sim/step"
@@ -93,9 +93,9 @@ class AckMsg(SimAck, kw_only=True, frozen=True):
     the host's participants, ``sent`` its emits per topic and ``seq_end`` its sources' seq counters.
     ``error`` (non-empty): the host failed this step and says why. ``resume_k`` (hello only): -1 for a
     fresh start, else the last wire step the host committed to its checkpoint before it restarted.
-    ``in_flight``: bundle copies the host's DTN router holds after this step (accepted, arrival
-    still ahead: what the local engine's progress shows), None for a host without a router; the
-    clock passes the sum on in its progress records.
+    ``in_flight``: the sum of the host's participants' ``StepResult.in_flight`` after this step
+    (items held to emit later, e.g. bundle copies still travelling: what the local engine's progress
+    shows), None when none reports one; the clock passes the sum on in its progress records.
     """
 
     hello: bool = False
@@ -145,15 +145,6 @@ def decode_resend(text: str) -> ResendMsg:
         return _resend_dec.decode(text)
     except (msgspec.DecodeError, msgspec.ValidationError, ValueError) as exc:
         raise LockstepError(f"{RESEND_TOPIC}: bad resend message: {exc}") from None
-
-
-def next_step_ns(t_ns: int, wakeups: list[int | None], max_step_ns: int, horizon_ns: int) -> int:
-    """Rule 3 of envelope.py: ``min(wakeups, t + max_step, horizon)``, at least ``t + 1``."""
-    nxt = min(t_ns + max_step_ns, horizon_ns)
-    for w in wakeups:
-        if w is not None and w < nxt:
-            nxt = w
-    return max(nxt, t_ns + 1)
 
 
 @dataclass

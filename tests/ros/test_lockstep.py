@@ -16,8 +16,8 @@ from bringup.engine.ros.launcher import launch
 from bringup.engine.local import run_local
 from bringup.recording.bag import BagReader
 from bringup.engine.ros.run_spec import RunSpec
-from bringup.engine.lockstep import next_step_ns
 from tests.ros import toy_participants as toy
+from tests.unit.test_contract import AT, EXPECTED, local_error
 
 pytestmark = [pytest.mark.ros, pytest.mark.timeout(180)]
 S = 10**9
@@ -25,13 +25,6 @@ S = 10**9
 
 def _key(e):
     return (e.t_ns, e.source, e.seq, e.topic, e.data)
-
-
-def test_next_step_rule3():
-    assert next_step_ns(0, [None, 5 * S, 3 * S], 10 * S, 60 * S) == 3 * S
-    assert next_step_ns(0, [None], 10 * S, 60 * S) == 10 * S
-    assert next_step_ns(55 * S, [None], 10 * S, 60 * S) == 60 * S
-    assert next_step_ns(7, [7, 2], 10 * S, 60 * S) == 8  # always at least 1 ns forward
 
 
 def test_ros_engine_equals_local_engine(tmp_path):
@@ -105,3 +98,33 @@ def test_bad_message_is_counted_not_fatal(monkeypatch):
             assert box.ready({"ping": 1}) and [e.t_ns for e in box.take({"ping": 1})] == [5]
         finally:
             host.close()
+
+
+@pytest.mark.parametrize("kind", sorted(toy.BREAKS))
+def test_contract_break_is_the_same_line_in_the_host_as_in_the_local_engine(monkeypatch, kind):
+    """The ROS host checks with the same contract module as the local engine: breaking it the same
+    way gives the same line (tests/unit/test_contract.py wrote the local engine's by hand)."""
+    from bringup.engine.lockstep import StepMsg
+    from bringup.engine.ros.host import HostError, ParticipantHost
+    from bringup.engine.ros.launcher import lease_domain_id
+
+    with lease_domain_id() as lease:
+        monkeypatch.setenv("ROS_DOMAIN_ID", str(lease.domain_id))
+        host = ParticipantHost("c1", [toy.Breaker(1, 3, kind, AT)])
+        try:
+            host._run_step(StepMsg(k=0, t_ns=0, start=True))
+            host._run_step(StepMsg(k=1, t_ns=10 * S))
+            with pytest.raises(HostError) as info:
+                host._run_step(StepMsg(k=2, t_ns=AT))
+        finally:
+            host.close()
+    assert str(info.value) == EXPECTED[kind] == str(local_error(kind))
+
+
+def test_contract_break_ends_the_ros_run_naming_the_participant(tmp_path):
+    spec = RunSpec(factory="tests.ros.toy_participants:make", roles=toy.roles(3, pingpong=False),
+                   horizon_ns=60 * S, max_step_ns=10 * S,
+                   extra={"n_counters": 3, "break": {"role": "c1", "kind": "negative_wakeup", "at_ns": AT}})
+    res = launch(spec, tmp_path)
+    assert not res.ok
+    assert EXPECTED["negative_wakeup"] in res.message, res.message

@@ -4,10 +4,11 @@ Reduced paper scenario (9 satellites, 45 min, distributed) with 30 s of extra IS
 bundle copies stay in the router across steps (without it every copy arrives before the next
 10 s step and the figure is 0 throughout). Oracles:
 
-* the local engine (bringup/engine/local.py) is the reference: its progress callback, called
-  after every step, reads ``len(router.pending)`` (what ``constellation run --engine local``
-  displays). The ROS run's progress records (clock -> launcher, one per step here) must carry the
-  same figure at every sim time, be > 0 at some step and 0 at the end;
+* the local engine (bringup/engine/local.py) is the reference: its progress records, one after
+  every step, carry the router's ``StepResult.in_flight`` (what ``constellation run --engine local``
+  displays), which must equal ``len(router.pending)``. The ROS run's progress records (clock ->
+  launcher, one per step here) must carry the same figure at every sim time, be > 0 at some step
+  and 0 at the end;
 * ``constellation run --engine ros`` through the CLI with stderr not a terminal, with and without
   ``--no-progress``: both complete; only the former prints the display (its last frame, on stdout:
   "0 bundles in flight").
@@ -52,16 +53,14 @@ def _local_in_flight(world, store: Path) -> dict[int, int]:
     parts = all_participants(world, "distributed", store_dir=store, router_kw={"extra_delay_s": DELAY_S})
     router = next(p for p in parts if p.name == ROUTER_NAME)
     seen: dict[int, int] = {}
+
+    def progress(p) -> None:
+        assert p.in_flight == len(router.pending)
+        seen[p.t_ns] = p.in_flight
+
     run_local(parts, horizon_ns=sc.horizon_ns, max_step_ns=round(sc.scenario.lockstep_max_step_s * S),
-              progress=lambda p: seen.__setitem__(p.t_ns, len(router.pending)), progress_interval_s=0.0)
+              progress=progress, progress_interval_s=0.0)
     return seen
-
-
-def test_router_name_matches_the_host_constant():
-    from bringup.engine.ros.host import _ROUTER_NAME
-    from dtn_router.router import ROUTER_NAME
-
-    assert _ROUTER_NAME == ROUTER_NAME
 
 
 def test_ros_progress_in_flight_equals_local_engine_step_by_step(world, tmp_path):

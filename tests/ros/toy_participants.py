@@ -11,6 +11,8 @@ split steps by stamp alone.
   and every third time a blob on /toy/blob (bytes); reads its ring neighbour's count topic and the
   blobs; greets on /toy/hello in start() and reports in finish().
 * :class:`Staller`: a counter that stops answering (sleeps) once sim time passes ``stall_at_ns``.
+* :class:`Breaker`: a counter that breaks the engine contract one way (:data:`BREAKS`) once sim
+  time reaches ``at_ns`` (``spec.extra["break"] = {"role": ..., "kind": ..., "at_ns": ...}``).
 
 ``make(spec, role)`` is the run-spec factory: role ``pingpong`` hosts ping and pong in one process,
 role ``c<i>`` hosts counter i (``spec.extra["n_counters"]`` counters in the ring;
@@ -123,6 +125,36 @@ class Staller(Counter):
         return super().step(t_ns, inbox)
 
 
+# ways to break the engine contract (bringup/engine/contract.py), each with what the step returns
+BREAKS = {
+    "negative_wakeup": lambda t: StepResult([], -5),
+    "bool_wakeup": lambda t: StepResult([], True),
+    "float_wakeup": lambda t: StepResult([], t + 0.5),
+    "future_emit": lambda t: StepResult([Emit("/toy/x", "{}", t + 1)], None),
+    "negative_stamp": lambda t: StepResult([Emit("/toy/x", "{}", -1)], None),
+    "int_data": lambda t: StepResult([Emit("/toy/x", 7, t)], None),
+    "relative_topic": lambda t: StepResult([Emit("toy/x", "{}", t)], None),
+    "not_an_emit": lambda t: StepResult([("/toy/x", "{}", t)], None),
+    "negative_in_flight": lambda t: StepResult([], None, -1),
+    "not_a_step_result": lambda t: ([], None),
+    "raises": lambda t: {}["missing key"],
+}
+
+
+class Breaker(Counter):
+    def __init__(self, i: int, n: int, kind: str, at_ns: int):
+        super().__init__(i, n)
+        self.kind = kind
+        self.at_ns = at_ns
+
+    def step(self, t_ns: int, inbox: list[Envelope]) -> StepResult:
+        if t_ns >= self.at_ns:
+            return BREAKS[self.kind](t_ns)
+        r = super().step(t_ns, inbox)
+        r.next_wakeup_ns = min(r.next_wakeup_ns, self.at_ns)  # break at at_ns exactly
+        return r
+
+
 def roles(n_counters: int, pingpong: bool = True) -> list[str]:
     return (["pingpong"] if pingpong else []) + [f"c{i}" for i in range(n_counters)]
 
@@ -153,6 +185,9 @@ def make(spec, role: str, host: bool = True) -> list:
         stall = spec.extra.get("stall")
         if stall and stall.get("role") == role:
             return [Staller(i, n, int(stall["at_ns"]))]
+        brk = spec.extra.get("break")
+        if brk and brk.get("role") == role:
+            return [Breaker(i, n, brk["kind"], int(brk["at_ns"]))]
         return [Counter(i, n, int(spec.extra.get("blob_every", 3)), spec.extra.get("period_s"))]
     raise ValueError(f"toy factory: unknown role {role!r}")
 

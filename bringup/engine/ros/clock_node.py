@@ -67,6 +67,7 @@ from rosgraph_msgs.msg import Clock
 from std_msgs.msg import String
 
 from bringup.engine.ros.host import QOS_DATA, QOS_SYNC_PUB, QOS_SYNC_SUB, exit_now
+from bringup.engine.contract import next_step_ns
 from bringup.engine.ros.run_spec import RunSpec
 from msgs_json.wire import WireError, decode_envelope
 from bringup.engine.lockstep import (
@@ -79,7 +80,6 @@ from bringup.engine.lockstep import (
     StepMsg,
     decode_ack,
     encode_msg,
-    next_step_ns,
 )
 
 __all__ = ["ClockError", "LockstepClock", "run_clock"]

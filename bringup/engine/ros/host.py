@@ -23,10 +23,13 @@ the envelopes it missed (receivers drop them as duplicates by (source, seq)). Wh
 hello every ``rejoin_period_s``; the clock answers each with a re-send of what it recorded
 (bringup/engine/lockstep.py ResendMsg); duplicates are dropped by (source, seq).
 
-Progress: a host that holds the DTN router (dtn_router/router.py) puts in each ack the number of
-bundle copies the router holds after the step (``in_flight``, ``len(router.pending)``: accepted,
-arrival still ahead), the figure the local engine's progress display shows; the clock sums it into
-its progress records.
+What a participant returns and emits is checked by the engine contract (bringup/engine/contract.py),
+the module the local engine uses too, so a violation is the same one-line error under both engines;
+the host sends it to the clock in its ack (the run's error names the participant) and exits.
+
+Progress: each ack carries the sum of the participants' ``StepResult.in_flight`` of the step (items
+held to emit later, e.g. the ISL medium's bundle copies still travelling; None when none reports
+one), the figure the local engine's progress shows; the clock sums it into its progress records.
 
 Oracle: tests/ros/test_lockstep.py: toy participants hosted here, driven by the clock node over
 DDS, emit exactly the envelopes the local engine (bringup/engine/local.py) emits for them.
@@ -52,7 +55,8 @@ from rclpy.signals import SignalHandlerOptions
 from rclpy.time import Time
 from std_msgs.msg import String
 
-from msgs_json.envelope import Emit, Envelope, Participant, StepResult
+from bringup.engine.contract import EngineError, check_emits, check_names, check_result, check_subscriptions, failed
+from msgs_json.envelope import Envelope, Participant, StepResult
 from msgs_json.wire import WireError, decode_envelope, encode_envelope
 from bringup.engine.lockstep import (
     ACK_TOPIC,
@@ -80,7 +84,6 @@ QOS_SYNC_SUB = QoSProfile(history=HistoryPolicy.KEEP_ALL, reliability=Reliabilit
 _CLOCK_REMAP = ["--ros-args", "-r", "/clock:=/_lockstep/unused_clock"]
 # Fewer entities per node = smaller wait sets per spin (no parameter services, no /rosout writer).
 _LEAN = {"start_parameter_services": False, "enable_rosout": False}
-_ROUTER_NAME = "dtn_router"
 
 
 class HostError(RuntimeError):
@@ -105,9 +108,11 @@ class ParticipantHost:
     def __init__(self, role: str, participants: Sequence[Participant], *, ack_timeout_s: float = 10.0,
                  startup_timeout_s: float = 60.0, idle_timeout_s: float = 300.0,
                  state_path: str | None = None, rejoin_period_s: float = 2.0):
-        names = [p.name for p in participants]
-        if not names or len(set(names)) != len(names):
-            raise HostError(f"host {role}: participant names must be unique and non-empty: {names}")
+        try:
+            check_names(participants)
+            subs = [check_subscriptions(p.name, p.subscriptions()) for p in participants]
+        except EngineError as exc:
+            raise HostError(f"host {role}: {exc}") from None
         self.role = role
         self.ack_timeout_s = ack_timeout_s
         self.startup_timeout_s = startup_timeout_s
@@ -123,13 +128,13 @@ class ParticipantHost:
         self.executor.add_node(self.host_node)
         self.slots: list[_Slot] = []
         self.inboxes_by_topic: dict[str, list[TopicInbox]] = {}
-        for p in participants:
+        for p, topics in zip(participants, subs, strict=True):
             node = rclpy.create_node(
                 p.name, context=self.ctx, cli_args=_CLOCK_REMAP, **_LEAN,
                 parameter_overrides=[Parameter("use_sim_time", Parameter.Type.BOOL, True)],
             )
             slot = _Slot(p, node)
-            for topic in dict.fromkeys(p.subscriptions()):
+            for topic in topics:
                 box = TopicInbox(topic)
                 node.create_subscription(String, topic, self._make_cb(box), QOS_DATA)
                 slot.inboxes.append(box)
@@ -154,10 +159,6 @@ class ParticipantHost:
         self.ckpt = None
         if state_path is not None:
             self._open_checkpoint(state_path)
-        # the DTN router's in-flight copies go into every ack (progress display; no extra message).
-        # Its name is dtn_router.router.ROUTER_NAME, not imported: that package costs a toy host 0.3 s.
-        self._routers = [s.p for s in self.slots
-                         if s.name == _ROUTER_NAME and isinstance(getattr(s.p, "pending", None), list)]
 
     # -- checkpoints (bringup/engine/checkpoint.py) --------------------------------------------------------
     def _open_checkpoint(self, state_path: str) -> None:
@@ -284,13 +285,11 @@ class ParticipantHost:
         return pub
 
     def _emit(self, slot: _Slot, emits, t_max_ns: int, where: str, sent: dict[str, int]) -> None:
-        for e in emits or ():
-            if not isinstance(e, Emit):
-                raise HostError(f"{slot.name} {where}: emitted {type(e).__name__}, expected Emit")
-            if type(e.t_ns) is not int or not 0 <= e.t_ns <= t_max_ns:
-                raise HostError(f"{slot.name} {where}: emit on {e.topic} at t_ns={e.t_ns!r} outside [0, {t_max_ns}]")
-            if not isinstance(e.data, (str, bytes)):
-                raise HostError(f"{slot.name} {where}: emit on {e.topic} has {type(e.data).__name__} data")
+        try:
+            emits = check_emits(slot.name, emits, t_max_ns, where)
+        except EngineError as exc:
+            raise HostError(str(exc)) from None
+        for e in emits:
             env = Envelope(e.t_ns, slot.name, slot.seq, e.topic, e.data)
             text = encode_envelope(env)
             self._publisher(slot, e.topic).publish(String(data=text))
@@ -312,14 +311,18 @@ class ParticipantHost:
         self.seq_end.update(m.seq_end)
         sent: dict[str, int] = {}
         wakes: list[int] = []
+        flight: list[int] = []
         t = m.t_ns
         if m.start:
             self.subs, self.subs_default = dict(m.subs), m.subs_default
             for slot in self.slots:
-                r = self._call(slot, slot.p.start, t, "start")
-                self._emit(slot, r.emits, t, "start", sent)
+                where = f"start at {t}"
+                r = self._call(slot, slot.p.start, where, t)
+                self._emit(slot, r.emits, t, where, sent)
                 if r.next_wakeup_ns is not None:
                     wakes.append(r.next_wakeup_ns)
+                if r.in_flight is not None:
+                    flight.append(r.in_flight)
         else:
             boxes = [b for s in self.slots for b in s.inboxes]
             seq_end = self.seq_end
@@ -342,10 +345,13 @@ class ParticipantHost:
                 else:
                     inbox = [e for b in slot.inboxes for e in b.take(seq_end)]
                     inbox.sort(key=Envelope.sort_key)
-                r = self._call(slot, slot.p.step, t, f"step at {t}", inbox)
-                self._emit(slot, r.emits, t, f"step at {t}", sent)
+                where = f"step at {t}"
+                r = self._call(slot, slot.p.step, where, t, inbox)
+                self._emit(slot, r.emits, t, where, sent)
                 if r.next_wakeup_ns is not None:
                     wakes.append(r.next_wakeup_ns)
+                if r.in_flight is not None:
+                    flight.append(r.in_flight)
             if m.final:
                 for slot in self.slots:
                     # what the host rejected for this participant, so the participant can report it:
@@ -360,32 +366,31 @@ class ParticipantHost:
                             if b.pending:
                                 rej[f"{leaf}.unknown_source"] = rej.get(f"{leaf}.unknown_source", 0) + len(b.pending)
                         slot.p.host_rejected = rej
+                    where = f"finish at {t}"
                     try:
                         emits = slot.p.finish(t)
                     except Exception as exc:
-                        raise HostError(f"{slot.name} failed in finish({t}): {type(exc).__name__}: {exc}") from exc
-                    self._emit(slot, emits, t, "finish", sent)
+                        raise HostError(str(failed(slot.name, where, exc))) from exc
+                    self._emit(slot, emits, t, where, sent)
         ack = dict(k=m.k, t_ns=t, next_wakeup_ns=min(wakes) if wakes else None, sent=sent,
                    seq_end={s.name: s.seq for s in self.slots if s.seq})
-        if self._routers:
-            ack["in_flight"] = sum(len(p.pending) for p in self._routers)
+        if flight:
+            ack["in_flight"] = sum(flight)
         if self.ckpt is not None:
             self._checkpoint(m.k, ack)
         self.done_k, self.last_ack, self.last_wires = m.k, ack, self._step_wires
         self._ack(**ack)
 
     @staticmethod
-    def _call(slot: _Slot, fn, t: int, where: str, *args) -> StepResult:
+    def _call(slot: _Slot, fn, where: str, *args) -> StepResult:
         try:
-            r = fn(t, *args)
+            r = fn(*args)
         except Exception as exc:
-            raise HostError(f"{slot.name} failed in {where}: {type(exc).__name__}: {exc}") from exc
-        if not isinstance(r, StepResult):
-            raise HostError(f"{slot.name} {where}: returned {type(r).__name__}, expected StepResult")
-        w = r.next_wakeup_ns
-        if w is not None and (type(w) is not int or w < 0):
-            raise HostError(f"{slot.name} {where}: next_wakeup_ns must be a non-negative int or None, got {w!r}")
-        return r
+            raise HostError(str(failed(slot.name, where, exc))) from exc
+        try:
+            return check_result(slot.name, r, where)
+        except EngineError as exc:
+            raise HostError(str(exc)) from None
 
     # -- main loop ----------------------------------------------------------------------------------
     def run(self) -> int:
