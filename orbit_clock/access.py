@@ -5,11 +5,16 @@ off-nadir angle eta = angle(-r_sat, r_gp - r_sat) (geocentric nadir) is <= the f
 (paper: 55 deg) and the GP is on the near side of the Earth ((r_sat - r_gp) . r_gp > 0). At 710 km
 55 deg off-nadir is 24.45 deg elevation (about 1175 km ground range).
 
+This module is the project's one field of regard: :func:`off_nadir_deg` (the angle),
+:func:`for_central_angle_rad` (the largest Earth-central angle the FOR reaches, the bound every
+pre-filter builds on), :func:`for_mask` (the FOR test of the scheduler's instances) and
+:class:`RegionPrefilter` (which regions may enter a satellite's FOR in a time interval).
+
 Search, coarse then refine (``access_windows``):
 1. coarse grid (default 20 s): angle between each satellite and each region centre; a region is a
-   candidate at a sample when that angle is within the largest possible access angle (upper bound
-   from the highest satellite radius and the polar Earth radius) + the region's half diagonal + the
-   satellite's ground-relative angular motion over one coarse step. If a GP is visible at t in
+   candidate at a sample when that angle is within the largest possible access angle
+   (:func:`for_central_angle_rad` of the highest satellite radius and the polar Earth radius) + the
+   region's half diagonal + the satellite's ground-relative angular motion over one coarse step. If a GP is visible at t in
    [t_k, t_k+1], both t_k and t_k+1 are flagged, so no window escapes a candidate interval.
 2. candidate interval on a fine grid (default 1 s) with SGP4: eta for every GP of the region; runs of
    visible samples are windows; each edge is placed by linear interpolation of (limit - eta)
@@ -18,15 +23,20 @@ Search, coarse then refine (``access_windows``):
 Windows shorter than one fine step can be missed (a grazing pass that dips below the limit between
 two samples); windows are clipped to [t0_s, t1_s].
 
-How we know it is right (tests/unit/test_orbit_access.py): skyfield ``find_events`` with the
-elevation mask equivalent to the off-nadir limit agrees on every pass to within 2 s (passes whose
-peak is within 1 deg of the mask are excluded: there the edges are ill-conditioned); the brute-force
-1 s grid over every GP (``access_windows_bruteforce``) finds the same windows; invariants (ordered,
-non-overlapping per (sat, gp), inside the horizon, eta <= limit inside).
+How we know it is right (tests/unit/test_orbit_access.py): the off-nadir angle against the closed
+form of the plane triangle (centre, satellite, GP) and an atan2 formula to 1e-9 deg; the FOR bound
+against a brute-force search of the central angles; the FOR mask's row pre-filter equal to the test of
+every pair; the region pre-filter never drops a GP the exact mask keeps (FOR inside and beyond the
+horizon); skyfield ``find_events`` with the elevation mask equivalent to the off-nadir limit agrees
+on every pass to within 2 s (passes whose peak is within 1 deg of the mask are excluded: there the
+edges are ill-conditioned); the brute-force 1 s grid over every GP (``access_windows_bruteforce``)
+finds the same windows; invariants (ordered, non-overlapping per (sat, gp), inside the horizon,
+eta <= limit inside).
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -37,8 +47,11 @@ from orbit_clock.propagation import MU_WGS84_KM3_S2, Constellation
 
 __all__ = [
     "AccessWindows",
+    "RegionPrefilter",
     "access_windows",
     "access_windows_bruteforce",
+    "for_central_angle_rad",
+    "for_mask",
     "off_nadir_deg",
     "off_nadir_profile",
     "visibility_matrix",
@@ -46,12 +59,91 @@ __all__ = [
 
 
 def off_nadir_deg(sat_ecef_km: np.ndarray, gp_ecef_km: np.ndarray) -> np.ndarray:
-    """Off-nadir angle [deg] from satellites to GPs, broadcasting over leading axes ([..., 3])."""
+    """Off-nadir angle [deg] from satellites to GPs, broadcasting over leading axes ([..., 3]).
+
+    The angle at the satellite between geocentric nadir (-r_sat) and the line of sight (r_gp - r_sat).
+    """
     s = np.asarray(sat_ecef_km, dtype=float)
     g = np.asarray(gp_ecef_km, dtype=float)
     d = g - s
     cos_eta = -np.einsum("...k,...k->...", s, d) / (np.linalg.norm(s, axis=-1) * np.linalg.norm(d, axis=-1))
     return np.rad2deg(np.arccos(np.clip(cos_eta, -1.0, 1.0)))
+
+
+def for_central_angle_rad(r_sat_km: float, r_ground_km: float, max_off_nadir_deg: float) -> float:
+    """Largest Earth-central angle [rad] between a satellite at radius ``r_sat_km`` and a ground point
+    at radius ``r_ground_km`` that is within ``max_off_nadir_deg`` of nadir and above its horizon.
+
+    Triangle Earth centre O, satellite S (|OS| = r), ground point P (|OP| = rho): the off-nadir angle
+    eta at S and the central angle lam at O obey sin(eta + lam) = r sin(eta) / rho for the near
+    intersection of the line of sight with the sphere, so lam = arcsin(r sin(eta) / rho) - eta while
+    that arcsin exists and eta < 90 deg; beyond, the line of sight misses the Earth and the bound is
+    the horizon, arccos(rho / r). The bound grows with r and shrinks with rho, so the largest
+    satellite radius and the smallest ground radius give one bound for every pair. A satellite at or
+    below the ground radius has no bound (pi).
+    """
+    r, rho = float(r_sat_km), float(r_ground_km)
+    if not (r > rho > 0.0):
+        return math.pi
+    eta = math.radians(min(max(float(max_off_nadir_deg), 0.0), 180.0))
+    horizon = math.acos(rho / r)
+    x = r * math.sin(eta) / rho
+    if x >= 1.0 or eta >= math.pi / 2:
+        return horizon
+    return min(math.asin(x) - eta, horizon)
+
+
+def for_mask(sat_pos_km: np.ndarray, gp_ecef_km: np.ndarray, max_off_nadir_deg: float) -> np.ndarray:
+    """(T, G) True where GP g is in the field of regard of the satellite at sat_pos_km[t] (ECEF km):
+    within ``max_off_nadir_deg`` of nadir (:func:`off_nadir_deg`) and on the near side of the Earth.
+
+    Only the time rows where some GP may be in the FOR are computed (:func:`_for_rows`, from
+    :func:`for_central_angle_rad`); the others are False. The rows computed get the same per-element
+    arithmetic as the whole array would (tests/unit/test_orbit_access.py compares with
+    :func:`_for_mask_all`).
+    """
+    sat = np.asarray(sat_pos_km, np.float64)
+    gp = np.asarray(gp_ecef_km, np.float64)
+    rows = _for_rows(sat, gp, max_off_nadir_deg)
+    if rows is None:
+        return _for_mask_all(sat, gp, max_off_nadir_deg)
+    out = np.zeros((sat.shape[0], gp.shape[0]), dtype=bool)
+    if len(rows):
+        out[rows] = _for_mask_all(sat[rows], gp, max_off_nadir_deg)
+    return out
+
+
+def _for_mask_all(sat_pos_km: np.ndarray, gp_ecef_km: np.ndarray, max_off_nadir_deg: float) -> np.ndarray:
+    """The FOR test on every (time, GP) pair: off-nadir angle and the GP's local horizon."""
+    sat = np.asarray(sat_pos_km, np.float64)[:, None, :]
+    gp = np.asarray(gp_ecef_km, np.float64)[None, :, :]
+    off = off_nadir_deg(sat, gp)
+    above = np.sum((sat - gp) * gp, axis=-1) > 0.0
+    return (off <= max_off_nadir_deg) & above
+
+
+# Earth central angle margin [deg] of the row pre-filter (its own rounding is ~1e-13 deg)
+_FOR_ROWS_MARGIN_DEG = 1.0
+
+
+def _for_rows(sat: np.ndarray, gp: np.ndarray, max_off_nadir_deg: float) -> np.ndarray | None:
+    """Time rows where some GP may be in the FOR (a superset), or None to test every row.
+
+    A row is kept when some GP is within :func:`for_central_angle_rad` (largest satellite radius,
+    smallest GP radius) plus ``_FOR_ROWS_MARGIN_DEG`` of the sub-satellite point.
+    """
+    if sat.ndim != 2 or gp.ndim != 2 or sat.shape[1] != 3 or gp.shape[1] != 3 or len(sat) < 2 or len(gp) == 0:
+        return None
+    r_s = np.sqrt(np.einsum("ij,ij->i", sat, sat))
+    r_g = np.sqrt(np.einsum("ij,ij->i", gp, gp))
+    if not (np.all(np.isfinite(r_s)) and np.all(np.isfinite(r_g))) or r_g.min() <= 0 or r_s.min() <= 0:
+        return None
+    r, rho = float(r_s.max()), float(r_g.min())
+    if r <= rho:
+        return None  # a satellite at or below a GP's radius: no simple bound, test every row
+    lam = min(math.pi, for_central_angle_rad(r, rho, max_off_nadir_deg) + math.radians(_FOR_ROWS_MARGIN_DEG))
+    cos_ang = (sat / r_s[:, None]) @ (gp / r_g[:, None]).T  # (T, G) cosines of the central angles
+    return np.flatnonzero((cos_ang >= math.cos(lam)).any(axis=1))
 
 
 def _eta_grid(sat_ecef_km: np.ndarray, gp_ecef_km: np.ndarray):
@@ -180,13 +272,66 @@ def _grid(t0_s: float, t1_s: float, step_s: float) -> np.ndarray:
     return np.append(t, t1_s) if t.size == 0 or t[-1] < t1_s else t
 
 
-def _max_access_angle_rad(r_sat_max_km: float, max_off_nadir_deg: float) -> float:
-    """Upper bound of the Earth-central angle between a satellite and a GP it can see."""
-    r_g = WGS84_B_KM
-    eta = np.deg2rad(max_off_nadir_deg)
-    x = r_sat_max_km / r_g * np.sin(eta)
-    horizon = np.arccos(r_g / r_sat_max_km)
-    return float(horizon if x >= 1.0 else min(np.arcsin(x) - eta, horizon))
+class RegionPrefilter:
+    """The GPs of the regions that may enter a satellite's field of regard during [t0_s, t1_s].
+
+    A cheap pre-filter for the scheduler, which then computes the exact FOR mask on its grid: a
+    region is kept when, at some sample of a ``step_s`` ephemeris over [0, horizon_s], the Earth
+    central angle between the sub-satellite point and the region centre (the mean of its GP unit
+    vectors) is within the FOR's central angle (:func:`for_central_angle_rad` from the highest
+    orbit radius and the polar Earth radius) plus the region's angular radius plus the satellite's
+    ground motion over one sample (8 km/s upper bound) plus 1 deg. The ephemeris is computed on the
+    first query and not pickled.
+    """
+
+    def __init__(self, constellation: Constellation, gps: GroundPoints, horizon_s: float,
+                 max_off_nadir_deg: float, step_s: float = 30.0):
+        self.constellation = constellation
+        self.gps = gps
+        self.horizon_s = float(horizon_s)
+        self.max_off_nadir_deg = float(max_off_nadir_deg)
+        self.step_s = float(step_s)
+        self._coarse: dict | None = None
+
+    def __getstate__(self):
+        return {k: v for k, v in self.__dict__.items() if k != "_coarse"} | {"_coarse": None}
+
+    def candidate_gp_ids(self, sat: str, t0_s: float, t1_s: float) -> np.ndarray:
+        """GP ids (int64, by region in region order) that may be in ``sat``'s FOR in [t0_s, t1_s]."""
+        c = self._coarse if self._coarse is not None else self._build()
+        i = self.constellation.index(sat)
+        k0 = max(0, int(math.floor(t0_s / self.step_s)))
+        k1 = min(c["unit"].shape[1] - 1, int(math.ceil(t1_s / self.step_s)))
+        u = c["unit"][i, k0:k1 + 1]  # (n, 3)
+        cosang = u @ c["region_unit"].T  # (n, R)
+        keep = np.flatnonzero((cosang >= c["cos_limit"][None, :]).any(axis=0))
+        if len(keep) == 0:
+            return np.zeros(0, dtype=np.int64)
+        return np.concatenate([c["region_gps"][r] for r in keep])
+
+    def _build(self) -> dict:
+        t = np.arange(0.0, self.horizon_s + self.step_s, self.step_s)
+        pos = self.constellation.positions_ecef_km(t)
+        r = np.linalg.norm(pos, axis=2)
+        unit = pos / r[..., None]
+        gps = self.gps
+        n_reg = len(gps.region_names)
+        region_gps = [np.flatnonzero(gps.region_index == k).astype(np.int64) for k in range(n_reg)]
+        region_unit = np.zeros((n_reg, 3))
+        half_ang = np.zeros(n_reg)
+        for k in range(n_reg):
+            g = gps.ecef_km[region_gps[k]]
+            ctr = g.mean(axis=0)
+            ctr /= np.linalg.norm(ctr)
+            region_unit[k] = ctr
+            gu = g / np.linalg.norm(g, axis=1, keepdims=True)
+            half_ang[k] = float(np.max(np.arccos(np.clip(gu @ ctr, -1, 1)))) if len(g) else 0.0
+        lam = for_central_angle_rad(float(r.max()), WGS84_B_KM, self.max_off_nadir_deg)
+        v_ang = 8.0 * self.step_s / WGS84_B_KM  # ground motion over one sample [rad], 8 km/s upper bound
+        lim = lam + half_ang + v_ang + math.radians(1.0)
+        self._coarse = {"unit": unit, "region_unit": region_unit, "region_gps": region_gps,
+                        "cos_limit": np.cos(np.minimum(lim, math.pi))}
+        return self._coarse
 
 
 def access_windows(constellation: Constellation, gps: GroundPoints, t0_s: float, t1_s: float,
@@ -201,7 +346,7 @@ def access_windows(constellation: Constellation, gps: GroundPoints, t0_s: float,
     tc = _grid(t0_s, t1_s, coarse_step_s)
     r = constellation.positions_ecef_km(tc)[sat_list]  # (n_s, n_c, 3)
     rn = np.linalg.norm(r, axis=-1)
-    lam = _max_access_angle_rad(float(rn.max()) * 1.001, max_off_nadir_deg)
+    lam = for_central_angle_rad(float(rn.max()) * 1.001, WGS84_B_KM, max_off_nadir_deg)
     rate_rad_s = 1.1 * (float(np.sqrt(MU_WGS84_KM3_S2 / rn.min() ** 3)) + 7.3e-5)
     centers = geodetic_to_ecef_km(gps.region_center_lat_deg, gps.region_center_lon_deg, 0.0)
     cu = centers / np.linalg.norm(centers, axis=-1, keepdims=True)

@@ -7,12 +7,14 @@ Implements:
 - TEME -> pseudo Earth-fixed (PEF) by the GMST rotation about z. Polar motion is neglected (its
   effect is < 20 m), so "ECEF" here is PEF, which is also what skyfield's ``TEME`` ->
   ``itrs`` gives with no polar-motion table loaded.
-- WGS-84 geodetic latitude/longitude/height <-> ECEF (closed form one way, Bowring iteration the
-  other) and topocentric elevation with respect to the ellipsoid normal.
+- WGS-84 (NIMA TR8350.2) geodetic latitude/longitude/height <-> ECEF: the closed form one way,
+  Bowring's method with two refinements the other; topocentric elevation with respect to the
+  ellipsoid normal. These constants are the project's one copy of the WGS-84 ellipsoid.
 
-How we know it is right: tests/unit/test_orbit_propagation.py compares ECEF positions and station
-elevations against skyfield (independent implementation, test-only dependency) to metres / 1e-6 deg,
-and checks geodetic -> ECEF -> geodetic round trips.
+How we know it is right: tests/unit/test_orbit_frames.py (geodesy: the inverse against the closed
+forward transform to 3e-8 m from -10 km to 40000 km, poles included; both directions against
+skyfield), tests/unit/test_orbit_propagation.py (ECEF positions against skyfield's TEME -> ITRS) and
+tests/unit/test_orbit_isl.py (station elevations and pass times against skyfield).
 
 All angles in names carry their unit (``_deg``/``_rad``), lengths are km, times s.
 """
@@ -40,6 +42,7 @@ WGS84_A_KM = 6378.137
 WGS84_F = 1.0 / 298.257223563
 WGS84_B_KM = WGS84_A_KM * (1.0 - WGS84_F)
 WGS84_E2 = WGS84_F * (2.0 - WGS84_F)
+_EP2 = WGS84_E2 / (1.0 - WGS84_E2)  # second eccentricity squared
 OMEGA_EARTH_RAD_S = 7.292115146706979e-5  # rotation rate used with GMST-82 [rad/s]
 C_KM_S = 299792.458
 
@@ -88,19 +91,28 @@ def geodetic_to_ecef_km(lat_deg, lon_deg, alt_km=0.0) -> np.ndarray:
 
 
 def ecef_to_geodetic(r_ecef_km: np.ndarray):
-    """ECEF [..., 3] km -> (lat_deg, lon_deg, alt_km) on WGS-84 (Bowring, 5 iterations: < 1 mm)."""
+    """ECEF [..., 3] km -> (lat_deg, lon_deg, alt_km) on WGS-84.
+
+    Bowring's parametric-latitude start (Bowring 1976, Survey Review 23(181)) and two fixed-point
+    refinements of the latitude with the height formula ``p cos(lat) + z sin(lat) - a^2 / N``, which
+    is exact for a given latitude and stable at the poles (no division by cos(lat)). From 10 km below
+    the ellipsoid to beyond GEO the result is within 3e-8 m of the closed-form forward transform
+    (tests/unit/test_orbit_frames.py).
+    """
     r = np.asarray(r_ecef_km, dtype=float)
     x, y, z = r[..., 0], r[..., 1], r[..., 2]
     p = np.hypot(x, y)
     lon = np.arctan2(y, x)
-    lat = np.arctan2(z, p * (1.0 - WGS84_E2))
-    for _ in range(5):
+    theta = np.arctan2(z * WGS84_A_KM, p * WGS84_B_KM)
+    lat = np.arctan2(z + _EP2 * WGS84_B_KM * np.sin(theta) ** 3, p - WGS84_E2 * WGS84_A_KM * np.cos(theta) ** 3)
+    for _ in range(2):  # fixed-point refinement with the pole-stable height formula
         n = WGS84_A_KM / np.sqrt(1.0 - WGS84_E2 * np.sin(lat) ** 2)
-        lat = np.arctan2(z + WGS84_E2 * n * np.sin(lat), p)
+        alt = p * np.cos(lat) + z * np.sin(lat) - WGS84_A_KM ** 2 / n
+        lat = np.arctan2(z, p * (1.0 - WGS84_E2 * n / (n + alt)))
     n = WGS84_A_KM / np.sqrt(1.0 - WGS84_E2 * np.sin(lat) ** 2)
-    cl = np.cos(lat)
-    alt = np.where(cl > 1e-9, p / np.where(cl > 1e-9, cl, 1.0) - n, np.abs(z) - WGS84_B_KM)
-    return np.rad2deg(lat), np.rad2deg(lon), alt
+    sl, cl = np.sin(lat), np.cos(lat)
+    alt = p * cl + z * sl - WGS84_A_KM ** 2 / n  # exact for given lat, stable at the poles
+    return np.degrees(lat), np.degrees(lon), alt
 
 
 def up_unit(lat_deg, lon_deg) -> np.ndarray:

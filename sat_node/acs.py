@@ -29,7 +29,6 @@ __all__ = [
     "SlewModelError",
     "angle_between_deg",
     "nadir_unit",
-    "off_nadir_deg",
     "pointing_unit",
     "slew_angle_deg",
     "unit_vectors",
@@ -71,11 +70,6 @@ def angle_between_deg(u: np.ndarray, v: np.ndarray) -> np.ndarray:
 def slew_angle_deg(sat_a_km, target_a_km, sat_b_km, target_b_km) -> np.ndarray:
     """Slew angle [deg] between pointing at target_a from sat_a and at target_b from sat_b (ECEF km)."""
     return angle_between_deg(pointing_unit(sat_a_km, target_a_km), pointing_unit(sat_b_km, target_b_km))
-
-
-def off_nadir_deg(sat_pos_km: np.ndarray, target_km: np.ndarray) -> np.ndarray:
-    """Off-nadir angle [deg] of the target seen from the satellite."""
-    return angle_between_deg(np.asarray(target_km, np.float64) - sat_pos_km, -np.asarray(sat_pos_km, np.float64))
 
 
 @dataclass(frozen=True)

@@ -1,4 +1,4 @@
-"""Visualisation messages recorded with every run (issue 5 "Visualisation topics"), no rclpy.
+"""Visualisation messages recorded with every run, no rclpy.
 
 Pure functions returning rosbags typestore messages (``bringup.recording.bag.TYPESTORE``), ready for
 ``BagWriter.write_msg``:
@@ -20,14 +20,15 @@ Pure functions returning rosbags typestore messages (``bringup.recording.bag.TYP
 
 Header stamps are sim time (``t_ns`` since the scenario epoch, as /clock).
 
-Oracle (tests/unit/test_viz.py): geodetic conversion checked against the closed-form forward
-transform (geodetic -> ECEF, an independent formula) to < 1 mm and at the equator/poles; the
-messages serialize with rosbags and decode with mcap-ros2-support; marker geometry checked
-against the inputs (positions / 1000, links joining the right satellites, colour ramp monotone).
-tests/unit/test_viz_fast.py: ``viz_cdr`` bytes equal rosbags' serialization of ``viz_messages``
-frame by frame (links none/one/duplicated, with/without ground points and labels), the vectorised
-fixes equal ``navsat_fix`` row by row, and a bag written by ``write_viz`` holds those bytes; the
-paper run's /viz and NavSatFix messages hashed before and after the fast path were identical.
+The sub-satellite point is the WGS-84 geodetic conversion of the orbit core
+(:func:`orbit_clock.frames.ecef_to_geodetic`, checked in tests/unit/test_orbit_frames.py).
+
+Oracle (tests/unit/test_viz.py): the messages serialize with rosbags and decode with
+mcap-ros2-support; fix fields and marker geometry checked against the inputs (positions / 1000,
+links joining the right satellites, colour ramp monotone). tests/unit/test_viz_fast.py: ``viz_cdr``
+bytes equal rosbags' serialization of ``viz_messages`` frame by frame (links none/one/duplicated,
+with/without ground points and labels), the vectorised fixes equal ``navsat_fix`` row by row, and a
+bag written by ``write_viz`` holds those bytes.
 """
 
 from __future__ import annotations
@@ -40,18 +41,15 @@ import numpy as np
 
 from bringup.recording.bag import TYPESTORE
 from msgs_json.topics import VIZ_MARKERS, fix_topic
+from orbit_clock.frames import WGS84_A_KM, WGS84_B_KM, ecef_to_geodetic
 
 __all__ = [
     "FRAME",
     "MARKERS_TYPE",
     "NAVSAT_TYPE",
     "SCALE_KM",
-    "WGS84_A_KM",
-    "WGS84_F",
     "constellation_markers",
     "constellation_markers_cdr",
-    "ecef_to_geodetic",
-    "geodetic_to_ecef",
     "navsat_fix",
     "navsat_fixes_cdr",
     "value_color",
@@ -62,46 +60,10 @@ __all__ = [
 
 FRAME = "earth"
 SCALE_KM = 1000.0  # one visualisation unit = 1000 km
-WGS84_A_KM = 6378.137
-WGS84_F = 1.0 / 298.257223563
-_E2 = WGS84_F * (2.0 - WGS84_F)
-_B_KM = WGS84_A_KM * (1.0 - WGS84_F)
-_EP2 = _E2 / (1.0 - _E2)
-
 NAVSAT_TYPE = "sensor_msgs/msg/NavSatFix"
 MARKERS_TYPE = "visualization_msgs/msg/MarkerArray"
 _T = TYPESTORE.types
 _Marker = _T["visualization_msgs/msg/Marker"]
-
-
-# --- geodesy -------------------------------------------------------------------------------------------
-def geodetic_to_ecef(lat_deg, lon_deg, alt_km):
-    """WGS-84 geodetic -> ECEF [km] (closed form)."""
-    lat, lon = np.radians(lat_deg), np.radians(lon_deg)
-    n = WGS84_A_KM / np.sqrt(1.0 - _E2 * np.sin(lat) ** 2)
-    x = (n + alt_km) * np.cos(lat) * np.cos(lon)
-    y = (n + alt_km) * np.cos(lat) * np.sin(lon)
-    z = (n * (1.0 - _E2) + alt_km) * np.sin(lat)
-    return np.stack([x, y, z], axis=-1)
-
-
-def ecef_to_geodetic(r_ecef_km):
-    """ECEF [km] (..., 3) -> (lat_deg, lon_deg, alt_km), Bowring's start plus two fixed-point
-    refinements (well below a millimetre from the surface to 2000 km)."""
-    r = np.asarray(r_ecef_km, dtype=float)
-    x, y, z = r[..., 0], r[..., 1], r[..., 2]
-    p = np.hypot(x, y)
-    lon = np.arctan2(y, x)
-    theta = np.arctan2(z * WGS84_A_KM, p * _B_KM)
-    lat = np.arctan2(z + _EP2 * _B_KM * np.sin(theta) ** 3, p - _E2 * WGS84_A_KM * np.cos(theta) ** 3)
-    for _ in range(2):  # fixed-point refinement with the pole-stable height formula
-        n = WGS84_A_KM / np.sqrt(1.0 - _E2 * np.sin(lat) ** 2)
-        alt = p * np.cos(lat) + z * np.sin(lat) - WGS84_A_KM ** 2 / n
-        lat = np.arctan2(z, p * (1.0 - _E2 * n / (n + alt)))
-    n = WGS84_A_KM / np.sqrt(1.0 - _E2 * np.sin(lat) ** 2)
-    sl, cl = np.sin(lat), np.cos(lat)
-    alt = p * cl + z * sl - WGS84_A_KM ** 2 / n  # exact for given lat, stable at the poles
-    return np.degrees(lat), np.degrees(lon), alt
 
 
 # --- message builders ------------------------------------------------------------------------------------
@@ -230,7 +192,7 @@ def constellation_markers(
     M = _Marker
     earth_d = 2 * WGS84_A_KM / SCALE_KM
     markers = [
-        _marker(t_ns, "earth", 0, M.SPHERE, scale=(earth_d, earth_d, 2 * _B_KM / SCALE_KM),
+        _marker(t_ns, "earth", 0, M.SPHERE, scale=(earth_d, earth_d, 2 * WGS84_B_KM / SCALE_KM),
                 color=C(r=0.15, g=0.3, b=0.6, a=0.6)),
         _marker(t_ns, "satellites", 0, M.SPHERE_LIST, scale=(0.15, 0.15, 0.15),
                 color=C(r=1.0, g=1.0, b=1.0, a=1.0), points=[_point(v) for v in r]),
@@ -406,7 +368,7 @@ def constellation_markers_cdr(sat_names: Sequence[str], r_ecef_km, t_ns: int, *,
     b = bytearray(_CDR_HDR)
     b += _ST_U32.pack(n_markers)
     earth_d = 2 * WGS84_A_KM / SCALE_KM
-    _marker_cdr(b, sec, nsec, b"earth", 0, M.SPHERE, _ORIGIN, (earth_d, earth_d, 2 * _B_KM / SCALE_KM), _C_EARTH)
+    _marker_cdr(b, sec, nsec, b"earth", 0, M.SPHERE, _ORIGIN, (earth_d, earth_d, 2 * WGS84_B_KM / SCALE_KM), _C_EARTH)
     _marker_cdr(b, sec, nsec, b"satellites", 0, M.SPHERE_LIST, _ORIGIN, (0.15, 0.15, 0.15), _C_WHITE,
                 points=_points_bytes(r), npoints=len(r))
     _marker_cdr(b, sec, nsec, b"isl", 0, M.LINE_LIST, _ORIGIN, (0.02, 0.0, 0.0), _C_ISL,

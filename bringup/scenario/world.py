@@ -21,6 +21,7 @@ import msgspec
 import numpy as np
 
 from bringup.scenario.config import Scenario
+from orbit_clock.access import RegionPrefilter
 
 __all__ = ["World", "scenario_key"]
 
@@ -91,7 +92,7 @@ class World:
     # (a pure function of the scenario, milliseconds).
     def __getstate__(self):
         st = dict(self.__dict__)
-        st.pop("_coarse_cache", None)
+        st.pop("_prefilter", None)
         ctx = self.ctx
         st["ctx"] = {"gps": ctx.gps, "osse": ctx.osse, "slew": ctx.slew}
         return st
@@ -153,63 +154,14 @@ class World:
         return priority_order(self.access, region, t_s, source=source)
 
     def candidate_gp_ids(self, sat: str, t0_s: float, t1_s: float) -> np.ndarray:
-        """GP ids of the regions that may enter ``sat``'s field of regard during [t0_s, t1_s].
-
-        A cheap pre-filter for the scheduler (it then computes the exact FOR mask on its grid):
-        a region is kept when, at some sample of a 30 s ephemeris, the Earth central angle between
-        the sub-satellite point and the region centre is below the FOR's central angle (55 deg
-        off-nadir from the highest orbit radius) plus the region's half-diagonal plus the
-        satellite's ground motion over one sample, with a 1 deg margin. Never drops a GP the exact
-        mask would keep (tests/unit/test_world.py checks it against the full mask).
-        """
-        import math
-
-        c = self._coarse()
-        i = self.ctx.constellation.index(sat)
-        k0 = max(0, int(math.floor(t0_s / c["step_s"])))
-        k1 = min(c["unit"].shape[1] - 1, int(math.ceil(t1_s / c["step_s"])))
-        u = c["unit"][i, k0:k1 + 1]  # (n, 3)
-        cosang = u @ c["region_unit"].T  # (n, R)
-        keep = np.flatnonzero((cosang >= c["cos_limit"][None, :]).any(axis=0))
-        if len(keep) == 0:
-            return np.zeros(0, dtype=np.int64)
-        return np.concatenate([c["region_gps"][r] for r in keep])
-
-    def _coarse(self) -> dict:
-        import math
-
-        c = self.__dict__.get("_coarse_cache")
-        if c is not None:
-            return c
-        sc = self.scenario
-        step_s = 30.0
-        t = np.arange(0.0, sc.scenario.horizon_s + step_s, step_s)
-        pos = self.ctx.constellation.positions_ecef_km(t)
-        r = np.linalg.norm(pos, axis=2)
-        unit = pos / r[..., None]
-        gps = self.ctx.gps
-        n_reg = len(sc.regions.list)
-        region_gps = [np.flatnonzero(gps.region_index == k).astype(np.int64) for k in range(n_reg)]
-        region_unit = np.zeros((n_reg, 3))
-        half_ang = np.zeros(n_reg)
-        for k in range(n_reg):
-            g = gps.ecef_km[region_gps[k]]
-            ctr = g.mean(axis=0)
-            ctr /= np.linalg.norm(ctr)
-            region_unit[k] = ctr
-            gu = g / np.linalg.norm(g, axis=1, keepdims=True)
-            half_ang[k] = float(np.max(np.arccos(np.clip(gu @ ctr, -1, 1)))) if len(g) else 0.0
-        r_max = float(r.max())
-        re = 6356.752  # smallest Earth radius [km]: the largest central angle for a given off-nadir
-        eta = math.radians(sc.instrument.for_off_nadir_deg)
-        x = min(1.0, r_max / re * math.sin(eta))
-        lam = math.asin(x) - eta
-        v_ang = 8.0 * step_s / re  # ground motion over one sample [rad], 8 km/s upper bound
-        lim = lam + half_ang + v_ang + math.radians(1.0)
-        c = {"step_s": step_s, "unit": unit, "region_unit": region_unit, "region_gps": region_gps,
-             "cos_limit": np.cos(np.minimum(lim, math.pi))}
-        self.__dict__["_coarse_cache"] = c
-        return c
+        """GP ids of the regions that may enter ``sat``'s field of regard during [t0_s, t1_s]
+        (orbit_clock.access.RegionPrefilter over the horizon, built on first use)."""
+        pf = self.__dict__.get("_prefilter")
+        if pf is None:
+            sc = self.scenario
+            pf = self.__dict__["_prefilter"] = RegionPrefilter(self.ctx.constellation, self.ctx.gps,
+                                                               sc.scenario.horizon_s, sc.instrument.for_off_nadir_deg)
+        return pf.candidate_gp_ids(sat, t0_s, t1_s)
 
     def gp_region_name(self, gp: int) -> str:
         return str(self.ctx.gps.region_names[self.region_of_gp(gp)])

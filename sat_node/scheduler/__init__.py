@@ -16,13 +16,10 @@ from sat_node.scheduler.problem import (
     ProblemError,
     SchedulingProblem,
     build_problem,
-    circular_walker_ecef_km,
     evaluate_plan,
-    for_mask,
     instance_from_orbit,
     pass_starts_s,
     plan_violations,
-    square_region_gp_ecef_km,
 )
 
 __all__ = [
@@ -34,9 +31,7 @@ __all__ = [
     "ScheduleInvariantError",
     "SchedulingProblem",
     "build_problem",
-    "circular_walker_ecef_km",
     "evaluate_plan",
-    "for_mask",
     "instance_from_orbit",
     "make_plan",
     "nadir_pass_crossings",
@@ -46,7 +41,6 @@ __all__ = [
     "solve_dp",
     "solve_milp",
     "solve_nonagile",
-    "square_region_gp_ecef_km",
 ]
 
 

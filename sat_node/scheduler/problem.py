@@ -4,8 +4,9 @@ An instance (Nag et al., ICAPS SPARK 2019, Table 1 / DESIGN.md section 1) is eve
 needs to choose where to point over ``[t0_s, t0_s + n_steps * step_s)``: its ECEF positions on the
 grid, the GP ECEF vectors, which GP is inside the field of regard (FOR) at each step, the believed
 absolute value per (step, GP), what it knows was (or will be, by other satellites) observed before
-each step, and its attitude at the start. Everything is plain numpy, so the scheduler does not
-depend on the orbit core; :func:`instance_from_orbit` builds an instance from an orbit/OSSE source.
+each step, and its attitude at the start. The instance is plain numpy; the FOR mask comes from the
+orbit core (:func:`orbit_clock.access.for_mask`); :func:`instance_from_orbit` builds an instance
+from an orbit/OSSE source.
 
 Semantics shared by every solver here (DP, brute force, MILP, non-agile), implemented once in
 :func:`evaluate_plan` and :func:`plan_violations`:
@@ -23,13 +24,6 @@ Semantics shared by every solver here (DP, brute force, MILP, non-agile), implem
 
 How we know it is right (tests/unit/test_dp.py): the evaluation against a hand-computed three-
 observation plan, and every solver's reported value equals :func:`evaluate_plan` of its plan.
-:func:`for_mask` tests only the time rows a central-angle bound keeps; tests/unit/test_speed_paths.py
-checks it equals the test of every pair on many geometries.
-
-The circular-orbit helpers at the bottom (:func:`circular_walker_ecef_km`,
-:func:`square_region_gp_ecef_km`, :func:`for_mask`) are a simple two-body stand-in (spherical
-rotation at the sidereal rate, no J2, no SGP4) for tests and for the benchmark while the orbit core
-(orbit_clock) is not there; they are not the flight geometry.
 """
 
 from __future__ import annotations
@@ -39,26 +33,19 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from sat_node.acs import SlewModel, angle_between_deg, nadir_unit, off_nadir_deg, unit_vectors
+from orbit_clock.access import for_mask
+from sat_node.acs import SlewModel, angle_between_deg, nadir_unit, unit_vectors
 
 __all__ = [
-    "WGS84_A_KM",
     "OrbitContext",
     "ProblemError",
     "SchedulingProblem",
     "build_problem",
-    "circular_walker_ecef_km",
     "evaluate_plan",
-    "for_mask",
     "instance_from_orbit",
     "pass_starts_s",
     "plan_violations",
-    "square_region_gp_ecef_km",
 ]
-
-WGS84_A_KM = 6378.137
-_MU_KM3_S2 = 398600.4418
-_OMEGA_EARTH_RAD_S = 7.2921150e-5
 
 
 class ProblemError(ValueError):
@@ -226,103 +213,6 @@ def plan_violations(p: SchedulingProblem, steps, cols, rule: str = "sequential",
             if t[jx] - t[i] + tol_s < need:
                 out.append(f"obs {i}->{jx}: {t[jx] - t[i]:.3f} s < slew {need:.3f} s")
     return out
-
-
-# ---- simple circular-orbit geometry (tests / benchmark stand-in for the orbit core) -----------------
-
-
-def circular_walker_ecef_km(times_s, *, total_sats: int, planes: int, phasing_f: int, altitude_km: float,
-                            inclination_deg: float, raan0_deg: float = 0.0, pattern: str = "star",
-                            gmst0_deg: float = 280.46) -> np.ndarray:
-    """ECEF positions (n_sats, T, 3) [km] of a circular Walker constellation (two-body, no J2)."""
-    t = np.asarray(times_s, dtype=np.float64)
-    r = WGS84_A_KM + altitude_km
-    n = math.sqrt(_MU_KM3_S2 / r**3)
-    spp = total_sats // planes
-    spread = 180.0 if pattern == "star" else 360.0
-    inc = math.radians(inclination_deg)
-    out = np.empty((total_sats, len(t), 3))
-    theta = math.radians(gmst0_deg) + _OMEGA_EARTH_RAD_S * t
-    for p in range(planes):
-        raan = math.radians(raan0_deg + p * spread / planes)
-        for s in range(spp):
-            u = math.radians(s * 360.0 / spp + p * phasing_f * 360.0 / total_sats) + n * t
-            x = r * (np.cos(u) * math.cos(raan) - np.sin(u) * math.sin(raan) * math.cos(inc))
-            y = r * (np.cos(u) * math.sin(raan) + np.sin(u) * math.cos(raan) * math.cos(inc))
-            z = r * np.sin(u) * math.sin(inc)
-            c, sn = np.cos(theta), np.sin(theta)
-            out[p * spp + s, :, 0] = c * x + sn * y
-            out[p * spp + s, :, 1] = -sn * x + c * y
-            out[p * spp + s, :, 2] = z
-    return out
-
-
-def square_region_gp_ecef_km(lat_deg: float, lon_deg: float, size_km: float, spacing_km: float) -> np.ndarray:
-    """GP centres (n*n, 3) of a size_km square on a spherical Earth of radius WGS84_A_KM."""
-    n = max(1, round(size_km / spacing_km))
-    off = (np.arange(n) + 0.5) * (size_km / n) - size_km / 2
-    yy, xx = np.meshgrid(off, off, indexing="ij")
-    lat = np.radians(lat_deg) + yy.ravel() / WGS84_A_KM
-    lon = np.radians(lon_deg) + xx.ravel() / (WGS84_A_KM * math.cos(math.radians(lat_deg)))
-    return WGS84_A_KM * np.stack([np.cos(lat) * np.cos(lon), np.cos(lat) * np.sin(lon), np.sin(lat)], axis=1)
-
-
-def for_mask(sat_pos_km: np.ndarray, gp_ecef_km: np.ndarray, for_off_nadir_deg: float) -> np.ndarray:
-    """(T, G) True where the GP is within for_off_nadir_deg of nadir and above the horizon.
-
-    Only the time rows where some GP can be in the FOR are computed (:func:`_for_rows`); the others
-    are False. The rows computed get the same per-element arithmetic as the whole array would
-    (tests/unit/test_speed_paths.py compares with :func:`_for_mask_all`).
-    """
-    sat = np.asarray(sat_pos_km, np.float64)
-    gp = np.asarray(gp_ecef_km, np.float64)
-    rows = _for_rows(sat, gp, for_off_nadir_deg)
-    if rows is None:
-        return _for_mask_all(sat, gp, for_off_nadir_deg)
-    out = np.zeros((sat.shape[0], gp.shape[0]), dtype=bool)
-    if len(rows):
-        out[rows] = _for_mask_all(sat[rows], gp, for_off_nadir_deg)
-    return out
-
-
-def _for_mask_all(sat_pos_km: np.ndarray, gp_ecef_km: np.ndarray, for_off_nadir_deg: float) -> np.ndarray:
-    """The FOR test on every (time, GP) pair: off-nadir angle and the GP's local horizon."""
-    sat = np.asarray(sat_pos_km, np.float64)[:, None, :]
-    gp = np.asarray(gp_ecef_km, np.float64)[None, :, :]
-    off = off_nadir_deg(sat, gp)
-    above = np.sum((sat - gp) * gp, axis=-1) > 0.0
-    return (off <= for_off_nadir_deg) & above
-
-
-# Earth central angle margin [deg] of the row pre-filter (its own rounding is ~1e-13 deg)
-_FOR_ROWS_MARGIN_DEG = 1.0
-
-
-def _for_rows(sat: np.ndarray, gp: np.ndarray, for_off_nadir_deg: float) -> np.ndarray | None:
-    """Time rows where some GP may be in the FOR (a superset), or None to test every row.
-
-    Triangle Earth centre O, satellite S (|OS| = r), GP P (|OP| = rho): the off-nadir angle eta at S
-    and the central angle lam at O obey sin(eta + lam) = r sin(eta) / rho on the near side, so a GP
-    within eta_max of nadir and above its horizon has lam <= arcsin(r sin(eta_max) / rho) - eta_max,
-    or lam <= arccos(rho / r) (the horizon) when that arcsin does not exist; the bound grows with r and
-    shrinks with rho, so the largest r and the smallest rho give one bound for all pairs. A row is kept
-    when some GP is within that bound plus _FOR_ROWS_MARGIN_DEG.
-    """
-    if sat.ndim != 2 or gp.ndim != 2 or sat.shape[1] != 3 or gp.shape[1] != 3 or len(sat) < 2 or len(gp) == 0:
-        return None
-    r_s = np.sqrt(np.einsum("ij,ij->i", sat, sat))
-    r_g = np.sqrt(np.einsum("ij,ij->i", gp, gp))
-    if not (np.all(np.isfinite(r_s)) and np.all(np.isfinite(r_g))) or r_g.min() <= 0 or r_s.min() <= 0:
-        return None
-    r, rho = float(r_s.max()), float(r_g.min())
-    if r <= rho:
-        return None  # a satellite at or below a GP's radius: no simple bound, test every row
-    eta = math.radians(min(max(float(for_off_nadir_deg), 0.0), 180.0))
-    x = r * math.sin(eta) / rho
-    lam = math.acos(rho / r) if x >= 1.0 or eta >= math.pi / 2 else math.asin(x) - eta
-    lam = min(math.pi, lam + math.radians(_FOR_ROWS_MARGIN_DEG))
-    cos_ang = (sat / r_s[:, None]) @ (gp / r_g[:, None]).T  # (T, G) cosines of the central angles
-    return np.flatnonzero((cos_ang >= math.cos(lam)).any(axis=1))
 
 
 # ---- instances from the orbit core and the OSSE field ------------------------------------------------

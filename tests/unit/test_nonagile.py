@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 from dp_instances import OMEGA_RAD_S, PAPER_SLEW, gp_ecef, track
 
+from orbit_clock.frames import WGS84_A_KM
 from sat_node.scheduler import build_problem, solve_nonagile
-from sat_node.scheduler.problem import WGS84_A_KM
 
 
 def _problem(gp, n_steps=120, t0_s=-60.0, absval=None):

@@ -1,4 +1,6 @@
-"""GP access windows: skyfield find_events oracle, brute-force grid, invariants (orbit_clock.access)."""
+"""GP access (orbit_clock.access): the off-nadir angle and the field-of-regard bound against closed
+forms, the FOR mask's row pre-filter against the test of every pair, access windows against
+skyfield find_events, a brute-force grid and invariants."""
 
 from __future__ import annotations
 
@@ -6,7 +8,17 @@ import numpy as np
 import pytest
 
 from orbit_clock import access_windows, access_windows_bruteforce, build_constellation, ground_points
-from orbit_clock.access import off_nadir_deg, off_nadir_profile, visibility_matrix
+from orbit_clock.access import (
+    RegionPrefilter,
+    _eta_grid,
+    _for_mask_all,
+    _for_rows,
+    for_central_angle_rad,
+    for_mask,
+    off_nadir_deg,
+    off_nadir_profile,
+    visibility_matrix,
+)
 
 LIMIT = 55.0
 
@@ -24,6 +36,107 @@ def test_off_nadir_hand_cases():
     assert off_nadir_deg(sat, np.array([6000.0, 1000.0, 0])) == pytest.approx(45.0, abs=1e-9)
     many = off_nadir_deg(np.tile(sat, (4, 1)), np.array([[6000.0, 1000.0, 0]] * 4))
     assert many.shape == (4,)
+
+
+def _sphere_geometry(rng, n):
+    """Random satellite/GP pairs on a sphere with their closed-form off-nadir angle [deg].
+
+    Satellite at radius r on +z rotated to a random direction, GP at radius rho and central angle lam
+    from the sub-satellite point: eta = atan2(rho sin(lam), r - rho cos(lam)) (plane triangle)."""
+    r = rng.uniform(6500.0, 45000.0, n)
+    rho = rng.uniform(6350.0, 6390.0, n)
+    lam = rng.uniform(0.0, np.arccos(rho / r))  # up to the horizon
+    az = rng.uniform(0.0, 2 * np.pi, n)
+    sat = np.stack([np.zeros(n), np.zeros(n), r], axis=1)
+    gp = rho[:, None] * np.stack([np.sin(lam) * np.cos(az), np.sin(lam) * np.sin(az), np.cos(lam)], axis=1)
+    q, _ = np.linalg.qr(rng.normal(size=(3, 3)))  # one random rotation for all
+    eta = np.rad2deg(np.arctan2(rho * np.sin(lam), r - rho * np.cos(lam)))
+    return sat @ q.T, gp @ q.T, r, rho, lam, eta
+
+
+def test_off_nadir_against_the_plane_triangle_and_atan2():
+    """Oracles: the closed form of the plane triangle (centre, satellite, GP) and the well-conditioned
+    atan2(|s x d|, -s.d) formula, to 1e-9 deg from nadir to the horizon, orbits 120 km to GEO."""
+    rng = np.random.default_rng(11)
+    sat, gp, *_, eta = _sphere_geometry(rng, 5000)
+    got = off_nadir_deg(sat, gp)
+    d = gp - sat
+    ref = np.rad2deg(np.arctan2(np.linalg.norm(np.cross(-sat, d), axis=1), np.einsum("ik,ik->i", -sat, d)))
+    assert np.abs(got - eta).max() < 1e-9
+    assert np.abs(got - ref).max() < 1e-9
+    # the access search's matrix form of the same angle and near-side test
+    e, near = _eta_grid(sat[:50], gp[:70])
+    np.testing.assert_allclose(e, off_nadir_deg(sat[:50, None, :], gp[None, :70, :]), atol=1e-9)
+    np.testing.assert_array_equal(near, np.einsum("tgk,gk->tg", sat[:50, None, :] - gp[None, :70, :], gp[:70]) > 0)
+
+
+def test_for_central_angle_is_the_largest_visible_central_angle():
+    """Oracle: for each (r, rho, eta_max), the largest central angle of a GP within eta_max of nadir
+    and above its horizon, found by brute force on a 1e-5 rad grid of central angles (plane triangle).
+    Also the closed form at the paper's geometry: 55 deg at 710 km -> 24.448 deg elevation."""
+    for r, rho, eta_max in [(7088.137, 6378.137, 55.0), (7088.137, 6356.752, 55.0), (6800.0, 6378.0, 70.0),
+                            (7088.0, 6356.0, 66.0), (42164.0, 6378.0, 8.0), (42164.0, 6378.0, 8.8),
+                            (6700.0, 6378.0, 0.0), (7000.0, 6378.0, 90.0), (7000.0, 6378.0, 150.0)]:
+        lam = np.arange(0.0, np.pi, 1e-5)
+        eta = np.rad2deg(np.arctan2(rho * np.sin(lam), r - rho * np.cos(lam)))
+        above = r * np.cos(lam) > rho  # the satellite above the GP's horizon
+        ok = above & (eta <= eta_max + 1e-12)
+        brute = lam[ok].max()
+        got = for_central_angle_rad(r, rho, eta_max)
+        assert brute - 1e-12 <= got <= brute + 1e-5, (r, rho, eta_max, got, brute)
+    # elevation at the FOR edge: 90 deg - eta - lam
+    lam = for_central_angle_rad(6378.137 + 710.0, 6378.137, 55.0)
+    assert 90.0 - 55.0 - np.rad2deg(lam) == pytest.approx(24.448, abs=1e-3)
+    assert for_central_angle_rad(6000.0, 6378.0, 55.0) == pytest.approx(np.pi)  # no bound below the ground
+
+
+def test_for_mask_row_prefilter_equals_full_test():
+    """The FOR mask computed on the pre-filtered rows equals the test of every (time, GP) pair, and
+    the off-nadir angles of a row subset are bit-identical to those of the whole array; orbits from
+    300 to 36000 km, FOR angles up to beyond the horizon, regions from 50 km to a hemisphere."""
+    from dp_instances import circular_walker_ecef_km, square_region_gp_ecef_km
+
+    rng = np.random.default_rng(5)
+    kept = total = 0
+    for alt, for_deg, size_km, spacing in [(500.0, 55.0, 800.0, 40.0), (300.0, 30.0, 50.0, 5.0),
+                                           (1200.0, 80.0, 3000.0, 150.0), (36000.0, 8.0, 6000.0, 400.0),
+                                           (700.0, 120.0, 9000.0, 600.0), (500.0, 0.0, 500.0, 50.0)]:
+        times = np.arange(0.0, 12000.0, float(rng.choice([7.0, 10.0, 37.0])))
+        sats = circular_walker_ecef_km(times, total_sats=4, planes=2, phasing_f=1, altitude_km=alt,
+                                       inclination_deg=float(rng.uniform(40, 98)))
+        gp = square_region_gp_ecef_km(float(rng.uniform(-60, 60)), float(rng.uniform(-180, 180)), size_km, spacing)
+        for s in sats:
+            full = _for_mask_all(s, gp, for_deg)
+            assert np.array_equal(for_mask(s, gp, for_deg), full)
+            rows = _for_rows(s, gp, for_deg)
+            kept += len(rows)
+            total += len(s)
+            sub = rng.choice(len(s), size=min(len(s), 7), replace=False)
+            a = off_nadir_deg(s[:, None, :], gp[None, :, :])[sub]
+            b = off_nadir_deg(s[sub][:, None, :], gp[None, :, :])
+            assert a.tobytes() == b.tobytes()
+    assert kept < total  # the filter drops rows
+
+
+@pytest.mark.parametrize("for_deg", [55.0, 70.0])
+def test_region_prefilter_keeps_every_gp_in_the_for(setup, for_deg):
+    """Oracle: the exact FOR mask over every GP on a 1 s grid, 10-min windows over 2 h for six
+    satellites; at 70 deg the FOR reaches past the horizon of a 710 km orbit (the bound is then the
+    horizon's central angle, not 90 deg - eta)."""
+    sc, c, g = setup
+    horizon = 7200.0
+    pf = RegionPrefilter(c, g, horizon, for_deg)
+    kept = dropped = 0
+    for sat in c.names[::4]:
+        for t0 in np.arange(0.0, horizon, 600.0):
+            t = t0 + np.arange(600.0)
+            pos = c.positions_ecef_km_at(np.full(t.size, c.index(sat)), t)
+            visible = np.flatnonzero(for_mask(pos, g.ecef_km, for_deg).any(axis=0))
+            ids = pf.candidate_gp_ids(sat, t0, t0 + 600.0)
+            assert set(visible.tolist()) <= set(ids.tolist()), (sat, t0)
+            kept += len(ids) > 0
+            dropped += len(ids) < len(g)
+    assert kept > 0 and dropped > 0  # it keeps some windows and filters others
 
 
 def _mask_equivalent_events(es, site, t0, t1, ts):

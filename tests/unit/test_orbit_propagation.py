@@ -11,7 +11,7 @@ import pytest
 from sgp4.api import WGS72, Satrec, SatrecArray
 
 from orbit_clock import build_constellation, ground_points, walker_elements
-from orbit_clock.frames import ecef_to_geodetic, geodetic_to_ecef_km
+from orbit_clock.frames import geodetic_to_ecef_km
 
 
 def _tcppver():
@@ -104,21 +104,6 @@ def test_ecef_against_skyfield(paper_scenario):
         assert np.abs(np.linalg.norm(r[i], axis=-1) - np.linalg.norm(r_teme[i], axis=-1)).max() < 1e-9
     one = c.positions_ecef_km_at([5, 5, 7], [0.0, 1234.5, 10000.0])
     np.testing.assert_allclose(one, np.stack([r[5, 0], r[5, 1], r[7, 2]]), atol=1e-9)
-
-
-def test_geodetic_round_trip_and_skyfield():
-    from skyfield.api import wgs84
-
-    rng = np.random.default_rng(1)
-    lat, lon, alt = rng.uniform(-89, 89, 50), rng.uniform(-180, 180, 50), rng.uniform(-0.5, 800, 50)
-    xyz = geodetic_to_ecef_km(lat, lon, alt)
-    la, lo, al = ecef_to_geodetic(xyz)
-    np.testing.assert_allclose(la, lat, atol=1e-9)
-    np.testing.assert_allclose(lo, lon, atol=1e-9)
-    np.testing.assert_allclose(al, alt, atol=1e-6)
-    for k in range(5):
-        sky = wgs84.latlon(lat[k], lon[k], elevation_m=alt[k] * 1000).itrs_xyz.km
-        np.testing.assert_allclose(xyz[k], sky, atol=1e-6)
 
 
 def test_ground_points_paper(paper_scenario):

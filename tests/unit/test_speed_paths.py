@@ -344,43 +344,6 @@ def test_viz_feed_links_equal_contact_scan():
     assert seen > 1000
 
 
-def test_for_mask_row_prefilter_equals_full_test():
-    """The FOR mask computed on the pre-filtered rows equals the test of every (time, GP) pair, and
-    the off-nadir angles of a row subset are bit-identical to those of the whole array; orbits from
-    300 to 36000 km, FOR angles up to beyond the horizon, regions from 50 km to a hemisphere."""
-    import numpy as np
-
-    from sat_node.acs import off_nadir_deg
-    from sat_node.scheduler.problem import (
-        _for_mask_all,
-        _for_rows,
-        circular_walker_ecef_km,
-        for_mask,
-        square_region_gp_ecef_km,
-    )
-
-    rng = np.random.default_rng(5)
-    kept = total = 0
-    for alt, for_deg, size_km, spacing in [(500.0, 55.0, 800.0, 40.0), (300.0, 30.0, 50.0, 5.0),
-                                           (1200.0, 80.0, 3000.0, 150.0), (36000.0, 8.0, 6000.0, 400.0),
-                                           (700.0, 120.0, 9000.0, 600.0), (500.0, 0.0, 500.0, 50.0)]:
-        times = np.arange(0.0, 12000.0, float(rng.choice([7.0, 10.0, 37.0])))
-        sats = circular_walker_ecef_km(times, total_sats=4, planes=2, phasing_f=1, altitude_km=alt,
-                                       inclination_deg=float(rng.uniform(40, 98)))
-        gp = square_region_gp_ecef_km(float(rng.uniform(-60, 60)), float(rng.uniform(-180, 180)), size_km, spacing)
-        for s in sats:
-            full = _for_mask_all(s, gp, for_deg)
-            assert np.array_equal(for_mask(s, gp, for_deg), full)
-            rows = _for_rows(s, gp, for_deg)
-            kept += len(rows)
-            total += len(s)
-            sub = rng.choice(len(s), size=min(len(s), 7), replace=False)
-            a = off_nadir_deg(s[:, None, :], gp[None, :, :])[sub]
-            b = off_nadir_deg(s[sub][:, None, :], gp[None, :, :])
-            assert a.tobytes() == b.tobytes()
-    assert kept < total  # the filter drops rows
-
-
 def test_unit_vectors_norm_equals_linalg_norm():
     import numpy as np
 
