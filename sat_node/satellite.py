@@ -45,6 +45,7 @@ import numpy as np
 
 from msgs_json import codec, schemas as S, topics as T
 from msgs_json.envelope import Emit, Envelope, StepResult
+from sat_node import persist
 from sat_node.value import Belief, KnownObservation
 
 __all__ = ["SatelliteLogic", "PersistenceOsse", "observation_payload", "parse_observation_payload"]
@@ -216,6 +217,20 @@ class SatelliteLogic:
             emits += self._radio(t_ns)
             emits.append(self._counters_emit(t_ns))
         return emits
+
+    # -- checkpoints (bringup/engine/checkpoint.py calls these; sat_node/persist.py does the work)
+    def snapshot(self) -> bytes:
+        """Everything this satellite knows besides its stored bundles (sat_node/persist.py)."""
+        return persist.snapshot(self)
+
+    def restore(self, blob: bytes) -> None:
+        """Put a :meth:`snapshot` back into this satellite, freshly built for the same world and name."""
+        persist.restore(self, blob)
+
+    def persistent_connection(self):
+        """The bundle store's SQLite connection (None without a store file): the checkpoint row
+        goes into it, in the step's transaction."""
+        return persist.persistent_connection(self)
 
     def close(self) -> None:
         """Close the bundle store (after ``finish``; the file keeps every committed step)."""

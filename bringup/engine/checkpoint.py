@@ -1,4 +1,4 @@
-"""Per-step checkpoints of a ROS-engine host, so a process killed with SIGKILL resumes (issue 7).
+"""Per-step checkpoints of a ROS-engine host, so a process killed with SIGKILL resumes.
 
 Pure module (no rclpy). After every wire step a host (bringup/engine/ros/host.py) writes one row: the wire
 step ``k`` it finished, its own lockstep state (seq counters, inbox counts, the ack it sent) and
@@ -11,9 +11,12 @@ published before the kill are re-published identically by the re-run (same sourc
 dropped as duplicates by receivers (bringup/engine/lockstep.py TopicInbox).
 
 Participant state: ``p.snapshot() -> bytes`` / ``p.restore(bytes)`` when the participant has them
-(or, for sat_node/satellite.py SatelliteLogic, sat_node/persist.py: known observations, plan, last
-executed time, event cursor, agent routing state), else a pickle of its attributes minus the shared read-only inputs
-(``world``, ``sc``), which every process rebuilds from the world pickle.
+(the satellite does: sat_node/persist.py - known observations, plan, last executed time, event
+cursor, agent routing state), else a pickle of its attributes minus the shared read-only inputs
+(``world``, ``sc``), which every process rebuilds from the world pickle. A participant with a
+persistent store of its own gives its SQLite connection with ``p.persistent_connection()``; the
+checkpoint row then goes into that file, in the step's transaction. The engine knows no participant
+class: these three methods are the whole interface.
 
 How we know it is right: tests/faults/test_restart_unit.py kills a writer between BEGIN and COMMIT
 (SIGKILL in a child process) and finds the previous step's row and store rows, never a mix; and
@@ -30,37 +33,18 @@ from pathlib import Path
 __all__ = ["CheckpointDB", "persistent_connection", "restore_participant", "snapshot_participant"]
 
 _SHARED = ("world", "sc")
-# Participants whose persistence lives in a module of their own package (class path -> module with
-# snapshot(p), restore(p, blob), persistent_connection(p)).
-_ADAPTERS = {"sat_node.satellite.SatelliteLogic": "sat_node.persist"}
-
-
-def _adapter(p):
-    cls = type(p)
-    mod = _ADAPTERS.get(f"{cls.__module__}.{cls.__qualname__}")
-    if mod is None:
-        return None
-    import importlib
-
-    return importlib.import_module(mod)
 
 
 def persistent_connection(p) -> sqlite3.Connection | None:
     """The participant's own SQLite connection, if its state has one (the checkpoint joins it)."""
     fn = getattr(p, "persistent_connection", None)
-    if callable(fn):
-        return fn()
-    ad = _adapter(p)
-    return ad.persistent_connection(p) if ad is not None else None
+    return fn() if callable(fn) else None
 
 
 def snapshot_participant(p) -> bytes:
     fn = getattr(p, "snapshot", None)
     if callable(fn):
         return fn()
-    ad = _adapter(p)
-    if ad is not None:
-        return ad.snapshot(p)
     state = {k: v for k, v in vars(p).items() if k not in _SHARED}
     return pickle.dumps(state, protocol=pickle.HIGHEST_PROTOCOL)
 
@@ -69,10 +53,6 @@ def restore_participant(p, blob: bytes) -> None:
     fn = getattr(p, "restore", None)
     if callable(fn):
         fn(blob)
-        return
-    ad = _adapter(p)
-    if ad is not None:
-        ad.restore(p, blob)
         return
     vars(p).update(pickle.loads(blob))
 
