@@ -4,7 +4,6 @@ Front door (no rclpy): ``osse_from_scenario(scenario, gps) -> OsseField``.
 """
 
 from ground_station.osse import (
-    OSSE_SOURCES,
     VALUE_MAX,
     VALUE_MIN,
     GroundPointArrays,
@@ -12,10 +11,10 @@ from ground_station.osse import (
     OsseField,
     SyntheticParams,
     as_ground_point_arrays,
-    osse_from_scenario,
     synthetic_field,
 )
 from ground_station.osse_io import load_value_grid, read_grid, write_value_grid
+from ground_station.osse_sources import OSSE_SOURCES, osse_from_scenario
 
 __all__ = [
     "OSSE_SOURCES",

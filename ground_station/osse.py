@@ -24,7 +24,8 @@ Each region draws from its own random stream seeded by ``(seed, crc32(region nam
 field does not depend on which other regions the scenario lists.
 
 The ``file`` source (``ground_station.osse_io``) loads a gridded (time, lat, lon) value field from
-NPZ, CSV or NetCDF-3 and interpolates it onto the GPs.
+NPZ, CSV or NetCDF-3 and interpolates it onto the GPs; ``ground_station.osse_sources`` names both
+sources for the scenario (``value.osse_source``). This module imports neither.
 
 How we know it is right (oracle, ``tests/unit/test_osse.py``): the same seed reproduces the field
 bit for bit and another seed changes it; every value is an integer in 1..256; Moran's I over
@@ -41,15 +42,13 @@ from __future__ import annotations
 
 import math
 import zlib
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 __all__ = [
-    "OSSE_SOURCES",
     "VALUE_MAX",
     "VALUE_MIN",
     "GroundPointArrays",
@@ -58,7 +57,6 @@ __all__ = [
     "SyntheticParams",
     "as_ground_point_arrays",
     "local_km",
-    "osse_from_scenario",
     "synthetic_field",
 ]
 
@@ -327,44 +325,3 @@ def synthetic_field(gps: Any, *, region_names: Sequence[str], region_centers_deg
     return OsseField(values=values, slot_s=float(slot_s), lat_deg=g.lat_deg, lon_deg=g.lon_deg,
                      region_index=g.region_index, region_names=list(region_names), source="synthetic",
                      meta={"seed": int(seed), "cells": cells_by_region})
-
-
-# --------------------------------------------------------------------------------------------
-# Registry of named sources (scenario key value.osse_source)
-# --------------------------------------------------------------------------------------------
-def _regions(scenario) -> tuple[list[str], list[tuple[float, float]], list[float]]:
-    rl = scenario.regions.list
-    return [r.name for r in rl], [(r.lat_deg, r.lon_deg) for r in rl], [r.size_km for r in rl]
-
-
-def _synthetic_from_scenario(scenario, gps) -> OsseField:
-    names, centers, sizes = _regions(scenario)
-    return synthetic_field(gps, region_names=names, region_centers_deg=centers, region_sizes_km=sizes,
-                           horizon_s=scenario.scenario.horizon_s, slot_s=scenario.value.slot_s,
-                           seed=scenario.scenario.seed)
-
-
-def _file_from_scenario(scenario, gps) -> OsseField:
-    from ground_station.osse_io import load_value_grid
-
-    p = Path(scenario.value.osse_file)
-    if not p.is_absolute() and scenario.source_path and not scenario.source_path.startswith("<"):
-        p = Path(scenario.source_path).parent / p
-    names, _, _ = _regions(scenario)
-    return load_value_grid(p, gps, horizon_s=scenario.scenario.horizon_s, slot_s=scenario.value.slot_s,
-                           region_names=names)
-
-
-#: name -> (builder(scenario, gps) -> OsseField, one-line help). Drives scenario validation/CLI help.
-OSSE_SOURCES: dict[str, tuple[Callable[[Any, Any], OsseField], str]] = {
-    "synthetic": (_synthetic_from_scenario, "seeded storm cells moving over watersheds (seed = scenario.seed)"),
-    "file": (_file_from_scenario, "gridded (time, lat, lon) values from value.osse_file (.npz, .csv, .nc)"),
-}
-
-
-def osse_from_scenario(scenario, gps) -> OsseField:
-    """The OSSE field the scenario's ``value.osse_source`` names, over ground points ``gps``."""
-    src = scenario.value.osse_source
-    if src not in OSSE_SOURCES:
-        raise OsseError(f"value.osse_source '{src}': unknown (known: {', '.join(sorted(OSSE_SOURCES))})")
-    return OSSE_SOURCES[src][0](scenario, gps)

@@ -230,7 +230,7 @@ class OrbitContext:
 
     @classmethod
     def from_scenario(cls, sc) -> OrbitContext:
-        from ground_station.osse import osse_from_scenario
+        from ground_station.osse_sources import osse_from_scenario
         from orbit_clock import build_constellation, ground_points
 
         gps = ground_points(sc)
