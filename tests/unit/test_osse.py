@@ -147,6 +147,10 @@ def test_registry_and_file_source(paper_scenario, gps, field, tmp_path):
     raw["value"]["osse_file"] = "v.npz"
     sc_rel = _validate(raw, str(tmp_path / "s.toml"))
     assert np.array_equal(osse_from_scenario(sc_rel, gps).values, field.values)
+    # A source the registry does not know: one line naming the known ones.
+    bad = msgspec.structs.replace(sc, value=msgspec.structs.replace(sc.value, osse_source="wrf"))
+    with pytest.raises(OsseError, match=r"^value.osse_source 'wrf': unknown \(known: file, synthetic\)$"):
+        osse_from_scenario(bad, gps)
 
 
 def test_bad_ground_points():
