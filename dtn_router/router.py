@@ -17,8 +17,10 @@ re-routes it (Nag et al. rely on CGR's contact plan; the status path is what a r
 acknowledgement gives). Inputs that are not bundles of a known satellite are rejected and counted
 by reason (``rejected_by_reason``).
 
-It also announces contact windows on ``/orbit/contacts`` as they open and close (ISL and ground),
-each stamped with its edge time and emitted at the step covering it (edges do not add steps).
+The truth plan is the agents' plan with the run's faults (ISL cuts, extra light time:
+orbit_clock/contact_faults.py), the same the contact-window announcer publishes
+(orbit_clock/contact_announcer.py). After each step the router reports how many copies it still
+holds (``StepResult.in_flight``: accepted, arrival ahead), which both engines show as progress.
 
 Oracle: the system test checks from the bag that every delivery on /sat_YY/dtn/in lies inside a
 contact from its sender with the link delay (tests/system/test_engines_equal.py).
@@ -31,7 +33,9 @@ import itertools
 
 from msgs_json import codec, schemas as S, topics as T
 from msgs_json.envelope import Emit, Envelope, StepResult
-from orbit_clock.contact_plan import node_name
+from dtn_router.link import LinkModel
+from orbit_clock.contact_faults import truth_plan as with_faults
+from orbit_clock.contact_plan import ContactPlan, node_name
 from sat_node.dtn.bpv7 import BundleError, peek_next_hop
 
 __all__ = ["RouterLogic", "ROUTER_NAME"]
@@ -41,23 +45,15 @@ _NS = 1_000_000_000
 
 
 class RouterLogic:
+    """The medium between the nodes ``sats``; ``plan``: the truth contact plan; ``bundle_bits``:
+    the size of a bundle on the link (the study's 2000 bits)."""
+
     name = ROUTER_NAME
 
-    def __init__(self, world, *, bundle_bits: int | None = None, truth_plan=None, extra_delay_s: float = 0.0,
-                 cuts: list[tuple[str, str, float, float]] | None = None):
-        from dtn_router.link import LinkModel
-        from orbit_clock.contact_plan import Contact, ContactPlan
-
-        self.world = world
-        self.sats = list(world.sat_names)
+    def __init__(self, sats, plan: ContactPlan, bundle_bits: int):
+        self.sats = list(sats)
         self._sat_set = frozenset(self.sats)
-        self.bits = int(bundle_bits or world.scenario.isl.bundle_bits)
-        plan = truth_plan or world.isl_plan
-        if cuts:
-            plan = ContactPlan(_apply_cuts(plan.contacts, cuts, Contact))
-        if extra_delay_s:
-            plan = ContactPlan([Contact(c.start_s, c.end_s, c.src, c.dst, c.rate_bps,
-                                        c.range_light_s + extra_delay_s) for c in plan.contacts])
+        self.bits = int(bundle_bits)
         self.link = LinkModel(plan)
         self.pending: list[tuple[int, str, int, bytes]] = []  # (arrival_ns, receiver, order, bytes)
         self._order = itertools.count()
@@ -65,33 +61,29 @@ class RouterLogic:
         self.rejected_by_reason: dict[str, int] = {}
         self.failures: dict[str, int] = {}
         self.status_pending: list[tuple[int, int, str, str]] = []  # (t_ns, order, sender, json text)
-        # contact window announcements: (t_ns, order, event, contact, kind)
-        edges = []
-        for kind, cp in (("isl", plan), ("ground", world.ground_plan)):
-            for c in cp.contacts:
-                s_ns, e_ns = int(round(c.start_s * _NS)), int(round(c.end_s * _NS))
-                if e_ns <= s_ns:
-                    continue
-                edges.append((s_ns, 0, "open", c, kind))
-                edges.append((e_ns, 1, "close", c, kind))
-        edges.sort(key=lambda e: (e[0], e[1], e[3].src, e[3].dst))
-        self._edges = edges
-        self._edge_i = 0
         # topic names per satellite, made once (~200k copies per paper run go out on them)
         self._in_topic = {s: T.dtn_in_topic(s) for s in self.sats}
         self._out_topic = {s: T.dtn_out_topic(s) for s in self.sats}
         self._status_topic = {s: T.dtn_status_topic(s) for s in self.sats}
 
+    @classmethod
+    def for_world(cls, world, *, extra_delay_s: float = 0.0,
+                  cuts: list[tuple[str, str, float, float]] | None = None) -> "RouterLogic":
+        """The medium of a scenario's world (bringup/scenario/world.py): its satellites, its ISL plan
+        with the run's faults, its bundle size."""
+        plan = with_faults(world.isl_plan, cuts=cuts, extra_delay_s=extra_delay_s)
+        return cls(world.sat_names, plan, world.scenario.isl.bundle_bits)
+
     def subscriptions(self) -> list[str]:
         return [T.dtn_out_topic(s) for s in self.sats]
 
     def start(self, t0_ns: int) -> StepResult:
-        return StepResult(self._announce(t0_ns), self._wakeup(t0_ns), len(self.pending))
+        return StepResult([], self._wakeup(t0_ns), len(self.pending))
 
     def step(self, t_ns: int, inbox: list[Envelope]) -> StepResult:
         for env in inbox:
             self._transmit(env)
-        emits = self._announce(t_ns)
+        emits = []
         while self.pending and self.pending[0][0] <= t_ns:
             arrival, receiver, _, data = heapq.heappop(self.pending)
             emits.append(Emit(self._in_topic[receiver], data, arrival))
@@ -143,17 +135,6 @@ class RouterLogic:
                                    start_ns=env.t_ns, reason=reason)
         heapq.heappush(self.status_pending, (at, next(self._order), env.source, codec.encode(msg)))
 
-    def _announce(self, t_ns: int) -> list[Emit]:
-        emits = []
-        while self._edge_i < len(self._edges) and self._edges[self._edge_i][0] <= t_ns:
-            at, _, event, c, kind = self._edges[self._edge_i]
-            self._edge_i += 1
-            msg = S.ContactWindow(event=event, kind=kind, src=c.src, dst=c.dst,
-                                  start_ns=int(round(c.start_s * _NS)), end_ns=int(round(c.end_s * _NS)),
-                                  rate_bps=float(c.rate_bps), range_light_s=float(c.range_light_s))
-            emits.append(Emit(T.CONTACTS, codec.encode(msg), at))
-        return emits
-
     def _wakeup(self, t_ns: int) -> int | None:
         cands = []
         if self.pending:
@@ -162,25 +143,3 @@ class RouterLogic:
             cands.append(self.status_pending[0][0])
         cands = [c for c in cands if c > t_ns]
         return min(cands) if cands else None
-
-
-def _apply_cuts(contacts, cuts, Contact):
-    """Remove [t1, t2] from every contact between the named pair (both directions)."""
-    out = []
-    for c in contacts:
-        pieces = [(c.start_s, c.end_s)]
-        for a, b, t1, t2 in cuts:
-            if {c.src, c.dst} != {a, b}:
-                continue
-            nxt = []
-            for s, e in pieces:
-                if t2 <= s or t1 >= e:
-                    nxt.append((s, e))
-                    continue
-                if s < t1:
-                    nxt.append((s, t1))
-                if t2 < e:
-                    nxt.append((t2, e))
-            pieces = nxt
-        out += [Contact(s, e, c.src, c.dst, c.rate_bps, c.range_light_s) for s, e in pieces if e > s]
-    return out

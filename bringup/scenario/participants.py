@@ -1,7 +1,10 @@
 """Which participants a run has, and which process (role) hosts each (DESIGN.md section 2).
 
 Roles: one per satellite (``sat_PS``, one OS process each under the ROS engine), ``router`` (the
-ISL medium; distributed mode only) and ``ground`` (the ground segment; centralized mode only).
+ISL medium; distributed mode only), ``ground`` (the ground segment; centralized mode only) and
+``contacts`` (the contact-window announcer, orbit_clock/contact_announcer.py; every mode). The
+router and the announcer share one truth ISL plan: the world's, with the run's faults
+(``router_kw``: ``cuts``, ``extra_delay_s``; orbit_clock/contact_faults.py).
 ``make_participant(world, role, mode)`` makes one; the ROS engine's processes call it through
 their run spec's factory (bringup/engine/ros/factory.py), one role each; ``all_participants(world,
 mode)`` gives the same participants, in the same order, for the local engine. Both build the
@@ -14,12 +17,15 @@ from pathlib import Path
 
 from bringup.errors import UserError
 from bringup.scenario.world import World
+from orbit_clock.contact_announcer import ContactAnnouncer
+from orbit_clock.contact_faults import truth_plan
 
 __all__ = ["MODES", "all_participants", "make_participant", "roles_for"]
 
 MODES = ("distributed", "centralized", "nonagile")
 ROUTER_ROLE = "router"
 GROUND_ROLE = "ground"
+CONTACTS_ROLE = "contacts"
 
 
 def roles_for(world_or_sats, mode: str) -> list[str]:
@@ -31,6 +37,7 @@ def roles_for(world_or_sats, mode: str) -> list[str]:
         roles.append(ROUTER_ROLE)
     if mode == "centralized":
         roles.append(GROUND_ROLE)
+    roles.append(CONTACTS_ROLE)
     return roles
 
 
@@ -40,13 +47,16 @@ def make_participant(world: World, role: str, mode: str, *, store_dir: Path | No
     from sat_node.satellite import SatelliteLogic
 
     if role == ROUTER_ROLE:
-        return RouterLogic(world, **(router_kw or {}))
+        return RouterLogic.for_world(world, **(router_kw or {}))
+    if role == CONTACTS_ROLE:
+        return ContactAnnouncer(truth_plan(world.isl_plan, **(router_kw or {})), world.ground_plan)
     if role == GROUND_ROLE:
         return GroundLogic(world)
     if role in world.sat_names:
         store = str(store_path(store_dir, role)) if store_dir is not None and mode == "distributed" else None
         return SatelliteLogic(world, role, mode, store_path=store)
-    raise UserError(f"role {role!r}: not a satellite of the scenario, nor '{ROUTER_ROLE}'/'{GROUND_ROLE}'")
+    raise UserError(f"role {role!r}: not a satellite of the scenario, nor "
+                    f"'{ROUTER_ROLE}'/'{GROUND_ROLE}'/'{CONTACTS_ROLE}'")
 
 
 def store_path(store_dir: Path, sat: str) -> Path:

@@ -150,8 +150,8 @@ def test_compose_file_is_valid_and_complete(tmp_path, n_sats):
                                format_checker=jsonschema.Draft7Validator.FORMAT_CHECKER).validate(doc)
     services = doc["services"]
     sats = [s for s in services if s.startswith("sat_")]
-    assert len(sats) == n_sats and len(services) == n_sats + 3
-    assert {CLOCK_ROLE, "router", "ground"} <= set(services)
+    assert len(sats) == n_sats and len(services) == n_sats + 4
+    assert {CLOCK_ROLE, "router", "ground", "contacts"} <= set(services)
 
     spec = RunSpec.from_file(out.parent / "run_spec.json")
     assert sorted(spec.roles) == sorted(s for s in services if s != CLOCK_ROLE)
