@@ -31,38 +31,33 @@ Reader API::
         bag.envelopes(topics=None) -> iter of Envelope (String topics carrying wire envelopes)
         bag.typed(topics=None) -> iter of (topic, log_time_ns, rosbags message object)
 
-Why one module: the writer, the reader and the journal share the topic QoS table, the CDR helpers
-and the MCAP record layouts (the writer's fast paths write the records the reader's parse).
-
 Oracle: tests/unit/test_recording.py writes a bag in tmp_path and reads it back with BOTH the
 ``mcap`` reader (+ mcap-ros2-support decoding, an independent implementation) and ``rosbags``;
 the hand-written std_msgs/String CDR is checked byte for byte against rosbags' serializer.
-The speed paths (issue 5: one-call envelope writes, ``write_envelopes`` batches, chunk closes
-packing each message index in one call, chunk reads, memoised QoS YAML dumps and parses) give
-byte-identical bags (compared with rosbags' own Writer.write and close_chunk) and the same messages as rosbags' own paths
-(tests/unit/test_speed_paths.py).
+The speed paths (one-call envelope writes, ``write_envelopes`` batches, and rosbags' own steps
+made faster in rosbags_speedups.py) give byte-identical bags and the same messages as rosbags' own
+paths (tests/unit/test_speed_paths.py).
 """
 
 from __future__ import annotations
 
+import shutil
+import sqlite3
 import struct
 from collections import defaultdict
 from collections.abc import Iterable, Iterator
-from io import BytesIO
+from contextlib import nullcontext
 from pathlib import Path
 from typing import Any, NamedTuple, Self
 
 from rosbags.interfaces import Qos, QosDurability, QosHistory, QosLiveliness, QosReliability, QosTime
-import rosbags.rosbag2.metadata as _rosbags_metadata
-import rosbags.rosbag2.reader as _rosbags_reader
-import rosbags.rosbag2.storage_mcap as _rosbags_mcap
-import rosbags.rosbag2.writer as _rosbags_writer
 from rosbags.rosbag2 import Reader, Writer
 from rosbags.rosbag2.enums import CompressionFormat, CompressionMode, StoragePlugin
 from rosbags.rosbag2.storage_mcap import McapWriter
 from rosbags.typesys import Stores, get_typestore
 
 from bringup.errors import UserError
+from bringup.recording import rosbags_speedups
 from msgs_json.envelope import Envelope
 from msgs_json.wire import WireEncoder, WireError, decode_envelope, encode_envelope, encode_envelope_bytes
 
@@ -114,14 +109,14 @@ _TOPIC_QOS = {
 }
 
 
-# -- speed (issue 5: a paper run records ~450k messages) ---------------------------------------------
+# -- speed (a paper run records ~450k messages) ------------------------------------------------------
 # rosbags' Writer.write checks ``connection in self.connections`` (a linear scan of ~200 dataclass
 # compares) and builds each MCAP Message record from five small writes; _fast_write appends the same
 # bytes (MCAP Message record: opcode 0x05, uint64 length, uint16 channel, uint32 sequence 0, uint64
 # log and publish time, data) and keeps the same chunk index/statistics, so the file is byte for byte
-# what rosbags writes (tests/unit/test_recording.py compares the two). Each new connection also
-# dumped its QoS profile through ruamel.yaml (~20 ms each); the dump of an equal profile list is
-# equal, so it is made once per distinct list.
+# what rosbags writes (tests/unit/test_speed_paths.py compares the two). The speed-ups of rosbags'
+# own steps (chunk close, QoS YAML dump and parse, chunk reading) are in rosbags_speedups.py, applied
+# to this module's writers and readers only.
 _MSG_HEADER = struct.Struct("<BQHIQQ")
 _CHUNK_LIMIT = 2**20
 
@@ -150,142 +145,6 @@ def _fast_write(st: McapWriter, cid: int, ts: int, data) -> None:
 # encapsulation and the string length (the text and its NUL follow). write_envelopes writes it.
 _ENV_HEADER = struct.Struct("<BQHIQQ4sI")
 _NUL = b"\x00"
-
-# Closing a chunk: rosbags writes its message index with two write_uint64 calls per message (~0.9M
-# calls in a paper run); _fast_close_chunk packs each channel's index in one struct call and writes
-# the same records in the same order (Chunk 0x06, MessageIndex 0x07 per channel, ChunkIndex kept
-# for the summary), so the file is unchanged (tests/unit/test_speed_paths.py against the original).
-_close_chunk_orig = getattr(McapWriter, "_close_chunk_orig", McapWriter.close_chunk)
-_CHUNK_HEAD = struct.Struct("<BQQQQI")
-_IDX_HEAD = struct.Struct("<BQHI")
-_CHUNK_INDEX = struct.Struct("<QQQQI")
-
-
-def _fast_close_chunk(self: McapWriter) -> None:
-    ch = self.chunk
-    usize = ch.bio.tell()
-    compressed = self.compressor(ch.bio.getvalue())
-    comp = self.compression.encode()
-    out = self.bio
-    chunk_start = out.tell()
-    reclen = 8 + 8 + 8 + 4 + 4 + len(comp) + 8 + len(compressed)
-    out.write(_CHUNK_HEAD.pack(0x06, reclen, ch.message_start_time, ch.message_end_time, usize, 0)
-              + _U32.pack(len(comp)) + comp + _U64.pack(len(compressed)))
-    out.write(compressed)
-    chunk_end = out.tell()
-    offsets = []
-    for cid, msgs in ch.msgs.items():
-        offsets.append((cid, out.tell()))
-        k = len(msgs)
-        out.write(_IDX_HEAD.pack(0x07, 6 + 16 * k, cid, 16 * k))
-        out.write(struct.pack(f"<{2 * k}Q", *[x for m in msgs for x in m]))
-    rec = BytesIO()
-    rec.write(_CHUNK_INDEX.pack(ch.message_start_time, ch.message_end_time, chunk_start, chunk_end - chunk_start,
-                                len(offsets) * 10))
-    for cid, offset in offsets:
-        rec.write(struct.pack("<HQ", cid, offset))
-    rec.write(_U64.pack(out.tell() - chunk_end) + _U32.pack(len(comp)) + comp
-              + _U64.pack(len(compressed)) + _U64.pack(usize))
-    self.chunks.append(rec)
-    self.chunk = _rosbags_mcap.PendingChunk(2**63 - 1, 0, BytesIO(), defaultdict(list))
-
-
-McapWriter._close_chunk_orig = _close_chunk_orig
-McapWriter.close_chunk = _fast_close_chunk
-
-_QOS_DUMPS: dict = {}
-_dump_qos_v9_orig = getattr(_rosbags_writer, "_dump_qos_v9_orig", _rosbags_writer.dump_qos_v9)
-
-
-def _dump_qos_v9_memo(profiles):
-    key = tuple(profiles)
-    out = _QOS_DUMPS.get(key)
-    if out is None:
-        from io import StringIO
-
-        dumped = _dump_qos_v9_orig(list(profiles))
-        if not isinstance(dumped, str):  # what rosbags' Writer.add_connection does with it
-            stream = StringIO()
-            yaml = _rosbags_writer.YAML(typ="safe")
-            yaml.default_flow_style = False
-            yaml.dump(dumped, stream)
-            dumped = stream.getvalue().strip()
-        out = _QOS_DUMPS[key] = dumped
-    return out
-
-
-_rosbags_writer._dump_qos_v9_orig = _dump_qos_v9_orig
-_rosbags_writer.dump_qos_v9 = _dump_qos_v9_memo
-
-# Reading: rosbags parses each chunk's records through a BytesIO and four small reads per message
-# (~30 % of `report BAG`); _fast_msgsrc walks the decompressed chunk with struct.unpack_from and
-# yields the same Msg tuples in the same order (the reader merges chunks by them), so every reader
-# sees the same messages (tests/unit/test_speed_paths.py compares both on a multi-chunk bag).
-_HIQQ = struct.Struct("<HIQQ")
-_U64 = struct.Struct("<Q")
-_msgsrc_orig = getattr(_rosbags_mcap, "_msgsrc_orig", _rosbags_mcap.msgsrc)
-
-
-def _fast_msgsrc(chunk, channel_map, start, stop, bio):
-    Msg = _rosbags_mcap.Msg
-    yield Msg(chunk.message_start_time, 0, None, None)
-    bio.seek(chunk.chunk_start_offset + 9 + 24)
-    crc = _rosbags_mcap.deserialize_uint32(_rosbags_mcap.read_exact(bio, 4))[0]
-    bio.seek(chunk.chunk_start_offset + 9 + 40 + len(chunk.compression))
-    compressed = _rosbags_mcap.read_exact(bio, chunk.compressed_size)
-    raw = _rosbags_mcap.decompress(compressed, chunk.compression, chunk.uncompressed_size, crc)
-    n = chunk.uncompressed_size
-    offset = chunk.chunk_start_offset
-    hiqq = _HIQQ.unpack_from
-    u64 = _U64.unpack_from
-    messages = []
-    pos = 0
-    while pos < n:
-        if pos + 9 > n:
-            raise _rosbags_mcap.ReaderError("Unexpected end of chunk record.")
-        op = raw[pos]
-        end = pos + 9 + u64(raw, pos + 1)[0]
-        if end > n:
-            raise _rosbags_mcap.ReaderError("Chunk record runs past the chunk's end.")
-        if op == 0x05:
-            if end - pos - 9 < 22:
-                raise _rosbags_mcap.ReaderError("Message record too short.")
-            channel_id, _, log_time, _ = hiqq(raw, pos + 9)
-            if start <= log_time < stop and channel_id in channel_map:
-                messages.append(Msg(log_time, offset, channel_map[channel_id], raw[pos + 31:end]))
-        pos = end
-    messages.sort(key=_timestamp)
-    yield from messages
-
-
-def _timestamp(m):
-    return m.timestamp
-
-
-_rosbags_mcap._msgsrc_orig = _msgsrc_orig
-_rosbags_mcap.msgsrc = _fast_msgsrc
-
-# Opening a bag: rosbags parses each connection's offered_qos_profiles YAML text with a new ruamel
-# parser (~7 ms each, ~400 connections in a paper run's bag: ~2.5 s per open). The parse is a pure
-# function of the text and gives immutable Qos tuples, so each distinct text is parsed once (a
-# failure is not remembered: it raises again as before).
-_parse_qos_orig = getattr(_rosbags_metadata, "_parse_qos_orig", _rosbags_metadata.parse_qos)
-_QOS_PARSED: dict[str, tuple] = {}
-
-
-def _parse_qos_memo(dcts):
-    if type(dcts) is not str:
-        return _parse_qos_orig(dcts)
-    got = _QOS_PARSED.get(dcts)
-    if got is None:
-        got = _QOS_PARSED[dcts] = tuple(_parse_qos_orig(dcts))
-    return list(got)
-
-
-_rosbags_metadata._parse_qos_orig = _parse_qos_orig
-for _m in (_rosbags_metadata, _rosbags_reader, _rosbags_mcap):
-    _m.parse_qos = _parse_qos_memo
-
 
 def string_cdr(text: str) -> bytes:
     """CDR (little endian) of std_msgs/msg/String(data=text), as rclpy serializes it."""
@@ -328,6 +187,7 @@ class BagWriter:
 
     def __init__(self, path: str | Path, *, compress: bool = True, custom: dict[str, str] | None = None,
                  fast_off: bool = False):
+        """``fast_off``: write through rosbags' own code paths only (the speed paths' oracle)."""
         self.path = Path(path)
         if self.path.exists():
             raise UserError(f"bag {self.path}: already exists, not overwriting")
@@ -340,6 +200,11 @@ class BagWriter:
         st = self._w.storage
         self._fast = st if (type(st) is McapWriter and not fast_off
                             and self._w.compression_mode != CompressionMode.MESSAGE) else None
+        self._speedups = nullcontext
+        if self._fast is not None:
+            rosbags_speedups.install()
+            rosbags_speedups.speed_up_writer(st)
+            self._speedups = rosbags_speedups.active
         self._tmin, self._tmax = 2**63 - 1, 0  # the Writer's own bounds (metadata.yaml), kept here
         self._conns: dict[tuple[str, str], Any] = {}
         self._env_conns: dict[str, Any] = {}  # topic -> its std_msgs/String connection (write_envelope)
@@ -356,7 +221,8 @@ class BagWriter:
             if msgtype not in TYPESTORE.types:
                 raise ValueError(f"bag {self.path}: unknown message type {msgtype!r} for {topic}")
             q = qos or _TOPIC_QOS.get(topic, _DEFAULT_QOS)
-            c = self._w.add_connection(topic, msgtype, typestore=TYPESTORE, offered_qos_profiles=[q])
+            with self._speedups():
+                c = self._w.add_connection(topic, msgtype, typestore=TYPESTORE, offered_qos_profiles=[q])
             self._conns[key] = c
             self.counts.setdefault(topic, 0)
         return c
@@ -491,6 +357,8 @@ class BagWriter:
                 self._ncid.clear()
                 self._w.min_timestamp = min(self._w.min_timestamp, self._tmin)
                 self._w.max_timestamp = max(self._w.max_timestamp, self._tmax)
+            # rosbags' own QoS dump here: metadata.yaml (version 9) lists each topic's offered
+            # profiles as a YAML sequence; the memo gives the string form a channel's user data uses
             self._w.close()
 
     def __enter__(self) -> Self:
@@ -509,15 +377,23 @@ def _bag_dir(path: Path) -> Path:
 class BagReader:
     """Read a rosbag2 bag (MCAP or sqlite3) back; every failure is a one-line UserError."""
 
-    def __init__(self, path: str | Path):
+    def __init__(self, path: str | Path, *, fast: bool = True):
+        """``fast=False``: read through rosbags' own code paths only (the speed paths' oracle)."""
         self.path = _bag_dir(Path(path))
         if not self.path.exists():
             raise UserError(f"bag {self.path}: not found")
         if not (self.path / "metadata.yaml").is_file():
             raise UserError(f"bag {self.path}: not a rosbag2 bag (no metadata.yaml)")
+        self._speedups = nullcontext
+        if fast:
+            rosbags_speedups.install()
+            self._speedups = rosbags_speedups.active
         try:
             self._r = Reader(self.path)
-            self._r.open()
+            with self._speedups():
+                self._r.open()
+            if fast:
+                rosbags_speedups.speed_up_reader(self._r)
         except Exception as exc:  # noqa: BLE001 - rosbags raises ReaderError, YAML, struct errors...
             raise UserError(f"bag {self.path}: cannot open: {_line(exc)}") from None
 
@@ -589,7 +465,7 @@ def _line(exc: BaseException) -> str:
 
 
 class BagJournal:
-    """The recorder of a restartable clock (issue 7): messages go into SQLite, the bag is exported at the end.
+    """The recorder of a restartable clock: messages go into SQLite, the bag is exported at the end.
 
     rosbags' Writer cannot reopen a bag, and an MCAP file cut by SIGKILL has no summary and loses
     its unflushed chunk. So a clock that may be restarted records into ``path`` (SQLite, WAL mode,
@@ -609,8 +485,6 @@ class BagJournal:
     """
 
     def __init__(self, path: str | Path):
-        import sqlite3
-
         self.path = Path(path)
         self.path.parent.mkdir(parents=True, exist_ok=True)
         self.db = sqlite3.connect(str(self.path), isolation_level=None)
@@ -676,8 +550,6 @@ class BagJournal:
     def export(self, bag_dir: str | Path, *, custom: dict[str, str] | None = None) -> int:
         """Write every recorded message (arrival order) into a new bag at ``bag_dir`` (replaced if a
         previous export was cut short); returns the number written."""
-        import shutil
-
         bag_dir = Path(bag_dir)
         if bag_dir.exists():
             shutil.rmtree(bag_dir)

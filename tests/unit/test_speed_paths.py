@@ -1,7 +1,8 @@
-"""The fast paths of issue 5 (speed) give exactly what the plain paths give.
+"""The fast paths give exactly what the plain paths give.
 
-Oracles: rosbags' own Writer.write (the bag file must be byte-identical with and without
-bringup/recording/bag.py's _fast_write), a brute-force settle (every in-flight transmission checked),
+Oracles: rosbags' own Writer.write, chunk close and QoS YAML (the bag file must be byte-identical
+with and without bringup/recording/bag.py's _fast_write and bringup/recording/rosbags_speedups.py),
+rosbags' own chunk reader and QoS parse (same messages, same QoS),  a brute-force settle (every in-flight transmission checked),
 SQLite's own transaction state for the per-step store transaction, and the DP kernel walking each
 path for its path tables.
 """
@@ -9,6 +10,8 @@ path for its path tables.
 from __future__ import annotations
 
 import random
+import subprocess
+import sys
 
 from bringup.recording.bag import BagReader, BagWriter
 from msgs_json.envelope import Envelope
@@ -55,16 +58,8 @@ def _write_batched(path, sizes) -> None:
 
 
 def _slow_bag(path) -> None:
-    """_write through rosbags' own Writer.write and McapWriter.close_chunk (no fast path at all)."""
-    from rosbags.rosbag2.storage_mcap import McapWriter
-
-    fast_close = McapWriter.close_chunk
-    try:
-        McapWriter.close_chunk = McapWriter._close_chunk_orig
-        _write(path, True)
-    finally:
-        McapWriter.close_chunk = fast_close
-    assert fast_close is not McapWriter._close_chunk_orig
+    """_write through rosbags' own Writer.write, McapWriter.close_chunk and QoS dump (no fast path)."""
+    _write(path, True)
 
 
 def test_fast_bag_write_is_byte_identical(tmp_path):
@@ -141,19 +136,11 @@ def test_bundle_encode_cache_follows_fields():
 
 
 def test_fast_chunk_reader_yields_what_rosbags_yields(tmp_path):
-    import rosbags.rosbag2.storage_mcap as sm
-
     _write(tmp_path / "bag", False)  # several chunks, random (and tied) log times
     with BagReader(tmp_path / "bag") as r:
         fast = list(r.messages())
-    fast_fn = sm.msgsrc
-    try:
-        sm.msgsrc = sm._msgsrc_orig
-        with BagReader(tmp_path / "bag") as r:
-            slow = list(r.messages())
-    finally:
-        sm.msgsrc = fast_fn
-    assert fast_fn is not sm._msgsrc_orig
+    with BagReader(tmp_path / "bag", fast=False) as r:
+        slow = list(r.messages())
     assert len(fast) == 30600 and fast == slow
 
 
@@ -282,23 +269,44 @@ def test_open_contacts_window_equals_full_scan():
 
 
 def test_memoised_qos_parse_equals_rosbags_parse(tmp_path):
-    import rosbags.rosbag2.metadata as md
-
     _write(tmp_path / "bag", False)
     with BagReader(tmp_path / "bag") as r:
         fast = [(c.topic, c.ext.offered_qos_profiles) for c in r._r.connections]
-    import bringup.recording.bag as rec
-
-    for m in (md, rec._rosbags_reader, rec._rosbags_mcap):
-        m.parse_qos = md._parse_qos_orig
-    try:
-        with BagReader(tmp_path / "bag") as r:
-            slow = [(c.topic, c.ext.offered_qos_profiles) for c in r._r.connections]
-    finally:
-        for m in (md, rec._rosbags_reader, rec._rosbags_mcap):
-            m.parse_qos = rec._parse_qos_memo
+    with BagReader(tmp_path / "bag", fast=False) as r:
+        slow = [(c.topic, c.ext.offered_qos_profiles) for c in r._r.connections]
     assert len(fast) >= 8 and fast == slow and any(q for _t, q in fast)
 
+
+def test_speedups_stay_inside_the_projects_bags(tmp_path):
+    """Importing the recording changes nothing in rosbags; after a BagWriter and a BagReader, the
+    McapWriter class keeps rosbags' chunk close and rosbags' functions run rosbags' own code outside
+    the bag's calls (the fast versions' memo tables do not grow)."""
+    code = ("import rosbags.rosbag2.storage_mcap as sm, rosbags.rosbag2.writer as w, rosbags.rosbag2.metadata as md\n"
+            "before = (sm.msgsrc, sm.parse_qos, w.dump_qos_v9, md.parse_qos, sm.McapWriter.close_chunk)\n"
+            "import bringup.recording.bag, bringup.analysis.report, bringup.cli.main\n"
+            "assert before == (sm.msgsrc, sm.parse_qos, w.dump_qos_v9, md.parse_qos, sm.McapWriter.close_chunk)\n")
+    subprocess.run([sys.executable, "-c", code], check=True, timeout=120)
+
+    from rosbags.rosbag2 import Reader, Writer
+    from rosbags.rosbag2.storage_mcap import McapWriter
+
+    from bringup.recording import rosbags_speedups as su
+    from bringup.recording.bag import TYPESTORE, make_qos
+
+    _write(tmp_path / "ours", False)
+    with BagReader(tmp_path / "ours") as r:
+        assert len(list(r.messages())) == 30600
+    assert not hasattr(McapWriter.close_chunk, "rosbags_original") and McapWriter.close_chunk.__module__.startswith("rosbags")
+    n_dumps, n_parsed = len(su._QOS_DUMPS), len(su._QOS_PARSED)
+    w = Writer(tmp_path / "theirs", version=9)
+    w.open()
+    c = w.add_connection("/x", "std_msgs/msg/String", typestore=TYPESTORE,
+                         offered_qos_profiles=[make_qos(depth=17)])  # a profile our bags never use
+    w.write(c, 5, bytes([0, 1, 0, 0, 2, 0, 0, 0, 65, 0]))
+    w.close()
+    with Reader(tmp_path / "theirs") as r:
+        assert [t for _c, t, _raw in r.messages()] == [5]
+    assert (len(su._QOS_DUMPS), len(su._QOS_PARSED)) == (n_dumps, n_parsed)
 
 def test_dp_path_tables_equal_path_walks():
     """The DP kernel's per-state path tables give the same plans, values and back-pointer choices as
