@@ -2,30 +2,32 @@
 
 The ground station learns what the satellites observed only when they downlink at a pass over a
 ground station (``/ground/downlink``), and commands them only at a pass (``/ground/uplink``). At
-each downlink it schedules that satellite with the same DP as onboard
-(sat_node/scheduler) from what the ground knows: every downlinked observation, plus the plans it
-uplinked to the other satellites, all treated as commitments that outrank the satellite being
-planned (so two satellites are not sent to the same GP within 15 min, whatever their rank: the
-onboard rank rule, where a lower-ranked satellite yields, does not hold here because that satellite
-cannot be told until its own next pass), and uplinks the
-plan covering the time until that satellite's next pass (plus one replan period of overlap). At
-the start it uplinks a first plan to every satellite (as commanded before the run).
+each downlink it schedules that satellite with the same planner as onboard
+(sat_node/scheduler/planner.py) from what the ground knows: every downlinked observation, plus the
+plans it uplinked to the other satellites, all treated as commitments that outrank the satellite
+being planned (so two satellites are not sent to the same GP within 15 min, whatever their rank:
+the onboard rank rule, where a lower-ranked satellite yields, does not hold here because that
+satellite cannot be told until its own next pass), and uplinks the plan covering the time until
+that satellite's next pass (plus one replan period of overlap). At the start it uplinks a first
+plan to every satellite (as commanded before the run).
 
 Value knowledge: the OSSE field as the ground knows it at planning time (persistence), through the
 ground's own seeded belief noise - the same model as onboard, with a much older cut-off.
 
-Oracle: the centralized system run: every executed observation of a satellite belongs to the last
-plan it received; no GP is planned for two satellites within 15 min by the ground.
+Oracle (tests/unit/test_ground_segment.py, a local-engine centralized run): every executed
+observation of a satellite is an item of the last plan uplinked to it; no GP is observed by two
+satellites within 15 min; each observation reaches the ground in exactly one downlink, at a pass
+after it. tests/unit/test_planner.py: the uplinked plans are the planner's plans for what the ground
+knows.
 """
 
 from __future__ import annotations
 
 import time
 
-import numpy as np
-
 from msgs_json import codec, schemas as S, topics as T
 from msgs_json.envelope import Emit, Envelope, StepResult
+from sat_node.scheduler.planner import Knowledge, PersistenceView
 from sat_node.value import Belief, KnownObservation
 
 __all__ = ["GroundLogic", "GROUND_NAME"]
@@ -96,10 +98,6 @@ class GroundLogic:
         return None
 
     def _plan_and_uplink(self, sat: str, t_ns: int, station: str) -> Emit:
-        from sat_node.satellite import PersistenceOsse
-        from sat_node.scheduler import solve_dp
-        from sat_node.scheduler.problem import OrbitContext, instance_from_orbit
-
         c0 = time.process_time()
         horizon_ns = self.world.scenario.horizon_ns
         nxt = self._next_pass_after(sat, t_ns)
@@ -116,15 +114,9 @@ class GroundLogic:
                     # satellite name), sat_node.value.prior_state makes the GP worth 0 within 15 min
                     # before or after them for every satellite planned later.
                     known += [KnownObservation(k.t_s, k.gp, COMMITTED, planned=True) for k in ks]
-            ctx = self.world.ctx
-            view = OrbitContext(scenario=ctx.scenario, constellation=ctx.constellation, gps=ctx.gps,
-                                osse=PersistenceOsse(ctx.osse, t_ns / _NS), slew=ctx.slew)
-            ids = self.world.candidate_gp_ids(sat, t_ns / _NS, t_ns / _NS + window_s)
-            p = None
-            if len(ids):
-                p = instance_from_orbit(view, sat=sat, t0_s=t_ns / _NS, window_s=window_s, known=known,
-                                        belief=self.belief, gp_ids=ids)
-            plan = solve_dp(p, check=True) if p is not None else None
+            # the ground knows the OSSE forecast as of now (persistence), through its own belief noise
+            knowledge = Knowledge(PersistenceView(self.world.osse, t_ns / _NS), known, self.belief)
+            plan = self.world.planner.plan(sat, t_ns / _NS, window_s, knowledge)
         if plan is not None:
             self.planned[sat] = [KnownObservation(t_s, int(gp), sat, planned=True) for gp, t_s in plan.as_list()]
             items = [S.ScheduleItem(gp=int(gp), t_ns=int(round(t_s * _NS)), value=max(0.0, float(v)))

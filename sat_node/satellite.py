@@ -4,8 +4,9 @@ Pure logic, no rclpy: the ROS engine hosts it in a satellite process (bringup/en
 local engine in one process. It owns the satellite's three functions of DESIGN.md section 2:
 
 * scheduler - distributed mode: replans every ``scheduler.replan_period_s`` over
-  ``plan_lookahead_s`` with the DP (sat_node/scheduler) from what it knows: its own observations
-  and those the DTN delivered (implicit consensus, Nag et al. section 4); centralized mode:
+  ``plan_lookahead_s`` with the world's planner (sat_node/scheduler/planner.py, the same one the
+  ground uses) from what it knows: its own observations and those the DTN delivered (implicit
+  consensus, Nag et al. section 4); centralized mode:
   executes the plan the ground uplinked at its last pass and downlinks its observations at each
   pass; non-agile mode: observes what passes under the nadir footprint;
 * ACS - tracks the pointing target and reports each slew (/sat_XX/acs/state);
@@ -13,8 +14,9 @@ local engine in one process. It owns the satellite's three functions of DESIGN.m
   (the satellites next on scene over the observed region, priority 1 = next), routed by CGR
   (sat_node/dtn/agent.py); arriving bundles update what it knows.
 
-Value knowledge: the planner sees the OSSE field as it was at planning time (persistence forecast:
-it cannot know the future flood state) through its seeded belief noise; the instrument records the
+Value knowledge (the :class:`~sat_node.scheduler.planner.Knowledge` it hands the planner): the OSSE
+field as it was at planning time (persistence forecast: it cannot know the future flood state)
+through its seeded belief noise, and every observation it knows of; the instrument records the
 true OSSE value at the observation time. Onboard that lag is at most one replan period; for the
 centralized ground it is up to an orbit, which is what the study's assumed-vs-recorded error shows.
 
@@ -23,10 +25,11 @@ contract); the DTN radio's transmissions are computed in continuous time up to t
 emitted stamped with their start times, so no figure depends on the step length.
 
 How we know it is right: the engine-equivalence system test (local vs ROS, identical traces,
-tests/system/test_engines_equal.py); hostile or malformed messages are rejected and counted
+tests/system/test_engines_equal.py); its plans are the planner's plans for what it knows
+(tests/unit/test_planner.py); hostile or malformed messages are rejected and counted
 (tests/faults/test_faults_hostile.py).
 
-Transmission status (issue 7): the ISL medium (dtn_router) reports a transmission that did not get
+Transmission status: the ISL medium (dtn_router) reports a transmission that did not get
 through (contact ended mid-transmission, e.g. an ISL cut; no contact; radio busy) on
 ``/sat_XX/dtn/status``; the satellite hands it to its agent (``transmission_failed``) so the bundle
 goes back to its queue, re-routed without that contact. The report may come after the attempt's end,
@@ -46,30 +49,14 @@ import numpy as np
 from msgs_json import codec, schemas as S, topics as T
 from msgs_json.envelope import Emit, Envelope, StepResult
 from sat_node import persist
+from sat_node.scheduler.planner import Knowledge, PersistenceView
 from sat_node.value import Belief, KnownObservation
 
-__all__ = ["SatelliteLogic", "PersistenceOsse", "observation_payload", "parse_observation_payload"]
+__all__ = ["SatelliteLogic", "observation_payload", "parse_observation_payload"]
 
 _NS = 1_000_000_000
 _NO_INFO = object()  # sentinel: no _ev_info entry for an event
 # a transmission's status report comes at most a few lockstep steps after its end; keep it this long
-
-
-class PersistenceOsse:
-    """The OSSE field as a planner knows it at ``t_known_s``: every later time reads that instant."""
-
-    def __init__(self, osse, t_known_s: float):
-        self._osse = osse
-        self._t = float(t_known_s)
-        self.slot_s = osse.slot_s
-        self.n_slots = osse.n_slots
-
-    def value_at(self, gp_idx, t_s):
-        t = np.broadcast_to(np.asarray(t_s, np.float64), np.broadcast(np.asarray(gp_idx), np.asarray(t_s)).shape)
-        return self._osse.value_at(gp_idx, np.minimum(t, self._t))
-
-    def slot_of(self, t_s):
-        return self._osse.slot_of(np.minimum(np.asarray(t_s, np.float64), self._t))
 
 
 def observation_payload(sat: str, gp: int, t_ns: int, value: float) -> bytes:
@@ -318,24 +305,17 @@ class SatelliteLogic:
             self.known.append(KnownObservation(obs_ns / _NS, gp, src))
 
     # ------------------------------------------------------------------ planning
-    def _instance(self, t0_ns: int, window_s: float):
-        from sat_node.scheduler.problem import OrbitContext, instance_from_orbit
-
-        ctx = self.world.ctx
-        view = OrbitContext(scenario=ctx.scenario, constellation=ctx.constellation, gps=ctx.gps,
-                            osse=PersistenceOsse(ctx.osse, t0_ns / _NS), slew=ctx.slew)
+    def _plan(self, t0_ns: int, window_s: float, solver: str = "dp"):
+        """The world's planner on what this satellite knows now: the OSSE forecast as of now
+        (persistence), its belief noise, every observation it knows of; it points at ``target_km``."""
         t0_s = t0_ns / _NS
-        ids = self.world.candidate_gp_ids(self.name, t0_s, t0_s + window_s)
-        if len(ids) == 0:
-            return None
-        return instance_from_orbit(view, sat=self.name, t0_s=t0_s, window_s=window_s, known=self.known,
-                                   belief=self.belief, init_target_km=self.target_km, gp_ids=ids)
+        knowledge = Knowledge(PersistenceView(self.world.osse, t0_s), self.known, self.belief)
+        return self.world.planner.plan(self.name, t0_s, window_s, knowledge, init_target_km=self.target_km,
+                                       solver=solver)
 
     def _replan(self, t_ns: int, *, periodic: bool = True) -> list[Emit]:
         """Plan [t_ns, t_ns + lookahead) with what is known now. A periodic replan sets the next
         one; a replan for news (``periodic=False``) leaves the periodic schedule as it is."""
-        from sat_node.scheduler import solve_dp
-
         c0 = time.process_time()
         self._news_conflict = False
         horizon_ns = self.world.scenario.horizon_ns
@@ -347,8 +327,7 @@ class SatelliteLogic:
                             + int(self.sc.scheduler.plan_lookahead_s * _NS)) - t_ns) / _NS
         if window_s <= 0:
             return []
-        p = self._instance(t_ns, window_s)
-        plan = solve_dp(p, check=True) if p is not None else None
+        plan = self._plan(t_ns, window_s)
         self._last_cpu_s = time.process_time() - c0
         self.scheduler_cpu_s += self._last_cpu_s
         self.plan_version += 1
@@ -359,12 +338,9 @@ class SatelliteLogic:
         return [self._schedule_emit(t_ns, t_ns)]
 
     def _plan_nonagile(self, t0_ns: int) -> list[Emit]:
-        from sat_node.scheduler import solve_nonagile
-
         c0 = time.process_time()
         window_s = (self.world.scenario.horizon_ns - t0_ns) / _NS
-        p = self._instance(t0_ns, window_s)
-        plan = solve_nonagile(p, self.sc.instrument.footprint_km) if p is not None else None
+        plan = self._plan(t0_ns, window_s, solver="nonagile")
         self._last_cpu_s = time.process_time() - c0
         self.scheduler_cpu_s += self._last_cpu_s
         self.plan_version = 1

@@ -1,6 +1,6 @@
 """`constellation bench-scheduler`: DP runtime over a whole horizon and DP/MILP value ratio.
 
-Two measurements in one run (issue 3, DESIGN.md section 1 "scheduler runtime 1 % of the horizon"):
+Two measurements in one run (DESIGN.md section 1 "scheduler runtime 1 % of the horizon"):
 
 1. One satellite scheduled over the scenario's whole horizon (all its passes) the way the flight
    software does it: replan every ``scheduler.replan_period_s`` over ``plan_lookahead_s`` on the
@@ -44,11 +44,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 def horizon_run(ctx, sat: str) -> dict:
     """Schedule one satellite over the whole horizon with periodic replanning; timings and values."""
-    from sat_node.scheduler import solve_dp
-    from sat_node.scheduler.problem import instance_from_orbit
+    from sat_node.scheduler import Knowledge, solve_dp
     from sat_node.value import Belief, KnownObservation, true_value
 
     sc = ctx.scenario
+    planner = ctx.planner()
     horizon = float(sc.scenario.horizon_s)
     period = float(sc.scheduler.replan_period_s)
     lookahead = float(sc.scheduler.plan_lookahead_s)
@@ -66,8 +66,8 @@ def horizon_run(ctx, sat: str) -> dict:
     while t0 < horizon:
         window = min(lookahead, horizon - t0)
         tb = time.perf_counter()
-        p = instance_from_orbit(ctx, sat=sat, t0_s=t0, window_s=window, known=known, belief=belief,
-                                init_target_km=last_target, init_t_s=last_t)
+        p = planner.instance(sat, t0, Knowledge(ctx.osse, known, belief), window_s=window,
+                             init_target_km=last_target, init_t_s=last_t)
         build_s += time.perf_counter() - tb
         td = time.perf_counter()
         plan = solve_dp(p)
@@ -99,26 +99,27 @@ def horizon_run(ctx, sat: str) -> dict:
 
 def milp_comparison(ctx, *, instances: int, n_gps: int, window_s: float, time_limit_s: float) -> dict:
     """DP and MILP on small instances cut from the scenario's passes (several satellites)."""
-    from sat_node.scheduler import solve_dp, solve_milp
-    from sat_node.scheduler.problem import instance_from_orbit, pass_starts_s
+    from sat_node.scheduler import Knowledge, solve_dp, solve_milp
 
     sc = ctx.scenario
+    planner = ctx.planner()
+    field = Knowledge(ctx.osse)  # the OSSE field itself: the instances compare solvers, not knowledge
     rng = np.random.default_rng(sc.scenario.seed)
     rows = []
     for sat in sc.sat_names:
         if len(rows) >= instances:
             break
-        for t_pass in pass_starts_s(ctx, sat, 0.0, float(sc.scenario.horizon_s)):
+        for t_pass in planner.pass_starts_s(sat, 0.0, float(sc.scenario.horizon_s)):
             if len(rows) >= instances:
                 break
-            full = instance_from_orbit(ctx, sat=sat, t0_s=float(t_pass), window_s=float(sc.scheduler.plan_lookahead_s))
+            full = planner.instance(sat, float(t_pass), field, window_s=float(sc.scheduler.plan_lookahead_s))
             if len(full.gp_ids) < n_gps:
                 continue
             # start where the pass is busiest, so the instance is not trivially empty
             busy = int(np.argmax(full.in_for.sum(axis=1)))
             t0 = float(t_pass) + max(0.0, busy * full.step_s - window_s / 2)
             ids = np.sort(rng.choice(full.gp_ids, size=n_gps, replace=False))
-            p = instance_from_orbit(ctx, sat=sat, t0_s=t0, window_s=window_s, gp_ids=ids)
+            p = planner.instance(sat, t0, field, window_s=window_s, gp_ids=ids)
             d = solve_dp(p)
             m = solve_milp(p, time_limit_s=time_limit_s)
             rows.append({"sat": sat, "t0_s": t0, "dp": d.value, "milp": m.objective, "milp_bound": m.dual_bound,
@@ -137,7 +138,7 @@ def milp_comparison(ctx, *, instances: int, n_gps: int, window_s: float, time_li
 
 def run_benchmark(sc, *, sat: str | None = None, instances: int = 8, n_gps: int = 20, window_s: float = 60.0,
                   time_limit_s: float = 120.0) -> dict:
-    from sat_node.scheduler.problem import OrbitContext
+    from bringup.scenario.world import OrbitContext
 
     if sat is not None and sat not in sc.sat_names:
         raise UserError(f"--sat {sat!r}: not a satellite of scenario {sc.name} ({sc.sat_names[0]}..{sc.sat_names[-1]})")

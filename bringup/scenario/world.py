@@ -2,7 +2,8 @@
 
 The world of a run is a pure function of the scenario (and its seed): the constellation (SGP4),
 the ground points, the OSSE value field, GP access windows over the horizon (bundle priority
-order), the ISL contact plan and the ground-station contact plan. The ROS engine starts one
+order), the ISL contact plan and the ground-station contact plan, and the planner every
+satellite and the ground segment plan with (sat_node.scheduler.planner). The ROS engine starts one
 process per satellite; rather than each recomputing it, the launcher builds it once and every
 process loads the same pickle (`World.load`), so every process sees bit-identical inputs.
 
@@ -21,9 +22,13 @@ import msgspec
 import numpy as np
 
 from bringup.scenario.config import Scenario
+from ground_station.osse_sources import osse_from_scenario
+from orbit_clock import build_constellation, ground_points
 from orbit_clock.access import RegionPrefilter
+from sat_node.acs import SlewModel
+from sat_node.scheduler.planner import Planner, PlannerSettings
 
-__all__ = ["World", "scenario_key"]
+__all__ = ["OrbitContext", "World", "scenario_key"]
 
 _FORMAT = 1
 
@@ -37,9 +42,39 @@ def scenario_key(sc: Scenario) -> str:
 
 
 @dataclass
+class OrbitContext:
+    """A scenario with its constellation (SGP4, orbit_clock), GPs, OSSE field and slew model."""
+
+    scenario: Scenario
+    constellation: object  # orbit_clock.propagation.Constellation
+    gps: object  # orbit_clock.ground_points.GroundPoints
+    osse: object  # ground_station.osse.OsseField
+    slew: SlewModel
+
+    @classmethod
+    def from_scenario(cls, sc: Scenario) -> OrbitContext:
+        gps = ground_points(sc)
+        return cls(scenario=sc, constellation=build_constellation(sc), gps=gps,
+                   osse=osse_from_scenario(sc, gps), slew=SlewModel.from_scenario(sc))
+
+    def track_ecef_km(self, sat: str, times_s: np.ndarray) -> np.ndarray:
+        i = self.constellation.index(sat)
+        return self.constellation.positions_ecef_km_at(np.full(len(times_s), i), times_s)
+
+    def planner(self) -> Planner:
+        """The scenario's planner: its orbits, GPs, slew model and settings, with the region
+        pre-filter over the horizon (orbit_clock.access.RegionPrefilter) as its GP pre-filter."""
+        sc = self.scenario
+        prefilter = RegionPrefilter(self.constellation, self.gps, sc.scenario.horizon_s,
+                                    sc.instrument.for_off_nadir_deg)
+        return Planner(self.constellation, self.gps.ecef_km, self.slew, PlannerSettings.from_scenario(sc),
+                       candidates=prefilter.candidate_gp_ids)
+
+
+@dataclass
 class World:
     scenario: Scenario
-    ctx: object  # sat_node.scheduler.problem.OrbitContext (constellation, gps, osse, slew)
+    ctx: OrbitContext
     access: object  # orbit_clock.access.AccessWindows over [0, horizon]
     isl_plan: object  # orbit_clock.contact_plan.ContactPlan
     ground_plan: object  # orbit_clock.contact_plan.ContactPlan (sat <-> gs_*)
@@ -75,7 +110,6 @@ class World:
     @classmethod
     def build(cls, sc: Scenario) -> "World":
         from orbit_clock import access_windows, ground_contact_plan, isl_contact_plan
-        from sat_node.scheduler.problem import OrbitContext
 
         ctx = OrbitContext.from_scenario(sc)
         horizon_s = sc.scenario.horizon_s
@@ -92,15 +126,12 @@ class World:
     # (a pure function of the scenario, milliseconds).
     def __getstate__(self):
         st = dict(self.__dict__)
-        st.pop("_prefilter", None)
+        st.pop("_planner", None)
         ctx = self.ctx
         st["ctx"] = {"gps": ctx.gps, "osse": ctx.osse, "slew": ctx.slew}
         return st
 
     def __setstate__(self, st):
-        from orbit_clock import build_constellation
-        from sat_node.scheduler.problem import OrbitContext
-
         c = st["ctx"]
         st["ctx"] = OrbitContext(scenario=st["scenario"], constellation=build_constellation(st["scenario"]),
                                  gps=c["gps"], osse=c["osse"], slew=c["slew"])
@@ -153,15 +184,14 @@ class World:
         region = self.region_of_gp(gp)
         return priority_order(self.access, region, t_s, source=source)
 
-    def candidate_gp_ids(self, sat: str, t0_s: float, t1_s: float) -> np.ndarray:
-        """GP ids of the regions that may enter ``sat``'s field of regard during [t0_s, t1_s]
-        (orbit_clock.access.RegionPrefilter over the horizon, built on first use)."""
-        pf = self.__dict__.get("_prefilter")
-        if pf is None:
-            sc = self.scenario
-            pf = self.__dict__["_prefilter"] = RegionPrefilter(self.ctx.constellation, self.ctx.gps,
-                                                               sc.scenario.horizon_s, sc.instrument.for_off_nadir_deg)
-        return pf.candidate_gp_ids(sat, t0_s, t1_s)
+    @property
+    def planner(self) -> Planner:
+        """The one planner of this world (:meth:`OrbitContext.planner`), built on first use and not
+        pickled; the satellites and the ground segment plan with it."""
+        p = self.__dict__.get("_planner")
+        if p is None:
+            p = self.__dict__["_planner"] = self.ctx.planner()
+        return p
 
     def gp_region_name(self, gp: int) -> str:
         return str(self.ctx.gps.region_names[self.region_of_gp(gp)])

@@ -1,41 +1,53 @@
-"""Onboard scheduler: instance building, DP (numba), brute-force and MILP oracles, non-agile baseline.
+"""Onboard scheduler: the one planner, instance building, DP (numba), brute-force and MILP oracles,
+non-agile baseline.
 
-Typical call (one satellite, one replan)::
+Typical call (one satellite, one replan; the satellite and the ground segment both plan this way)::
 
-    p = build_problem(t0_s=..., step_s=1.0, sat_pos_km=..., gp_ecef_km=..., in_for=...,
-                      absval=..., slew=SlewModel.from_scenario(sc), revisit_zero_s=900.0,
-                      prior_count=..., prior_recent=..., init_target_km=...)
-    plan = solve_dp(p, budget_s=1.0)   # plan.as_list() -> [(gp_id, t_s)], plan.value
+    planner = Planner(constellation, gps.ecef_km, SlewModel.from_scenario(sc),
+                      PlannerSettings.from_scenario(sc), candidates=prefilter.candidate_gp_ids)
+    plan = planner.plan("sat_11", t0_s, window_s,
+                        Knowledge(PersistenceView(osse, t0_s), known, belief))
+    plan.as_list()   # -> [(gp_id, t_s)], plan.value
+
+or, from arrays: ``solve_dp(build_problem(t0_s=..., step_s=1.0, sat_pos_km=..., ...))``.
 """
 
 from sat_node.scheduler.brute import BruteTooLarge, solve_brute
 from sat_node.scheduler.dp import Plan, ScheduleInvariantError, make_plan, solve_dp
 from sat_node.scheduler.nonagile import nadir_pass_crossings, solve_nonagile
+from sat_node.scheduler.planner import (
+    SOLVERS,
+    Knowledge,
+    PersistenceView,
+    Planner,
+    PlannerSettings,
+    ValueSource,
+)
 from sat_node.scheduler.problem import (
-    OrbitContext,
     ProblemError,
     SchedulingProblem,
     build_problem,
     evaluate_plan,
-    instance_from_orbit,
-    pass_starts_s,
     plan_violations,
 )
 
 __all__ = [
+    "SOLVERS",
     "BruteTooLarge",
+    "Knowledge",
     "MilpResult",
-    "OrbitContext",
+    "PersistenceView",
     "Plan",
+    "Planner",
+    "PlannerSettings",
     "ProblemError",
     "ScheduleInvariantError",
     "SchedulingProblem",
+    "ValueSource",
     "build_problem",
     "evaluate_plan",
-    "instance_from_orbit",
     "make_plan",
     "nadir_pass_crossings",
-    "pass_starts_s",
     "plan_violations",
     "solve_brute",
     "solve_dp",

@@ -4,9 +4,9 @@ An instance (Nag et al., ICAPS SPARK 2019, Table 1 / DESIGN.md section 1) is eve
 needs to choose where to point over ``[t0_s, t0_s + n_steps * step_s)``: its ECEF positions on the
 grid, the GP ECEF vectors, which GP is inside the field of regard (FOR) at each step, the believed
 absolute value per (step, GP), what it knows was (or will be, by other satellites) observed before
-each step, and its attitude at the start. The instance is plain numpy; the FOR mask comes from the
-orbit core (:func:`orbit_clock.access.for_mask`); :func:`instance_from_orbit` builds an instance
-from an orbit/OSSE source.
+each step, and its attitude at the start. The instance is plain numpy;
+:class:`sat_node.scheduler.planner.Planner` builds it from the orbits, the field of regard
+(:func:`orbit_clock.access.for_mask`) and what the planner knows.
 
 Semantics shared by every solver here (DP, brute force, MILP, non-agile), implemented once in
 :func:`evaluate_plan` and :func:`plan_violations`:
@@ -33,17 +33,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from orbit_clock.access import for_mask
 from sat_node.acs import SlewModel, angle_between_deg, nadir_unit, unit_vectors
 
 __all__ = [
-    "OrbitContext",
     "ProblemError",
     "SchedulingProblem",
     "build_problem",
     "evaluate_plan",
-    "instance_from_orbit",
-    "pass_starts_s",
     "plan_violations",
 ]
 
@@ -213,80 +209,3 @@ def plan_violations(p: SchedulingProblem, steps, cols, rule: str = "sequential",
             if t[jx] - t[i] + tol_s < need:
                 out.append(f"obs {i}->{jx}: {t[jx] - t[i]:.3f} s < slew {need:.3f} s")
     return out
-
-
-# ---- instances from the orbit core and the OSSE field ------------------------------------------------
-
-
-@dataclass
-class OrbitContext:
-    """A scenario with its constellation (SGP4, orbit_clock), GPs and OSSE field, built once."""
-
-    scenario: object
-    constellation: object
-    gps: object
-    osse: object
-    slew: SlewModel
-
-    @classmethod
-    def from_scenario(cls, sc) -> OrbitContext:
-        from ground_station.osse_sources import osse_from_scenario
-        from orbit_clock import build_constellation, ground_points
-
-        gps = ground_points(sc)
-        return cls(scenario=sc, constellation=build_constellation(sc), gps=gps,
-                   osse=osse_from_scenario(sc, gps), slew=SlewModel.from_scenario(sc))
-
-    def track_ecef_km(self, sat: str, times_s: np.ndarray) -> np.ndarray:
-        i = self.constellation.index(sat)
-        return self.constellation.positions_ecef_km_at(np.full(len(times_s), i), times_s)
-
-
-def instance_from_orbit(ctx: OrbitContext, *, sat: str, t0_s: float, window_s: float | None = None,
-                        step_s: float | None = None, known=(), belief=None, init_target_km=None,
-                        init_t_s: float | None = None, gp_ids=None) -> SchedulingProblem:
-    """The instance of satellite ``sat`` over [t0_s, t0_s + window_s) on the scenario's DP grid.
-
-    GPs: ``gp_ids`` or every GP in the FOR at some step of the window. Value: the OSSE field,
-    through ``belief`` (a :class:`sat_node.value.Belief`) when given; known observations
-    (:class:`sat_node.value.KnownObservation`) enter via :func:`sat_node.value.prior_state`.
-    init_target_km / init_t_s: the GP the satellite last pointed at and when (it may slew from then).
-    """
-    from sat_node.value import prior_state
-
-    sc = ctx.scenario
-    step = float(step_s or sc.scheduler.dp_step_s)
-    window = float(window_s or sc.scheduler.plan_lookahead_s)
-    n = max(1, round(window / step))
-    times = t0_s + step * np.arange(n)
-    sat_pos = ctx.track_ecef_km(sat, times)
-    all_gp = ctx.gps.ecef_km if gp_ids is None else ctx.gps.ecef_km[np.asarray(gp_ids)]
-    vis = for_mask(sat_pos, all_gp, sc.instrument.for_off_nadir_deg)
-    if gp_ids is None:
-        ids = np.flatnonzero(vis.any(axis=0))
-        vis = vis[:, ids]
-    else:
-        ids = np.asarray(gp_ids, dtype=np.int64)
-    true = ctx.osse.value_at(ids[None, :], times[:, None]).astype(np.float64)
-    if belief is not None and len(ids):
-        absval = belief.absval(true, ids[None, :], ctx.osse.slot_of(times)[:, None])
-    else:
-        absval = true
-    count, recent = prior_state(known, ids, times, sat, sc.value.revisit_zero_s)
-    init_pos = None
-    if init_target_km is not None and init_t_s is not None:
-        init_pos = ctx.track_ecef_km(sat, np.array([float(init_t_s)]))[0]
-    return build_problem(t0_s=t0_s, step_s=step, sat_pos_km=sat_pos, gp_ecef_km=ctx.gps.ecef_km[ids],
-                         in_for=vis, absval=absval, slew=ctx.slew, revisit_zero_s=sc.value.revisit_zero_s,
-                         gp_ids=ids, prior_count=count, prior_recent=recent, init_target_km=init_target_km,
-                         init_sat_pos_km=init_pos, ready_t_s=init_t_s if init_pos is not None else None,
-                         sat_name=sat)
-
-
-def pass_starts_s(ctx: OrbitContext, sat: str, t0_s: float, t1_s: float, step_s: float = 10.0) -> np.ndarray:
-    """Times [s] (on a step_s grid) when some GP enters the satellite's FOR after none was in it."""
-    times = np.arange(t0_s, t1_s, step_s)
-    vis = for_mask(ctx.track_ecef_km(sat, times), ctx.gps.ecef_km,
-                   ctx.scenario.instrument.for_off_nadir_deg).any(axis=1)
-    rise = np.flatnonzero(vis & ~np.concatenate([[False], vis[:-1]]))
-    return times[rise]

@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 from dp_instances import random_instance
 
-from sat_node.scheduler import plan_violations, solve_brute, solve_dp, solve_milp
-from sat_node.scheduler.problem import OrbitContext, instance_from_orbit, pass_starts_s
+from bringup.scenario.world import OrbitContext
+from sat_node.scheduler import Knowledge, plan_violations, solve_brute, solve_dp, solve_milp
 
 
 @pytest.mark.parametrize("seed", range(12))
@@ -33,13 +33,14 @@ def paper_ctx(paper_scenario):
 
 def test_dp_within_90_percent_of_milp_on_paper_instances(paper_ctx):
     rng = np.random.default_rng(2)
-    starts = pass_starts_s(paper_ctx, "sat_11", 0.0, 21600.0)
+    planner, field = paper_ctx.planner(), Knowledge(paper_ctx.osse)
+    starts = planner.pass_starts_s("sat_11", 0.0, 21600.0)
     assert len(starts) >= 2
     ratios = []
     for t0 in starts[:3]:
-        full = instance_from_orbit(paper_ctx, sat="sat_11", t0_s=float(t0), window_s=600.0)
+        full = planner.instance("sat_11", float(t0), field, window_s=600.0)
         ids = np.sort(rng.choice(full.gp_ids, size=min(15, len(full.gp_ids)), replace=False))
-        p = instance_from_orbit(paper_ctx, sat="sat_11", t0_s=float(t0) + 60.0, window_s=45.0, gp_ids=ids)
+        p = planner.instance("sat_11", float(t0) + 60.0, field, window_s=45.0, gp_ids=ids)
         m = solve_milp(p, time_limit_s=60.0)
         d = solve_dp(p)
         assert m.optimal

@@ -1,0 +1,190 @@
+"""The one planner: how every scheduler of the constellation turns what it knows into a plan.
+
+The satellite's onboard replans (distributed mode, Nag et al., ICAPS SPARK 2019, section 4), the
+ground segment's plans for each satellite (centralized mode, section 5) and the non-agile baseline
+all plan here, with the same steps:
+
+1. **Value.** What the planner believes each GP is worth: the value source of its
+   :class:`Knowledge` (``value_at(gp, t_s)``, ``slot_of(t_s)``) through its own belief noise
+   (:class:`sat_node.value.Belief`). The caller passes the knowledge in; the planner never reads
+   the scenario's field itself. Today both callers pass :class:`PersistenceView`, the OSSE forecast
+   as it stood at planning time (persistence: the planner cannot know the future flood state);
+   the observations it knows of (its own, those delivered by the DTN or downlinked, plans it must
+   respect) enter through Eq. 1's prior state (:func:`sat_node.value.prior_state`).
+2. **GP pre-filter.** The GPs of the regions that may enter the satellite's field of regard in the
+   window (a superset, :class:`orbit_clock.access.RegionPrefilter`, passed in as ``candidates``);
+   none: no plan.
+3. **Instance.** The satellite's positions on the DP grid, the exact FOR mask
+   (:func:`orbit_clock.access.for_mask`), the believed value and the prior state
+   (:func:`sat_node.scheduler.problem.build_problem`).
+4. **Solver.** A named strategy of :data:`SOLVERS`: ``dp`` (the study's dynamic program,
+   :func:`sat_node.scheduler.dp.solve_dp`, invariants checked) or ``nonagile`` (nadir only,
+   :func:`sat_node.scheduler.nonagile.solve_nonagile`).
+
+A planner holds only the scenario's fixed inputs (orbits, GPs, slew model, settings, pre-filter):
+everything that changes between calls - the satellite, the time, the window, the knowledge, the
+attitude - is an argument, so one planner serves every satellite and the ground in one process.
+
+How we know it is right (tests/unit/test_planner.py): its instance equals one built by hand from
+the same arrays (track, exact FOR mask over every GP, forecast at the persistence time, belief,
+prior state); the pre-filtered plan equals the DP on the full instance's columns; the persistence
+view reads every later time at the cut-off; the paper run's report and traces are the check that
+satellite and ground plan as before (tests/system/test_engines_equal.py for both engines).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from typing import Protocol
+
+import numpy as np
+
+from orbit_clock.access import for_mask
+from sat_node.acs import SlewModel
+from sat_node.scheduler.dp import Plan, solve_dp
+from sat_node.scheduler.nonagile import solve_nonagile
+from sat_node.scheduler.problem import SchedulingProblem, build_problem
+from sat_node.value import Belief, KnownObservation, prior_state
+
+__all__ = ["SOLVERS", "Knowledge", "PersistenceView", "Planner", "PlannerSettings", "ValueSource"]
+
+
+class ValueSource(Protocol):
+    """A value field as a planner knows it: values per GP and time, on 15-min slots."""
+
+    def value_at(self, gp_idx, t_s) -> np.ndarray: ...
+
+    def slot_of(self, t_s) -> np.ndarray: ...
+
+
+class PersistenceView:
+    """A field as a planner knows it at ``t_known_s``: every later time reads that instant."""
+
+    def __init__(self, field: ValueSource, t_known_s: float):
+        self._field = field
+        self._t = float(t_known_s)
+
+    @property
+    def t_known_s(self) -> float:
+        return self._t
+
+    def value_at(self, gp_idx, t_s):
+        t = np.broadcast_to(np.asarray(t_s, np.float64), np.broadcast(np.asarray(gp_idx), np.asarray(t_s)).shape)
+        return self._field.value_at(gp_idx, np.minimum(t, self._t))
+
+    def slot_of(self, t_s):
+        return self._field.slot_of(np.minimum(np.asarray(t_s, np.float64), self._t))
+
+
+@dataclass(frozen=True)
+class Knowledge:
+    """What one planner knows when it plans: the value it believes (``value`` seen through
+    ``belief``, None: exactly) and the observations it knows of (executed, or planned by others)."""
+
+    value: ValueSource
+    known: Sequence[KnownObservation] = ()
+    belief: Belief | None = None
+
+
+@dataclass(frozen=True)
+class PlannerSettings:
+    """The scenario's planning parameters (units in names)."""
+
+    dp_step_s: float
+    plan_lookahead_s: float
+    for_off_nadir_deg: float
+    revisit_zero_s: float
+    footprint_km: float
+
+    @classmethod
+    def from_scenario(cls, sc) -> PlannerSettings:
+        return cls(dp_step_s=float(sc.scheduler.dp_step_s), plan_lookahead_s=float(sc.scheduler.plan_lookahead_s),
+                   for_off_nadir_deg=float(sc.instrument.for_off_nadir_deg),
+                   revisit_zero_s=float(sc.value.revisit_zero_s), footprint_km=float(sc.instrument.footprint_km))
+
+
+#: name -> solver(instance, settings) -> Plan
+SOLVERS: dict[str, Callable[[SchedulingProblem, PlannerSettings], Plan]] = {
+    "dp": lambda p, st: solve_dp(p, check=True),
+    "nonagile": lambda p, st: solve_nonagile(p, st.footprint_km),
+}
+
+
+class Planner:
+    """Plans for any satellite of ``constellation`` (``index(name)``, ``positions_ecef_km_at``)
+    over the GPs ``gp_ecef_km`` [km, ECEF, row = GP id]; ``candidates(sat, t0_s, t1_s)`` is the GP
+    pre-filter (None: the exact FOR mask over every GP picks the columns)."""
+
+    def __init__(self, constellation, gp_ecef_km: np.ndarray, slew: SlewModel, settings: PlannerSettings,
+                 candidates: Callable[[str, float, float], np.ndarray] | None = None):
+        self.constellation = constellation
+        self.gp_ecef_km = gp_ecef_km
+        self.slew = slew
+        self.settings = settings
+        self.candidates = candidates
+
+    def track_ecef_km(self, sat: str, times_s: np.ndarray) -> np.ndarray:
+        """Positions [km, ECEF] of satellite ``sat`` at ``times_s`` (n, 3)."""
+        i = self.constellation.index(sat)
+        return self.constellation.positions_ecef_km_at(np.full(len(times_s), i), times_s)
+
+    def plan(self, sat: str, t0_s: float, window_s: float, knowledge: Knowledge, *,
+             init_target_km: np.ndarray | None = None, solver: str = "dp") -> Plan | None:
+        """The plan of ``sat`` over [t0_s, t0_s + window_s) from ``knowledge`` (None when no GP can
+        enter its field of regard); ``init_target_km``: what it points at now (None: nadir)."""
+        if solver not in SOLVERS:
+            raise ValueError(f"planner solver {solver!r}: unknown (known: {', '.join(sorted(SOLVERS))})")
+        ids = None
+        if self.candidates is not None:
+            ids = self.candidates(sat, t0_s, t0_s + window_s)
+            if len(ids) == 0:
+                return None
+        p = self.instance(sat, t0_s, knowledge, window_s=window_s, gp_ids=ids, init_target_km=init_target_km)
+        return SOLVERS[solver](p, self.settings)
+
+    def instance(self, sat: str, t0_s: float, knowledge: Knowledge, *, window_s: float | None = None,
+                 step_s: float | None = None, gp_ids=None, init_target_km=None,
+                 init_t_s: float | None = None) -> SchedulingProblem:
+        """The instance of ``sat`` over [t0_s, t0_s + window_s) on the DP grid (defaults: the
+        settings' look-ahead and step).
+
+        GPs: ``gp_ids``, or every GP in the FOR at some step of the window. init_target_km /
+        init_t_s: the GP the satellite last pointed at and when (it may slew from then; without
+        init_t_s it slews from the window's start).
+        """
+        st = self.settings
+        step = float(step_s or st.dp_step_s)
+        window = float(window_s or st.plan_lookahead_s)
+        n = max(1, round(window / step))
+        times = t0_s + step * np.arange(n)
+        sat_pos = self.track_ecef_km(sat, times)
+        all_gp = self.gp_ecef_km if gp_ids is None else self.gp_ecef_km[np.asarray(gp_ids)]
+        vis = for_mask(sat_pos, all_gp, st.for_off_nadir_deg)
+        if gp_ids is None:
+            ids = np.flatnonzero(vis.any(axis=0))
+            vis = vis[:, ids]
+        else:
+            ids = np.asarray(gp_ids, dtype=np.int64)
+        value = knowledge.value
+        forecast = value.value_at(ids[None, :], times[:, None]).astype(np.float64)
+        if knowledge.belief is not None and len(ids):
+            absval = knowledge.belief.absval(forecast, ids[None, :], value.slot_of(times)[:, None])
+        else:
+            absval = forecast
+        count, recent = prior_state(knowledge.known, ids, times, sat, st.revisit_zero_s)
+        init_pos = None
+        if init_target_km is not None and init_t_s is not None:
+            init_pos = self.track_ecef_km(sat, np.array([float(init_t_s)]))[0]
+        return build_problem(t0_s=t0_s, step_s=step, sat_pos_km=sat_pos, gp_ecef_km=self.gp_ecef_km[ids],
+                             in_for=vis, absval=absval, slew=self.slew, revisit_zero_s=st.revisit_zero_s,
+                             gp_ids=ids, prior_count=count, prior_recent=recent, init_target_km=init_target_km,
+                             init_sat_pos_km=init_pos, ready_t_s=init_t_s if init_pos is not None else None,
+                             sat_name=sat)
+
+    def pass_starts_s(self, sat: str, t0_s: float, t1_s: float, step_s: float = 10.0) -> np.ndarray:
+        """Times [s] (on a step_s grid) when some GP enters the satellite's FOR after none was in it."""
+        times = np.arange(t0_s, t1_s, step_s)
+        vis = for_mask(self.track_ecef_km(sat, times), self.gp_ecef_km, self.settings.for_off_nadir_deg).any(axis=1)
+        rise = np.flatnonzero(vis & ~np.concatenate([[False], vis[:-1]]))
+        return times[rise]
