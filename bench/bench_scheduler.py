@@ -19,10 +19,11 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from bringup.cli import bench_scheduler as bs
 from bringup.cli.common import scenario_from_args
+from bringup.cli.main import COMMANDS
 
 
 def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(description=bs.HELP)
+    p = argparse.ArgumentParser(description=COMMANDS["bench-scheduler"][1])
     bs.add_arguments(p)
     args = p.parse_args(argv)
     r = bs.run_benchmark(scenario_from_args(args), sat=args.sat, instances=args.instances, n_gps=args.milp_gps,

@@ -6,8 +6,9 @@ import csv
 import json
 
 from bringup.cli.common import add_out_arg, add_scenario_args, output_stream, scenario_from_args
-
-HELP = "list GP access windows (off-nadir <= field of regard) of every satellite over the horizon"
+from orbit_clock.access import access_windows
+from orbit_clock.ground_points import ground_points
+from orbit_clock.propagation import build_constellation
 
 _COLUMNS = ["sat", "region", "gp", "lat_deg", "lon_deg", "start_s", "end_s", "min_off_nadir_deg"]
 
@@ -19,10 +20,6 @@ def add_arguments(p) -> None:
 
 
 def run(args) -> int:
-    from orbit_clock.access import access_windows
-    from orbit_clock.ground_points import ground_points
-    from orbit_clock.propagation import build_constellation
-
     sc = scenario_from_args(args)
     cons = build_constellation(sc)
     gps = ground_points(sc)

@@ -9,7 +9,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-HELP = "print a recorded bag's topics, message types, counts and time span"
+from bringup.recording.bag import BagReader
 
 
 def add_arguments(p) -> None:
@@ -19,8 +19,6 @@ def add_arguments(p) -> None:
 
 def bag_summary(path: Path) -> dict:
     """{path, messages, start_ns, end_ns, duration_s, topics: [{topic, type, count}]}."""
-    from bringup.recording.bag import BagReader
-
     with BagReader(path) as r:
         topics = [{"topic": t.topic, "type": t.msgtype, "count": t.count} for t in r.topics()]
         return {

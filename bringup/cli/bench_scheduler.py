@@ -27,8 +27,9 @@ import numpy as np
 
 from bringup.cli.common import add_out_arg, add_scenario_args, output_stream, scenario_from_args
 from bringup.errors import UserError
-
-HELP = "benchmark the onboard DP scheduler: runtime over the horizon and value against the MILP optimum"
+from bringup.scenario.world import OrbitContext
+from sat_node.scheduler import Knowledge, build_problem, solve_dp, solve_milp
+from sat_node.value import Belief, KnownObservation, true_value
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -44,9 +45,6 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 def horizon_run(ctx, sat: str) -> dict:
     """Schedule one satellite over the whole horizon with periodic replanning; timings and values."""
-    from sat_node.scheduler import Knowledge, solve_dp
-    from sat_node.value import Belief, KnownObservation, true_value
-
     sc = ctx.scenario
     planner = ctx.planner()
     horizon = float(sc.scenario.horizon_s)
@@ -99,8 +97,6 @@ def horizon_run(ctx, sat: str) -> dict:
 
 def milp_comparison(ctx, *, instances: int, n_gps: int, window_s: float, time_limit_s: float) -> dict:
     """DP and MILP on small instances cut from the scenario's passes (several satellites)."""
-    from sat_node.scheduler import Knowledge, solve_dp, solve_milp
-
     sc = ctx.scenario
     planner = ctx.planner()
     field = Knowledge(ctx.osse)  # the OSSE field itself: the instances compare solvers, not knowledge
@@ -138,8 +134,6 @@ def milp_comparison(ctx, *, instances: int, n_gps: int, window_s: float, time_li
 
 def run_benchmark(sc, *, sat: str | None = None, instances: int = 8, n_gps: int = 20, window_s: float = 60.0,
                   time_limit_s: float = 120.0) -> dict:
-    from bringup.scenario.world import OrbitContext
-
     if sat is not None and sat not in sc.sat_names:
         raise UserError(f"--sat {sat!r}: not a satellite of scenario {sc.name} ({sc.sat_names[0]}..{sc.sat_names[-1]})")
     if instances < 1 or n_gps < 1 or window_s <= 0:
@@ -147,7 +141,6 @@ def run_benchmark(sc, *, sat: str | None = None, instances: int = 8, n_gps: int 
     if window_s > sc.value.revisit_zero_s:
         raise UserError(f"--milp-window-s {window_s} is longer than value.revisit_zero_s {sc.value.revisit_zero_s}")
     ctx = OrbitContext.from_scenario(sc)
-    from sat_node.scheduler import solve_dp  # noqa: F401  (import + JIT cache load outside the timings)
     _warm_up(ctx)
     out = {"scenario": sc.name, "dp_step_s": sc.scheduler.dp_step_s,
            "plan_lookahead_s": sc.scheduler.plan_lookahead_s, "replan_period_s": sc.scheduler.replan_period_s}
@@ -158,8 +151,6 @@ def run_benchmark(sc, *, sat: str | None = None, instances: int = 8, n_gps: int 
 
 def _warm_up(ctx) -> None:
     """Load (or compile once) the numba kernel so the timings measure scheduling, not compilation."""
-    from sat_node.scheduler import build_problem, solve_dp
-
     sat = np.array([[7088.0, 0.0, 0.0], [7088.0, 7.0, 0.0]])
     gp = np.array([[6378.0, 0.0, 0.0]])
     solve_dp(build_problem(t0_s=0.0, step_s=1.0, sat_pos_km=sat, gp_ecef_km=gp, in_for=np.ones((2, 1), bool),

@@ -16,10 +16,14 @@ import json
 import sys
 from pathlib import Path
 
+from bringup.analysis import compare as C
+from bringup.analysis.figure5 import bundle_rows_from_bag, figure5_data, figure5_summary, plot_figure5
+from bringup.analysis.report import true_values
 from bringup.cli.common import scenario_from_args
 from bringup.errors import UserError
-
-HELP = "run distributed, centralized and non-agile on the same scenario and seeds; Table 2 with ratios"
+from bringup.recording.bag import BagReader
+from bringup.scenario.world import World
+from msgs_json import codec
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -35,8 +39,6 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from bringup.analysis import compare as C
-
     if args.seeds < 1:
         raise UserError(f"--seeds {args.seeds}: must be >= 1")
     if args.jobs < 1:
@@ -77,12 +79,9 @@ def run(args: argparse.Namespace) -> int:
 
 def _plots(out: Path, seed: int, res: dict, sc, args) -> list[Path]:
     """Value over time per mode and Figure 5 (first seed), from the runs' bags."""
+    # here, not at the top: matplotlib costs ~0.35 s to import (python -X importtime), paid only
+    # when plots are made (not with --no-plots)
     from bringup.analysis import figures as plots
-    from bringup.analysis.figure5 import bundle_rows_from_bag, figure5_data, figure5_summary, plot_figure5
-    from bringup.recording.bag import BagReader
-    from bringup.analysis.report import true_values
-    from bringup.scenario.world import World
-    from msgs_json import codec
 
     d = out / "plots"
     d.mkdir(parents=True, exist_ok=True)

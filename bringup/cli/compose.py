@@ -11,8 +11,7 @@ from pathlib import Path
 
 from bringup.cli.common import add_scenario_args
 from bringup.deploy.compose import compose_project, repo_root, write_project
-
-HELP = "write docker-compose.yml (+ run_spec.json beside it): one container per process of a run"
+from bringup.errors import UserError
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -31,8 +30,6 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from bringup.errors import UserError
-
     context = (args.context or repo_root()).resolve()
     if not (context / "docker" / "Dockerfile").is_file() or not (context / "pyproject.toml").is_file():
         raise UserError(f"--context {context}: no docker/Dockerfile and pyproject.toml there")

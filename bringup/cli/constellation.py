@@ -6,8 +6,7 @@ import csv
 import json
 
 from bringup.cli.common import add_out_arg, add_scenario_args, output_stream, scenario_from_args
-
-HELP = "print the constellation's orbital elements at epoch (Walker pattern, SGP4 mean elements)"
+from orbit_clock.propagation import build_constellation
 
 _COLUMNS = ["name", "plane", "slot", "sma_km", "inc_deg", "raan_deg", "arglat_deg", "epoch_utc"]
 
@@ -19,8 +18,6 @@ def add_arguments(p) -> None:
 
 
 def run(args) -> int:
-    from orbit_clock.propagation import build_constellation
-
     sc = scenario_from_args(args)
     cons = build_constellation(sc)
     rows = [{k: getattr(e, k) for k in _COLUMNS} for e in cons.elements]

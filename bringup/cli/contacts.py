@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 from bringup.cli.common import add_out_arg, add_scenario_args, output_stream, scenario_from_args
-
-HELP = "write the contact plan (ISL + ground passes) as the study's CSV, ION ionrc lines or HDTN JSON"
+from orbit_clock.contact_plan import ContactPlan, write_contact_plan
+from orbit_clock.ground_passes import ground_contact_plan, station_names
+from orbit_clock.isl import isl_contact_plan
+from orbit_clock.propagation import build_constellation
 
 
 def add_arguments(p) -> None:
@@ -16,11 +18,6 @@ def add_arguments(p) -> None:
 
 
 def run(args) -> int:
-    from orbit_clock.contact_plan import ContactPlan, write_contact_plan
-    from orbit_clock.ground_passes import ground_contact_plan, station_names
-    from orbit_clock.isl import isl_contact_plan
-    from orbit_clock.propagation import build_constellation
-
     sc = scenario_from_args(args)
     cons = build_constellation(sc)
     contacts = []

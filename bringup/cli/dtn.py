@@ -9,8 +9,10 @@ import time
 from pathlib import Path
 
 from bringup.errors import UserError
-
-HELP = "run the DTN alone (BPv7 agents, CGR, ISL link model) on a contact plan and traffic; print dtn.* figures"
+from dtn_router.des import latency_lower_bounds, run_dtn, store_forward_bound_mean
+from orbit_clock.contact_plan import ContactPlanError, read_contact_plan
+from sat_node.dtn.agent import AgentConfig
+from sat_node.dtn.traffic import TrafficError, read_traffic
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -48,11 +50,6 @@ def _parse_ttl(text: str) -> dict[int, float]:
 
 
 def run(args: argparse.Namespace) -> int:
-    from dtn_router.des import latency_lower_bounds, run_dtn, store_forward_bound_mean
-    from orbit_clock.contact_plan import ContactPlanError, read_contact_plan
-    from sat_node.dtn.agent import AgentConfig
-    from sat_node.dtn.traffic import TrafficError, read_traffic
-
     t0 = time.perf_counter()
     if args.rate_bps <= 0 or args.bundle_bits <= 0:
         raise UserError("--rate-bps and --bundle-bits must be positive")

@@ -2,11 +2,10 @@
 
 Each subcommand lives in its own module ``bringup/cli/<name>.py`` exposing::
 
-    HELP: str                                  # one line for `constellation --help`
     def add_arguments(p: argparse.ArgumentParser) -> None
     def run(args: argparse.Namespace) -> int   # exit code
 
-The registry below names every subcommand of the contract. One whose module is missing still shows
+The registry below names every subcommand of the contract with its help line. One whose module is missing still shows
 in the help and fails loudly when called. Errors the user can fix (bad scenario, missing bag, bad
 file) are raised as :class:`bringup.errors.UserError` (or ScenarioError) and printed as one line
 ``constellation <cmd>: error: ...`` with exit code 2, no traceback.
@@ -15,28 +14,43 @@ file) are raised as :class:`bringup.errors.UserError` (or ScenarioError) and pri
 from __future__ import annotations
 
 import argparse
+import atexit
 import importlib
 import os
 import sys
+from collections.abc import Iterable
 
 from bringup.errors import UserError
 from bringup.scenario.config import ScenarioError
 
-# subcommand name -> module under bringup.cli
-COMMANDS: dict[str, str] = {
-    "run": "run",
-    "constellation": "constellation",
-    "access": "access",
-    "contacts": "contacts",
-    "bench-scheduler": "bench_scheduler",
-    "dtn": "dtn",
-    "report": "report",
-    "replay": "replay",
-    "bag-info": "bag_info",
-    "compare": "compare",
-    "sweep": "sweep",
-    "node": "node",
-    "compose": "compose",
+# subcommand name -> (module under bringup.cli, one line for `constellation --help`). Only the
+# chosen command's module is imported: each imports what it needs at its top, and `--help` or one
+# command does not pay for the others' (all of them: rclpy, matplotlib, numba, scipy, ~0.5 s).
+COMMANDS: dict[str, tuple[str, str]] = {
+    "run": ("run",
+            "run a scenario (ROS 2 processes or the local engine), record an MCAP bag, write the report"),
+    "constellation": ("constellation",
+                      "print the constellation's orbital elements at epoch (Walker pattern, SGP4 mean elements)"),
+    "access": ("access",
+               "list GP access windows (off-nadir <= field of regard) of every satellite over the horizon"),
+    "contacts": ("contacts",
+                 "write the contact plan (ISL + ground passes) as the study's CSV, ION ionrc lines or HDTN JSON"),
+    "bench-scheduler": ("bench_scheduler",
+                        "benchmark the onboard DP scheduler: runtime over the horizon and value against the MILP optimum"),
+    "dtn": ("dtn",
+            "run the DTN alone (BPv7 agents, CGR, ISL link model) on a contact plan and traffic; print dtn.* figures"),
+    "report": ("report", "rebuild report.json from a run's MCAP bag alone"),
+    "replay": ("replay",
+               "republish a recorded bag (raw CDR, with /clock) onto a live ROS 2 graph at a chosen rate"),
+    "bag-info": ("bag_info", "print a recorded bag's topics, message types, counts and time span"),
+    "compare": ("compare",
+                "run distributed, centralized and non-agile on the same scenario and seeds; Table 2 with ratios"),
+    "sweep": ("sweep",
+              "value vs replan period, ISL rate, satellites per plane, ground-station count (one table)"),
+    "node": ("node",
+             "run one process of a ROS-engine run (the clock or one participant group) from a run spec"),
+    "compose": ("compose",
+                "write docker-compose.yml (+ run_spec.json beside it): one container per process of a run"),
 }
 
 
@@ -49,21 +63,25 @@ def _load(module: str):
         raise
 
 
-def build_parser() -> argparse.ArgumentParser:
+def build_parser(load: Iterable[str] | None = None) -> argparse.ArgumentParser:
+    """The parser; the arguments of the commands in ``load`` (default: every command), the others by
+    name and help line only."""
     parser = argparse.ArgumentParser(
         prog="constellation",
         description="Agile Earth-observing constellation with onboard scheduling over DTN (ROS 2 Jazzy).",
     )
+    wanted = set(COMMANDS) if load is None else set(load)
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
-    for name, module in COMMANDS.items():
-        mod = _load(module)
-        if mod is None:
+    for name, (module, help_line) in COMMANDS.items():
+        mod = _load(module) if name in wanted else None
+        if mod is None and name in wanted:
             p = sub.add_parser(name, help="(not implemented yet)")
             p.set_defaults(_run=_not_implemented(name))
             continue
-        p = sub.add_parser(name, help=mod.HELP, description=mod.HELP)
-        mod.add_arguments(p)
-        p.set_defaults(_run=mod.run, _fast_exit=getattr(mod, "FAST_EXIT", False))
+        p = sub.add_parser(name, help=help_line, description=help_line)
+        if mod is not None:
+            mod.add_arguments(p)
+            p.set_defaults(_run=mod.run, _fast_exit=getattr(mod, "FAST_EXIT", False))
     return parser
 
 
@@ -80,7 +98,8 @@ _fast_exit = False  # the last command that returned 0 said it left no file open
 def main(argv: list[str] | None = None) -> int:
     global _fast_exit
     _fast_exit = False
-    parser = build_parser()
+    argv = sys.argv[1:] if argv is None else list(argv)
+    parser = build_parser(argv[:1] if argv[:1] and argv[0] in COMMANDS else ())
     args = parser.parse_args(argv)
     if not getattr(args, "command", None):
         parser.print_help()
@@ -108,8 +127,6 @@ def entry() -> None:
     code = main()
     if _fast_exit and sys.getprofile() is None and sys.gettrace() is None:  # (profilers, coverage: their
         # results are written at interpreter exit)
-        import atexit
-
         atexit._run_exitfuncs()
         for stream in (sys.stdout, sys.stderr):
             try:

@@ -12,10 +12,10 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from bringup.errors import UserError
+from bringup.engine.ros.clock_node import run_clock
+from bringup.engine.ros.host import run_host
 from bringup.engine.ros.run_spec import CLOCK_ROLE, RunSpec, load_factory
-
-HELP = "run one process of a ROS-engine run (the clock or one participant group) from a run spec"
+from bringup.errors import UserError
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -26,15 +26,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     spec = RunSpec.from_file(args.run_spec)
     if args.role == CLOCK_ROLE:
-        from bringup.engine.ros.clock_node import run_clock
-
         return run_clock(spec)
     if args.role not in spec.roles:
         raise UserError(f"--role {args.role!r} is not in the run spec's roles {spec.roles}")
     participants = load_factory(spec.factory)(spec, args.role)
     if not participants:
         raise UserError(f"participant factory {spec.factory} returned no participants for role {args.role}")
-    from bringup.engine.ros.host import run_host
 
     return run_host(args.role, participants, ack_timeout_s=spec.ack_timeout_s,
                     startup_timeout_s=spec.startup_timeout_s,

@@ -24,9 +24,14 @@ import os
 import time
 from pathlib import Path
 
-from bringup.errors import UserError
+import rclpy
+from rclpy.context import Context
+from rclpy.duration import Duration
+from rclpy.executors import ExternalShutdownException
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
-HELP = "republish a recorded bag (raw CDR, with /clock) onto a live ROS 2 graph at a chosen rate"
+from bringup.errors import UserError
+from bringup.recording.bag import CLOCK_TYPE, BagReader, clock_cdr
 
 
 def add_arguments(p) -> None:
@@ -61,8 +66,6 @@ def _domain_id(arg: int | None) -> int:
 
 
 def run(args) -> int:
-    from bringup.recording.bag import CLOCK_TYPE, BagReader, clock_cdr
-
     if args.rate < 0:
         raise UserError(f"replay: --rate must be >= 0, got {args.rate}")
     domain = _domain_id(args.domain_id)
@@ -86,11 +89,6 @@ def run(args) -> int:
     if synth_clock:
         classes["/clock"] = _msg_class(CLOCK_TYPE)
 
-    import rclpy
-    from rclpy.context import Context
-    from rclpy.duration import Duration
-    from rclpy.executors import ExternalShutdownException
-    from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
     qos = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1000, reliability=ReliabilityPolicy.RELIABLE,
                      durability=DurabilityPolicy.VOLATILE)

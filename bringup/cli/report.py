@@ -6,7 +6,7 @@ import argparse
 import json
 from pathlib import Path
 
-HELP = "rebuild report.json from a run's MCAP bag alone"
+from bringup.analysis.report import report_from_bag
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -15,8 +15,6 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from bringup.analysis.report import report_from_bag
-
     rep = report_from_bag(args.bag)
     text = json.dumps(rep, indent=2, sort_keys=True) + "\n"
     if args.out:

@@ -14,12 +14,25 @@ import json
 import shutil
 import sys
 import time
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
-from bringup.cli.common import add_scenario_args, scenario_from_args
-from bringup.errors import UserError
+from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
-HELP = "run a scenario (ROS 2 processes or the local engine), record an MCAP bag, write the report"
+from bringup.analysis.report import ReportBuilder, RunMeta, report_from_bag
+from bringup.analysis.report_md import write_report_md
+from bringup.cli.common import add_scenario_args, scenario_from_args
+from bringup.engine.local import run_local
+from bringup.engine.ros.factory import FACTORY
+from bringup.engine.ros.launcher import launch
+from bringup.engine.ros.run_spec import RunSpec
+from bringup.engine.store_batches import StoreBatches
+from bringup.errors import UserError
+from bringup.recording.recorder_process import Recorder
+from bringup.scenario.participants import all_participants, create_stores, roles_for
+from bringup.scenario.world import World
+from msgs_json.envelope import Envelope
+
 # every file a run writes is closed before run() returns (bag by its writer or recorder process,
 # stores, report.json, report.md, plots): the console script may skip the interpreter's teardown
 # (bringup/cli/main.py entry)
@@ -59,9 +72,6 @@ def parse_cut(text: str) -> tuple[str, str, float, float]:
 
 
 def run(args: argparse.Namespace) -> int:
-    from bringup.analysis.report import RunMeta
-    from bringup.scenario.world import World
-
     sc = scenario_from_args(args)
     out = args.out or Path("runs") / f"{sc.name}-{args.mode}"
     out = Path(out)
@@ -105,7 +115,6 @@ def _progress_display(show: bool, horizon_ns: int):
     """A rich progress bar (sim time, real-time factor, envelopes) or a no-op."""
     if not show:
         return None, (lambda **kw: None)
-    from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
     prog = Progress(TextColumn("[bold]sim {task.fields[sim]}"), BarColumn(), TextColumn("{task.percentage:>5.1f}%"),
                     TextColumn("RTF {task.fields[rtf]}"), TextColumn("{task.fields[extra]}"), TimeElapsedColumn(),
@@ -124,13 +133,6 @@ def _run_local(world, args, meta, bag_dir: Path, out: Path, router_kw, *, show: 
     """The run on the local engine; returns its runtime figures and its report (built by the
     recorder process from the envelopes it wrote: the same body as `constellation report BAG`,
     tests/system/test_engines_equal.py)."""
-    from bringup.engine.local import run_local
-    from bringup.scenario.participants import all_participants
-    from bringup.recording.recorder_process import Recorder
-    from bringup.analysis.report import ReportBuilder
-    from bringup.engine.store_batches import StoreBatches
-    from msgs_json.envelope import Envelope
-
     sc = world.scenario
     store_dir = out / "store"  # (made by run(): _fresh_store_dir)
     # the recorder (bag, visualisation, report decoding) forks first, before the stores open
@@ -182,8 +184,6 @@ def _run_local(world, args, meta, bag_dir: Path, out: Path, router_kw, *, show: 
 def _fresh_store_dir(store_dir: Path, sats: list[str]):
     """An empty ``store_dir``, its satellites' new stores started (participants.create_stores: the
     returned ``wait()``)."""
-    from bringup.scenario.participants import create_stores
-
     if store_dir.exists():
         shutil.rmtree(store_dir)
     store_dir.mkdir()
@@ -191,8 +191,6 @@ def _fresh_store_dir(store_dir: Path, sats: list[str]):
 
 
 def _close_all(parts: list) -> None:
-    from concurrent.futures import ThreadPoolExecutor
-
     closes = [p.close for p in parts if callable(getattr(p, "close", None))]
     with ThreadPoolExecutor(max_workers=8, thread_name_prefix="close") as ex:
         for f in [ex.submit(c) for c in closes]:
@@ -200,11 +198,6 @@ def _close_all(parts: list) -> None:
 
 
 def _run_ros(world, world_path: Path, args, meta, bag_dir: Path, out: Path, router_kw, *, show: bool) -> dict:
-    from bringup.engine.ros.launcher import launch
-    from bringup.engine.ros.factory import FACTORY
-    from bringup.scenario.participants import roles_for
-    from bringup.engine.ros.run_spec import RunSpec
-
     sc = world.scenario
     store_dir = out / "store"
     if store_dir.exists():
@@ -245,9 +238,6 @@ def _run_ros(world, world_path: Path, args, meta, bag_dir: Path, out: Path, rout
 
 
 def _finish(out: Path, bag_dir: Path, runtime: dict, world, args, say, *, rep: dict | None = None) -> int:
-    from bringup.analysis.report import report_from_bag
-    from bringup.analysis.report_md import write_report_md
-
     if rep is None:  # (the local engine's recorder built it from what it wrote, as report BAG does)
         rep = report_from_bag(bag_dir)
     rep["runtime"].update({k: v for k, v in runtime.items() if k not in rep["runtime"]})
@@ -255,6 +245,8 @@ def _finish(out: Path, bag_dir: Path, runtime: dict, world, args, say, *, rep: d
     (out / "report.json").write_text(json.dumps(rep, indent=2, sort_keys=True) + "\n")
     plots = []
     if not args.no_plots:
+        # here, not at the top: matplotlib costs ~0.35 s to import (python -X importtime), paid
+        # only when plots are made (not with --no-plots, as the tests and sweeps run)
         from bringup.analysis.run_figures import run_plots
 
         plots = run_plots(out, bag_dir, world, rep)

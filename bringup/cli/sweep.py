@@ -16,10 +16,9 @@ import sys
 import time
 from pathlib import Path
 
+from bringup.analysis.compare import get_path, run_in_process, scenario_variant
 from bringup.cli.common import scenario_from_args
 from bringup.errors import UserError
-
-HELP = "value vs replan period, ISL rate, satellites per plane, ground-station count (one table)"
 
 PARAMS = ("replan_period_s", "isl_rate_bps", "sats_per_plane", "n_stations")
 
@@ -68,8 +67,6 @@ def _rows_plan(sc, args) -> list[tuple[str, float, str, dict]]:
 
 
 def run(args: argparse.Namespace) -> int:
-    from bringup.analysis.compare import get_path, run_in_process, scenario_variant
-
     sc = scenario_from_args(args)
     plan = _rows_plan(sc, args)
     variants = [scenario_variant(sc, **ch) for _, _, _, ch, _ in plan]  # validate all before running
