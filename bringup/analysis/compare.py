@@ -28,10 +28,18 @@ import json
 import math
 import subprocess
 import sys
+import tempfile
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
+import msgspec
+
+from bringup.analysis.report import REPORT_TOPIC_SUFFIXES, RunMeta, build_report
+from bringup.engine.local import run_local
 from bringup.errors import UserError
+from bringup.scenario.config import _validate
+from bringup.scenario.participants import all_participants
+from bringup.scenario.world import World
 
 __all__ = [
     "MODES",
@@ -212,9 +220,6 @@ def scenario_variant(sc, *, replan_period_s: float | None = None, isl_rate_bps: 
     """A copy of scenario ``sc`` with one study parameter changed, validated like a file.
     ``replan_period_s`` also sets the plan lookahead to the period; ``n_stations`` keeps the first
     N ground stations of the scenario."""
-    import msgspec
-
-    from bringup.scenario.config import _validate
 
     raw = msgspec.to_builtins(sc)
     raw.pop("source_path", None)
@@ -237,12 +242,6 @@ def scenario_variant(sc, *, replan_period_s: float | None = None, isl_rate_bps: 
 
 def run_in_process(sc, mode: str, *, store_dir: Path | None = None) -> dict:
     """One local-engine run of scenario ``sc`` in this process (no bag): its report dict."""
-    import tempfile
-
-    from bringup.engine.local import run_local
-    from bringup.scenario.participants import all_participants
-    from bringup.analysis.report import REPORT_TOPIC_SUFFIXES, RunMeta, build_report
-    from bringup.scenario.world import World
 
     world = World.build(sc)
     meta = RunMeta(scenario=sc.name, mode=mode, engine="local", seed=sc.scenario.seed,

@@ -38,6 +38,10 @@ from pathlib import Path
 
 import numpy as np
 
+from bringup.recording.bag import BagReader
+from msgs_json import codec
+from orbit_clock import next_access_s
+
 __all__ = ["BundleRow", "bundle_rows", "bundle_rows_from_bag", "figure5_data", "figure5_summary",
            "plot_figure5"]
 
@@ -80,9 +84,6 @@ def bundle_rows(events) -> list[BundleRow]:
 
 def bundle_rows_from_bag(bag_dir) -> list[BundleRow]:
     """Bundles of a run from its bag (``/sat_XX/dtn/events``)."""
-    from bringup.recording.bag import BagReader
-    from msgs_json import codec
-
     with BagReader(bag_dir) as bag:
         topics = [t.topic for t in bag.topics() if t.topic.endswith("/dtn/events")]
         events = [codec.decode(e.topic, e.data) for e in bag.envelopes(topics)] if topics else []
@@ -90,8 +91,6 @@ def bundle_rows_from_bag(bag_dir) -> list[BundleRow]:
 
 
 def _gap_s(windows, region: int, dst: str, t_s: float, cache: dict) -> float | None:
-    from orbit_clock import next_access_s
-
     key = (region, t_s)
     nxt = cache.get(key)
     if nxt is None:
@@ -172,6 +171,8 @@ def figure5_summary(data: dict) -> dict:
 
 def plot_figure5(path: Path, data: dict, title: str | None = None) -> Path:
     """Box plots per priority (bringup/analysis/figures.py figure_latency_vs_gaps) with the margin on top."""
+    # here, not at the top: matplotlib costs ~0.35 s to import (python -X importtime); the data and
+    # summary above serve compare --json and the tests without it
     from bringup.analysis import figures as plots
 
     bp = data["by_priority"]

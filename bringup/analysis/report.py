@@ -37,9 +37,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from bringup.errors import UserError
+from bringup.recording.bag import BagReader
 from msgs_json import codec
 from msgs_json import schemas as S
 from msgs_json.envelope import Envelope
+from sat_node.dtn.agent import BundleEvent
+from sat_node.dtn.stats import dtn_report
 
 __all__ = ["REPORT_TOPIC_SUFFIXES", "ReportBuilder", "RunMeta", "build_report", "consensus_figures", "flatten", "report_from_bag", "true_values"]
 
@@ -72,8 +76,6 @@ _KIND = {"created": "created", "forwarded": "forwarded", "delivered": "delivered
 
 def _bundle_event(msg):
     """The agent's event record (what sat_node/dtn/stats.py reads) of a msgs_json bundle event."""
-    from sat_node.dtn.agent import BundleEvent
-
     kind = _KIND[type(msg).__struct_config__.tag]
     reason = getattr(msg, "reason", "")
     if kind == "dropped" and getattr(msg, "detail", "") in ("hop_limit",):
@@ -329,8 +331,6 @@ def _value_figures(obs: list, meta: RunMeta) -> dict:
 
 
 def _dtn_figures(events: list) -> dict:
-    from sat_node.dtn.stats import dtn_report
-
     flat = dtn_report(events)
     nested: dict = {}
     for k, v in flat.items():
@@ -357,9 +357,6 @@ def flatten(rep: dict, prefix: str = "") -> dict:
 
 def report_from_bag(bag_path) -> dict:
     """Rebuild report.json from a bag alone (metadata from its /run/meta record)."""
-    from bringup.errors import UserError
-    from bringup.recording.bag import BagReader
-
     with BagReader(bag_path) as bag:
         names = [t.topic for t in bag.topics()]
         if "/run/meta" not in names:

@@ -8,6 +8,14 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+from PIL import Image
+
+from bringup.analysis import figures as plots
+from bringup.analysis.figure5 import bundle_rows_from_bag, figure5_data, plot_figure5
+from bringup.analysis.report import true_values
+from bringup.recording.bag import BagReader
+from msgs_json import codec
+from orbit_clock import ecef_to_geodetic
 
 __all__ = ["run_plots", "shrink_png"]
 
@@ -15,18 +23,12 @@ _NS = 1_000_000_000
 
 
 def run_plots(out: Path, bag_dir: Path, world, rep: dict) -> list[Path]:
-    from bringup.analysis import figures as plots
-    from bringup.recording.bag import BagReader
-    from bringup.analysis.report import true_values
-    from msgs_json import codec
-
     d = Path(out) / "plots"
     d.mkdir(parents=True, exist_ok=True)
     sc = world.scenario
     made: list[Path] = []
     t = np.arange(0.0, sc.scenario.horizon_s + 1, 60.0)
     pos = world.constellation.positions_ecef_km(t)
-    from orbit_clock import ecef_to_geodetic
 
     tracks = {}
     for i, name in enumerate(world.sat_names):
@@ -50,7 +52,6 @@ def run_plots(out: Path, bag_dir: Path, world, rep: dict) -> list[Path]:
             horizon_s=sc.scenario.horizon_s))
     if rep.get("mode") == "distributed" and (rep.get("dtn") or {}).get("bundles_created"):
         # the study's Fig. 5: bundle latency vs access gaps by priority (bringup/analysis/figure5.py)
-        from bringup.analysis.figure5 import bundle_rows_from_bag, figure5_data, plot_figure5
 
         rows = bundle_rows_from_bag(bag_dir)
         if rows:
@@ -65,8 +66,6 @@ def run_plots(out: Path, bag_dir: Path, world, rep: dict) -> list[Path]:
 def shrink_png(path: Path, max_bytes: int = 300_000, colors: int = 128) -> Path:
     """Re-save a PNG larger than ``max_bytes`` with a ``colors``-entry palette (ground tracks with
     24 anti-aliased colours come out near 1 MB; the palette version looks the same at a third)."""
-    from PIL import Image
-
     path = Path(path)
     if path.stat().st_size <= max_bytes:
         return path

@@ -10,23 +10,20 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from bringup.recording.bag import BagReader
+from msgs_json import codec
+from msgs_json import schemas as S
+
 __all__ = ["deliveries_from_bag", "observations_from_bag"]
 
 
 def observations_from_bag(bag: Path) -> list[tuple[str, int, int]]:
-    from bringup.recording.bag import BagReader
-    from msgs_json import codec
-
     with BagReader(bag) as b:
         topics = [t.topic for t in b.topics() if t.topic.endswith("/observations")]
         return sorted((o.sat, o.gp, o.t_ns) for o in (codec.decode(e.topic, e.data) for e in b.envelopes(topics)))
 
 
 def deliveries_from_bag(bag: Path) -> list[tuple[str, str, int]]:
-    from bringup.recording.bag import BagReader
-    from msgs_json import codec
-    from msgs_json import schemas as S
-
     out = []
     with BagReader(bag) as b:
         topics = [t.topic for t in b.topics() if t.topic.endswith("/dtn/events")]

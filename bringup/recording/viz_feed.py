@@ -22,6 +22,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from bringup.recording.viz_messages import write_viz
+
 __all__ = ["VizFeed"]
 
 _NS = 1_000_000_000
@@ -52,8 +54,6 @@ class VizFeed:
 
     def write(self, bag, t_ns: int) -> int:
         """Write the visualisation of instant ``t_ns`` if due; returns messages written."""
-        from bringup.recording.viz_messages import write_viz
-
         if t_ns < self.next_ns:
             return 0
         self.next_ns = (t_ns // self.period_ns + 1) * self.period_ns

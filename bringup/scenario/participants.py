@@ -13,12 +13,17 @@ satellites from the same World pickle, so every process sees identical inputs.
 
 from __future__ import annotations
 
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 from bringup.errors import UserError
 from bringup.scenario.world import World
+from dtn_router.router import RouterLogic
+from ground_station.ground_segment import GroundLogic
 from orbit_clock.contact_announcer import ContactAnnouncer
 from orbit_clock.contact_faults import truth_plan
+from sat_node.dtn.store import BundleStore
+from sat_node.satellite import SatelliteLogic
 
 __all__ = ["MODES", "all_participants", "make_participant", "roles_for"]
 
@@ -42,10 +47,6 @@ def roles_for(world_or_sats, mode: str) -> list[str]:
 
 
 def make_participant(world: World, role: str, mode: str, *, store_dir: Path | None, router_kw: dict | None):
-    from dtn_router.router import RouterLogic
-    from ground_station.ground_segment import GroundLogic
-    from sat_node.satellite import SatelliteLogic
-
     if role == ROUTER_ROLE:
         return RouterLogic.for_world(world, **(router_kw or {}))
     if role == CONTACTS_ROLE:
@@ -70,9 +71,6 @@ def create_stores(store_dir: Path, sats: list[str]):
     and raises the first failure. Making one takes ~25 ms, nearly all of it waiting for the disk (the
     WAL switch syncs the file), so the local run starts them before it builds the world and they
     overlap with it; the satellites then open files that are ready (sat_node/dtn/store.py)."""
-    from concurrent.futures import ThreadPoolExecutor
-
-    from sat_node.dtn.store import BundleStore
 
     ex = ThreadPoolExecutor(max_workers=8, thread_name_prefix="store")
     futs = [ex.submit(lambda p: BundleStore(p).close(), store_path(store_dir, s)) for s in sats]

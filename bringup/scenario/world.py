@@ -23,8 +23,16 @@ import numpy as np
 
 from bringup.scenario.config import Scenario
 from ground_station.osse_sources import osse_from_scenario
-from orbit_clock import build_constellation, ground_points
+from orbit_clock import (
+    access_windows,
+    build_constellation,
+    ground_contact_plan,
+    ground_points,
+    isl_contact_plan,
+    priority_order,
+)
 from orbit_clock.access import RegionPrefilter
+from orbit_clock.contact_plan import ContactPlan
 from sat_node.acs import SlewModel
 from sat_node.scheduler.planner import Planner, PlannerSettings
 
@@ -109,16 +117,12 @@ class World:
 
     @classmethod
     def build(cls, sc: Scenario) -> "World":
-        from orbit_clock import access_windows, ground_contact_plan, isl_contact_plan
-
         ctx = OrbitContext.from_scenario(sc)
         horizon_s = sc.scenario.horizon_s
         acc = access_windows(ctx.constellation, ctx.gps, 0.0, horizon_s, sc.instrument.for_off_nadir_deg)
         isl = isl_contact_plan(sc, ctx.constellation)
         gnd = ground_contact_plan(sc, ctx.constellation) if sc.ground.stations else None
         if gnd is None:
-            from orbit_clock.contact_plan import ContactPlan
-
             gnd = ContactPlan([])
         return cls(scenario=sc, ctx=ctx, access=acc, isl_plan=isl, ground_plan=gnd, key=scenario_key(sc))
 
@@ -179,8 +183,6 @@ class World:
     def destinations(self, gp: int, t_s: float, source: str) -> list[tuple[str, int]]:
         """Bundle destinations for an observation of ``gp`` at ``t_s`` by ``source``:
         [(sat, priority)], 1 = next on scene over the GP's region (orbit_clock.priority_order)."""
-        from orbit_clock import priority_order
-
         region = self.region_of_gp(gp)
         return priority_order(self.access, region, t_s, source=source)
 

@@ -61,15 +61,12 @@ from rclpy.context import Context
 from rclpy.duration import Duration
 from rclpy.experimental import EventsExecutor
 from rclpy.qos import QoSProfile, ReliabilityPolicy
-from rclpy.serialization import serialize_message
+from rclpy.serialization import deserialize_message, serialize_message
 from rclpy.signals import SignalHandlerOptions
 from rosgraph_msgs.msg import Clock
 from std_msgs.msg import String
 
-from bringup.engine.ros.host import QOS_DATA, QOS_SYNC_PUB, QOS_SYNC_SUB, exit_now
 from bringup.engine.contract import next_step_ns
-from bringup.engine.ros.run_spec import RunSpec
-from msgs_json.wire import WireError, decode_envelope
 from bringup.engine.lockstep import (
     ACK_TOPIC,
     RESEND_TOPIC,
@@ -79,8 +76,16 @@ from bringup.engine.lockstep import (
     ResendMsg,
     StepMsg,
     decode_ack,
+    decode_step,
     encode_msg,
 )
+from bringup.engine.ros.host import QOS_DATA, QOS_SYNC_PUB, QOS_SYNC_SUB, exit_now
+from bringup.engine.ros.run_spec import RunSpec
+from bringup.recording.bag import BagJournal, BagWriter, string_from_cdr
+from bringup.recording.viz_feed import VizFeed
+from bringup.scenario.world import World
+from msgs_json.envelope import Envelope
+from msgs_json.wire import WireError, decode_envelope
 
 __all__ = ["ClockError", "LockstepClock", "run_clock"]
 
@@ -121,29 +126,20 @@ class LockstepClock:
         self.reannounces = 0
         self._incarnation = 0
         if spec.restart_wait_s > 0 and spec.state_dir:
-            from bringup.recording.bag import BagJournal
-
             self.journal = self.bag = BagJournal(Path(spec.state_dir) / "clock.sqlite")
             row = self.journal.load()
             if row is not None:
                 self.resumed = (row[0], pickle.loads(row[1]))
         elif spec.bag_dir:
-            from bringup.recording.bag import BagWriter
-
             self.bag = BagWriter(spec.bag_dir, custom=self.bag_custom)
         # A `constellation run`: its metadata record and the visualisation topics (bringup/recording/viz_feed.py).
         self.meta = spec.extra.get("meta")
         self.viz = None
         if self.bag is not None and self.meta is not None:
-            from msgs_json.envelope import Envelope
-
             if self.resumed is None:
                 self.bag.write_envelope(Envelope(self.t0_ns, "run", 0, "/run/meta",
                                                  json.dumps({"meta": self.meta})))
             if spec.extra.get("world"):
-                from bringup.recording.viz_feed import VizFeed
-                from bringup.scenario.world import World
-
                 self.viz = VizFeed(World.load(spec.extra["world"], spec.extra.get("world_key")))
         self.rec_topics: dict[str, object] = {}
         self.rec_counts: dict[str, int] = {}
@@ -167,8 +163,6 @@ class LockstepClock:
 
     # -- callbacks ----------------------------------------------------------------------------------
     def _on_ack(self, raw: bytes) -> None:
-        from rclpy.serialization import deserialize_message
-
         try:
             ack = decode_ack(deserialize_message(raw, String).data)
         except LockstepError as exc:
@@ -193,8 +187,6 @@ class LockstepClock:
 
     def _make_rec_cb(self, topic: str):
         def cb(raw: bytes) -> None:
-            from rclpy.serialization import deserialize_message
-
             text = deserialize_message(raw, String).data
             try:
                 env = decode_envelope(text, topic)
@@ -306,9 +298,6 @@ class LockstepClock:
     def _restore(self) -> tuple[int, int, StepMsg, float] | None:
         """State of the checkpoint found at start; the recorder's keys, counts and re-send buffer
         come back from the journal's rows."""
-        from bringup.recording.bag import string_from_cdr
-        from bringup.engine.lockstep import decode_step
-
         k, st = self.resumed  # type: ignore[misc]
         if st.get("done"):
             print("clock: restarted after the run had finished; exporting the bag", file=sys.stderr, flush=True)
@@ -433,8 +422,6 @@ class LockstepClock:
                              lambda: "recorder is missing envelopes: " + str(self._missing()))
         wall = time.monotonic() - wall0
         if self.bag is not None and self.meta is not None:
-            from msgs_json.envelope import Envelope
-
             runtime = {"wall_s": wall, "steps": self.steps,
                        "real_time_factor": ((t - self.t0_ns) / 1e9 / wall) if wall > 0 else None}
             if self.journal is not None:

@@ -47,6 +47,7 @@ from collections.abc import Sequence
 
 import rclpy
 from rclpy.context import Context
+from rclpy.duration import Duration
 from rclpy.experimental import EventsExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
@@ -55,9 +56,20 @@ from rclpy.signals import SignalHandlerOptions
 from rclpy.time import Time
 from std_msgs.msg import String
 
-from bringup.engine.contract import EngineError, check_emits, check_names, check_result, check_subscriptions, failed
-from msgs_json.envelope import Envelope, Participant, StepResult
-from msgs_json.wire import WireError, decode_envelope, encode_envelope
+from bringup.engine.checkpoint import (
+    CheckpointDB,
+    persistent_connection,
+    restore_participant,
+    snapshot_participant,
+)
+from bringup.engine.contract import (
+    EngineError,
+    check_emits,
+    check_names,
+    check_result,
+    check_subscriptions,
+    failed,
+)
 from bringup.engine.lockstep import (
     ACK_TOPIC,
     RESEND_TOPIC,
@@ -70,6 +82,8 @@ from bringup.engine.lockstep import (
     decode_step,
     encode_msg,
 )
+from msgs_json.envelope import Envelope, Participant, StepResult
+from msgs_json.wire import WireError, decode_envelope, encode_envelope
 
 __all__ = ["QOS_DATA", "QOS_SYNC_PUB", "QOS_SYNC_SUB", "HostError", "ParticipantHost", "exit_now", "run_host"]
 
@@ -162,8 +176,6 @@ class ParticipantHost:
 
     # -- checkpoints (bringup/engine/checkpoint.py) --------------------------------------------------------
     def _open_checkpoint(self, state_path: str) -> None:
-        from bringup.engine.checkpoint import CheckpointDB, persistent_connection, restore_participant
-
         conns = [c for c in (persistent_connection(s.p) for s in self.slots) if c is not None]
         if len(conns) > 1:
             raise HostError(f"host {self.role}: more than one participant has its own store; "
@@ -189,8 +201,6 @@ class ParticipantHost:
         self.last_wires = [tuple(w) for w in hs.get("wires", ())]
 
     def _checkpoint(self, k: int, ack: dict) -> None:
-        from bringup.engine.checkpoint import snapshot_participant
-
         hs = {"names": [s.name for s in self.slots], "seq": {s.name: s.seq for s in self.slots},
               "boxes": {f"{s.name} {b.topic}": (b.expected, b.delivered, dict(b.consumed))
                         for s in self.slots for b in s.inboxes},
@@ -430,8 +440,6 @@ class ParticipantHost:
         self.republished += len(self.last_wires)
 
     def _flush_acks(self) -> None:
-        from rclpy.duration import Duration
-
         try:
             self.ack_pub.wait_for_all_acked(Duration(seconds=2.0))
         except Exception:  # noqa: BLE001 - best effort on the way out

@@ -54,6 +54,7 @@ from __future__ import annotations
 import fcntl
 import json
 import os
+import pickle
 import random
 import signal
 import subprocess
@@ -65,9 +66,10 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
-from bringup.errors import UserError
 from bringup.engine.ros.run_spec import CLOCK_ROLE, RunSpec
 from bringup.engine.ros.shm_cleanup import remove_unheld
+from bringup.errors import UserError
+from bringup.recording.bag import BagJournal
 
 __all__ = [
     "FASTDDS_PROFILE",
@@ -230,9 +232,6 @@ def _partial_bag(spec: RunSpec) -> str:
     """The clock crashed for good: export what its journal committed (every step before the one it
     died in; bringup/recording/bag.py BagJournal, the same export a restarted clock ends with) into
     ``spec.bag_dir``. Returns the clause for the run's one-line error."""
-    import pickle
-
-    from bringup.recording.bag import BagJournal
 
     path = Path(spec.state_dir) / "clock.sqlite"  # type: ignore[arg-type]
     if not path.exists():

@@ -19,6 +19,7 @@ from typing import Any
 import msgspec
 
 from bringup.errors import UserError
+from bringup.scenario.config import load_scenario
 
 __all__ = ["CLOCK_ROLE", "RunSpec", "load_factory"]
 
@@ -81,7 +82,6 @@ class RunSpec(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
         """The scenario with overrides (None when the spec names none, e.g. toy runs)."""
         if self.scenario is None:
             return None
-        from bringup.scenario.config import load_scenario
 
         sc = load_scenario(self.scenario)
         ov = {k: self.overrides.get(k) for k in ("sats", "hours", "seed")}
