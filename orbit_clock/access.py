@@ -44,6 +44,7 @@ import numpy as np
 from orbit_clock.frames import WGS84_B_KM, geodetic_to_ecef_km
 from orbit_clock.ground_points import GroundPoints
 from orbit_clock.propagation import MU_WGS84_KM3_S2, Constellation
+from orbit_clock.windows import time_grid, true_runs
 
 __all__ = [
     "AccessWindows",
@@ -242,11 +243,9 @@ class AccessWindows:
 
 def _runs(t: np.ndarray, eta: np.ndarray, vis: np.ndarray, limit_deg: float):
     """Windows from a sampled grid: (col, start_s, end_s, min_eta) arrays, edges interpolated."""
-    n_t, n_g = vis.shape
-    pad = np.zeros((1, n_g), dtype=np.int8)
-    d = np.diff(np.concatenate([pad, vis.astype(np.int8), pad]), axis=0)  # (n_t+1, n_g)
-    sg, sk = np.nonzero(d.T == 1)  # first visible sample k
-    eg, ek = np.nonzero(d.T == -1)  # first non-visible sample after the run
+    n_t = vis.shape[0]
+    sg, sk, ek = true_runs(vis.T)  # GP column, first visible sample, first non-visible after the run
+    eg = sg
     # starts
     m = limit_deg - eta  # >= 0 inside
     start = t[sk].copy()
@@ -265,11 +264,6 @@ def _runs(t: np.ndarray, eta: np.ndarray, vis: np.ndarray, limit_deg: float):
     idx = np.column_stack([sg * n_t + sk, eg * n_t + ek]).ravel()
     mins = np.minimum.reduceat(flat, idx)[::2] if idx.size else np.empty(0)
     return sg, start, end, mins
-
-
-def _grid(t0_s: float, t1_s: float, step_s: float) -> np.ndarray:
-    t = np.arange(t0_s, t1_s, step_s, dtype=float)
-    return np.append(t, t1_s) if t.size == 0 or t[-1] < t1_s else t
 
 
 class RegionPrefilter:
@@ -343,7 +337,7 @@ def access_windows(constellation: Constellation, gps: GroundPoints, t0_s: float,
     if not (0 < fine_step_s <= coarse_step_s):
         raise ValueError(f"access_windows: need 0 < fine_step_s ({fine_step_s}) <= coarse_step_s ({coarse_step_s})")
     sat_list = np.arange(len(constellation)) if sats is None else np.asarray(sats, dtype=int)
-    tc = _grid(t0_s, t1_s, coarse_step_s)
+    tc = time_grid(t0_s, t1_s, coarse_step_s)
     r = constellation.positions_ecef_km(tc)[sat_list]  # (n_s, n_c, 3)
     rn = np.linalg.norm(r, axis=-1)
     lam = for_central_angle_rad(float(rn.max()) * 1.001, WGS84_B_KM, max_off_nadir_deg)
@@ -359,7 +353,7 @@ def access_windows(constellation: Constellation, gps: GroundPoints, t0_s: float,
         f = np.concatenate([[0], flag[si, ri].astype(np.int8), [0]])
         dd = np.diff(f)
         for a, b in zip(np.flatnonzero(dd == 1), np.flatnonzero(dd == -1) - 1):
-            t = _grid(tc[a], tc[b], fine_step_s) if b > a else np.array([tc[a]])
+            t = time_grid(tc[a], tc[b], fine_step_s) if b > a else np.array([tc[a]])
             n_fine += t.size
             sat = int(sat_list[si])
             rr = constellation.positions_ecef_km_at(np.full(t.size, sat), t)
@@ -381,7 +375,7 @@ def access_windows_bruteforce(constellation: Constellation, gps: GroundPoints, t
                               max_off_nadir_deg: float, *, step_s: float = 1.0, sats=None) -> AccessWindows:
     """Reference: every GP of every satellite on a uniform grid (no prefilter). Slow; the oracle of the tests and benchmarks."""
     sat_list = np.arange(len(constellation)) if sats is None else np.asarray(sats, dtype=int)
-    t = _grid(t0_s, t1_s, step_s)
+    t = time_grid(t0_s, t1_s, step_s)
     out = {k: [] for k in ("sat", "gp", "start", "end", "min")}
     chunk = 2000
     for sat in sat_list:
@@ -403,6 +397,6 @@ def access_windows_bruteforce(constellation: Constellation, gps: GroundPoints, t
 def off_nadir_profile(constellation: Constellation, gps: GroundPoints, windows: AccessWindows, k: int,
                       step_s: float = 1.0):
     """(t_s, off_nadir_deg) of window k sampled every step_s [s] from start_s to end_s inclusive."""
-    t = _grid(float(windows.start_s[k]), float(windows.end_s[k]), step_s)
+    t = time_grid(float(windows.start_s[k]), float(windows.end_s[k]), step_s)
     r = constellation.positions_ecef_km_at(np.full(t.size, int(windows.sat[k])), t)
     return t, off_nadir_deg(r, gps.ecef_km[int(windows.gp[k])])

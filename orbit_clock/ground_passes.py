@@ -4,7 +4,7 @@ A station (geodetic lat/lon/height on WGS-84, scenario.ground.stations) sees a s
 satellite's elevation above the station's ellipsoid horizon is >= scenario.ground.min_elevation_deg
 (paper: polar Svalbard-like and Antarctic-like stations for the centralized mode, DESIGN.md
 section 1). Found on a coarse grid (default 10 s) and refined by bisection with SGP4 to 1 ms
-(orbit_clock.isl.windows_from_margin); passes shorter than the coarse step can be missed.
+(orbit_clock.windows.windows_from_margin); passes shorter than the coarse step can be missed.
 Each pass gives two directed contacts (sat -> gs_<name> downlink, gs_<name> -> sat uplink) at
 scenario.ground.rate_bps with range_light_s = mean slant range over the pass / c.
 
@@ -19,8 +19,8 @@ import numpy as np
 
 from orbit_clock.contact_plan import Contact, ContactPlan
 from orbit_clock.frames import C_KM_S, elevation_deg, geodetic_to_ecef_km, up_unit
-from orbit_clock.isl import _grid, windows_from_margin
 from orbit_clock.propagation import Constellation, build_constellation
+from orbit_clock.windows import mean_range_km, time_grid, windows_from_margin
 
 __all__ = ["ground_contact_plan", "station_names", "station_passes"]
 
@@ -37,7 +37,7 @@ def station_passes(constellation: Constellation, lat_deg, lon_deg, alt_km, t0_s:
     up = up_unit(np.atleast_1d(lat_deg), np.atleast_1d(lon_deg))
     n_sat, n_st = len(constellation), site.shape[0]
     S, G = np.repeat(np.arange(n_sat), n_st), np.tile(np.arange(n_st), n_sat)
-    t = _grid(t0_s, t1_s, step_s)
+    t = time_grid(t0_s, t1_s, step_s)
     r = constellation.positions_ecef_km(t)  # (n_sat, n_t, 3)
     margin = elevation_deg(r[S], site[G][:, None, :], up[G][:, None, :]) - min_elevation_deg
 
@@ -46,14 +46,9 @@ def station_passes(constellation: Constellation, lat_deg, lon_deg, alt_km, t0_s:
         return elevation_deg(rr, site[G[idx]], up[G[idx]]) - min_elevation_deg
 
     k, st, en = windows_from_margin(t, margin, margin_at, tol_s)
-    n = 21
-    u = np.linspace(0.0, 1.0, n)
-    if k.size:
-        tt = (st[:, None] + (en - st)[:, None] * u[None, :]).ravel()
-        rr = constellation.positions_ecef_km_at(np.repeat(S[k], n), tt)
-        rng = np.linalg.norm(rr - np.repeat(site[G[k]], n, axis=0), axis=-1).reshape(-1, n).mean(axis=1)
-    else:
-        rng = np.empty(0)
+    n = 21  # range samples per pass, ends included
+    rng = mean_range_km(lambda tt: constellation.positions_ecef_km_at(np.repeat(S[k], n), tt),
+                        lambda tt: np.repeat(site[G[k]], n, axis=0), st, en, n)
     return S[k], G[k], st, en, rng
 
 

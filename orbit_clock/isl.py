@@ -8,7 +8,7 @@ ellipsoid onto the sphere of radius a, and the segment must clear the sphere of 
 (the scaling stretches heights by at most a/b - 1 = 0.34 %, i.e. 0.3 km at 80 km).
 
 Windows are found on a coarse grid (default 10 s) and each edge is refined by bisection with SGP4
-to ``tol_s`` (default 1 ms); a window shorter than the coarse step can be missed (bench/bench_orbit.py
+to ``tol_s`` (default 1 ms, orbit_clock.windows); a window shorter than the coarse step can be missed (bench/bench_orbit.py
 compares with a 1 s brute-force grid). Each window becomes two directed contacts (A->B, B->A) with
 rate ``scenario.isl.rate_bps`` and ``range_light_s`` = the mean range over the window (21 samples,
 evenly spaced, ends included) divided by c. CGR takes range constant over a contact, so the mean is
@@ -23,21 +23,18 @@ in-plane neighbours of the paper constellation in contact the whole horizon).
 
 from __future__ import annotations
 
-from collections.abc import Callable
-
 import numpy as np
 
 from orbit_clock.contact_plan import Contact, ContactPlan
 from orbit_clock.frames import C_KM_S, WGS84_A_KM, WGS84_B_KM
 from orbit_clock.propagation import Constellation, build_constellation
+from orbit_clock.windows import mean_range_km, time_grid, true_runs, windows_from_margin
 
 __all__ = [
     "isl_contact_plan",
     "isl_windows",
     "los_clear",
     "los_clearance_km",
-    "mean_range_km",
-    "windows_from_margin",
 ]
 
 _Z_SCALE = WGS84_A_KM / WGS84_B_KM
@@ -61,56 +58,6 @@ def los_clear(p1_km, p2_km, grazing_height_km: float = 80.0) -> np.ndarray:
     return los_clearance_km(p1_km, p2_km, grazing_height_km) > 0.0
 
 
-def windows_from_margin(t_s: np.ndarray, margin: np.ndarray,
-                        margin_at: Callable[[np.ndarray, np.ndarray], np.ndarray], tol_s: float = 1e-3):
-    """Windows where margin > 0, from a sampled grid refined by bisection.
-
-    t_s: (n_t,) grid [s]; margin: (n_series, n_t) samples; margin_at(series_idx, t_s) evaluates the
-    margin at scattered points (same-length 1-D arrays). Returns (series_idx, start_s, end_s);
-    a window open at the first/last sample starts/ends there.
-    """
-    n_s, n_t = margin.shape
-    inside = margin > 0
-    pad = np.zeros((n_s, 1), dtype=np.int8)
-    d = np.diff(np.concatenate([pad, inside.astype(np.int8), pad], axis=1), axis=1)
-    si, ks = np.nonzero(d == 1)
-    ei, ke = np.nonzero(d == -1)
-    start = t_s[ks].astype(float)
-    end = t_s[ke - 1].astype(float)
-
-    def bisect(idx, lo, hi, lo_inside: bool):
-        while idx.size and np.max(hi - lo) > tol_s:
-            mid = 0.5 * (lo + hi)
-            ins = margin_at(idx, mid) > 0
-            move_lo = ins if lo_inside else ~ins
-            lo = np.where(move_lo, mid, lo)
-            hi = np.where(move_lo, hi, mid)
-        return 0.5 * (lo + hi)
-
-    m = ks > 0
-    start[m] = bisect(si[m], t_s[ks[m] - 1], t_s[ks[m]], lo_inside=False)
-    m = ke < n_t
-    end[m] = bisect(ei[m], t_s[ke[m] - 1], t_s[ke[m]], lo_inside=True)
-    return si, start, end
-
-
-def _grid(t0_s: float, t1_s: float, step_s: float) -> np.ndarray:
-    t = np.arange(t0_s, t1_s, step_s, dtype=float)
-    return np.append(t, t1_s) if t.size == 0 or t[-1] < t1_s else t
-
-
-def mean_range_km(constellation: Constellation, i: np.ndarray, j: np.ndarray, start_s: np.ndarray,
-                  end_s: np.ndarray, n_samples: int = 21) -> np.ndarray:
-    """Mean range [km] between satellites i[k] and j[k] over [start_s[k], end_s[k]]."""
-    if len(i) == 0:
-        return np.empty(0)
-    u = np.linspace(0.0, 1.0, n_samples)
-    t = (start_s[:, None] + (end_s - start_s)[:, None] * u[None, :]).ravel()
-    ri = constellation.positions_ecef_km_at(np.repeat(i, n_samples), t)
-    rj = constellation.positions_ecef_km_at(np.repeat(j, n_samples), t)
-    return np.linalg.norm(ri - rj, axis=-1).reshape(-1, n_samples).mean(axis=1)
-
-
 def isl_windows(constellation: Constellation, t0_s: float, t1_s: float, *, grazing_height_km: float = 80.0,
                 max_range_km: float = 6000.0, step_s: float = 10.0, tol_s: float = 1e-3, refine: bool = True):
     """Undirected ISL windows: (i, j, start_s, end_s) arrays with i < j satellite indices.
@@ -119,7 +66,7 @@ def isl_windows(constellation: Constellation, t0_s: float, t1_s: float, *, grazi
     """
     n = len(constellation)
     I, J = np.triu_indices(n, k=1)
-    t = _grid(t0_s, t1_s, step_s)
+    t = time_grid(t0_s, t1_s, step_s)
     r = constellation.positions_ecef_km(t)
     margin = np.empty((I.size, t.size))
     chunk = max(1, 4_000_000 // max(1, I.size))
@@ -138,11 +85,7 @@ def isl_windows(constellation: Constellation, t0_s: float, t1_s: float, *, grazi
     else:
         k, st, en = windows_from_margin(t, margin, margin_at, tol_s=np.inf)
         # without refinement take the grid samples themselves (first/last inside sample)
-        ins = margin > 0
-        pad = np.zeros((I.size, 1), dtype=np.int8)
-        d = np.diff(np.concatenate([pad, ins.astype(np.int8), pad], axis=1), axis=1)
-        _, ks = np.nonzero(d == 1)
-        _, ke = np.nonzero(d == -1)
+        _, ks, ke = true_runs(margin > 0)
         st, en = t[ks], t[ke - 1]
     return I[k], J[k], st, en
 
@@ -156,7 +99,9 @@ def isl_contact_plan(scenario, constellation: Constellation | None = None, *, st
                                max_range_km=isl.max_range_km, step_s=step_s, tol_s=tol_s)
     keep = en > st
     i, j, st, en = i[keep], j[keep], st[keep], en[keep]
-    light_s = mean_range_km(c, i, j, st, en) / C_KM_S
+    n = 21  # range samples per window, ends included
+    light_s = mean_range_km(lambda t: c.positions_ecef_km_at(np.repeat(i, n), t),
+                            lambda t: c.positions_ecef_km_at(np.repeat(j, n), t), st, en, n) / C_KM_S
     contacts = []
     for a, b, s0, s1, lt in zip(i, j, st, en, light_s):
         na, nb = c.names[a], c.names[b]

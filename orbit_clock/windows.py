@@ -1,0 +1,90 @@
+"""Visibility windows from sampled time series: the grid, the runs, the edges, the mean range.
+
+Every window search of the orbit core (GP access, ISL contacts, ground-station passes) samples a
+margin on a time grid and turns the runs of positive samples into windows; this module holds those
+steps once:
+
+* :func:`time_grid` - [t0, t1] every ``step_s``, the last sample exactly at t1;
+* :func:`true_runs` - the runs of True along the time axis of a (series, time) boolean array;
+* :func:`windows_from_margin` - windows where a margin is > 0, each edge refined by bisection on the
+  margin evaluated at scattered times (ISL line of sight and range, station elevation); the access
+  search places its edges by linear interpolation instead (orbit_clock.access);
+* :func:`mean_range_km` - the mean distance over each window (evenly spaced samples, ends
+  included), which a contact plan turns into a constant light time (CGR takes range constant over a
+  contact).
+
+How we know it is right: the searches built on it are checked against independent oracles
+(tests/unit/test_orbit_access.py: skyfield ``find_events`` and a brute-force 1 s grid;
+tests/unit/test_orbit_isl.py: 1 s brute-force ISL windows, skyfield station passes), and
+tests/unit/test_orbit_windows.py checks the runs against a Python loop, the bisection against a
+margin whose roots are known, and the mean range against a closed form.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+
+__all__ = ["mean_range_km", "time_grid", "true_runs", "windows_from_margin"]
+
+
+def time_grid(t0_s: float, t1_s: float, step_s: float) -> np.ndarray:
+    """Times [s] from t0_s every step_s, with t1_s as the last sample (also when t1_s - t0_s < step_s)."""
+    t = np.arange(t0_s, t1_s, step_s, dtype=float)
+    return np.append(t, t1_s) if t.size == 0 or t[-1] < t1_s else t
+
+
+def true_runs(inside: np.ndarray):
+    """Runs of True along the last axis of ``inside`` (n_series, n_t): (series, first, after) int
+    arrays - each run covers samples first .. after - 1 of its series; ordered by series, then time."""
+    n_s = inside.shape[0]
+    pad = np.zeros((n_s, 1), dtype=np.int8)
+    d = np.diff(np.concatenate([pad, inside.astype(np.int8), pad], axis=1), axis=1)
+    si, ks = np.nonzero(d == 1)
+    _, ke = np.nonzero(d == -1)
+    return si, ks, ke
+
+
+def windows_from_margin(t_s: np.ndarray, margin: np.ndarray,
+                        margin_at: Callable[[np.ndarray, np.ndarray], np.ndarray], tol_s: float = 1e-3):
+    """Windows where margin > 0, from a sampled grid refined by bisection.
+
+    t_s: (n_t,) grid [s]; margin: (n_series, n_t) samples; margin_at(series_idx, t_s) evaluates the
+    margin at scattered points (same-length 1-D arrays). Returns (series_idx, start_s, end_s);
+    a window open at the first/last sample starts/ends there.
+    """
+    n_t = margin.shape[1]
+    si, ks, ke = true_runs(margin > 0)
+    ei = si
+    start = t_s[ks].astype(float)
+    end = t_s[ke - 1].astype(float)
+
+    def bisect(idx, lo, hi, lo_inside: bool):
+        while idx.size and np.max(hi - lo) > tol_s:
+            mid = 0.5 * (lo + hi)
+            ins = margin_at(idx, mid) > 0
+            move_lo = ins if lo_inside else ~ins
+            lo = np.where(move_lo, mid, lo)
+            hi = np.where(move_lo, hi, mid)
+        return 0.5 * (lo + hi)
+
+    m = ks > 0
+    start[m] = bisect(si[m], t_s[ks[m] - 1], t_s[ks[m]], lo_inside=False)
+    m = ke < n_t
+    end[m] = bisect(ei[m], t_s[ke[m] - 1], t_s[ke[m]], lo_inside=True)
+    return si, start, end
+
+
+def mean_range_km(pos_a_km_at: Callable[[np.ndarray], np.ndarray], pos_b_km_at: Callable[[np.ndarray], np.ndarray],
+                  start_s: np.ndarray, end_s: np.ndarray, n_samples: int = 21) -> np.ndarray:
+    """Mean distance [km] between two moving points over each window [start_s[k], end_s[k]].
+
+    ``pos_a_km_at(t)`` / ``pos_b_km_at(t)`` give the positions (n * n_samples, 3) [km] at the times
+    ``t`` of the windows' samples, window by window (``n_samples`` evenly spaced, ends included).
+    """
+    if len(start_s) == 0:
+        return np.empty(0)
+    u = np.linspace(0.0, 1.0, n_samples)
+    t = (start_s[:, None] + (end_s - start_s)[:, None] * u[None, :]).ravel()
+    return np.linalg.norm(pos_a_km_at(t) - pos_b_km_at(t), axis=-1).reshape(-1, n_samples).mean(axis=1)
