@@ -36,6 +36,7 @@ import numpy as np
 from orbit_clock.contact_plan import ContactPlan
 from sat_node.dtn.agent import AgentConfig, BundleAgent, ttl_s_for_priority
 from sat_node.dtn.cgr import ContactGraph
+from sat_node.dtn.stats import dtn_report
 from sat_node.dtn.traffic import TrafficItem
 
 from .link import LinkModel
@@ -64,7 +65,6 @@ class DtnRun:
 
     def report(self, lower_bound_s: dict[str, float] | None = None) -> dict:
         """The dtn.* figures of this run (:func:`sat_node.dtn.stats.dtn_report`)."""
-        from sat_node.dtn.stats import dtn_report
         return dtn_report(self.events, held=self.held(), lower_bound_s=lower_bound_s, discarded=self.discarded())
 
 

@@ -31,12 +31,14 @@ from __future__ import annotations
 import heapq
 import itertools
 
-from msgs_json import codec, schemas as S, topics as T
-from msgs_json.envelope import Emit, Envelope, StepResult
 from dtn_router.link import LinkModel
+from msgs_json import codec
+from msgs_json import schemas as S
+from msgs_json import topics as T
+from msgs_json.envelope import Emit, Envelope, StepResult
 from orbit_clock.contact_faults import truth_plan as with_faults
 from orbit_clock.contact_plan import ContactPlan, node_name
-from sat_node.dtn.bpv7 import BundleError, peek_next_hop
+from sat_node.dtn.bpv7 import BundleError, decode_bundle, peek_next_hop
 
 __all__ = ["RouterLogic", "ROUTER_NAME"]
 
@@ -123,8 +125,6 @@ class RouterLogic:
 
     def _tell_failed(self, env: Envelope, next_hop: str, out) -> None:
         """Queue a TransmissionFailed for the sender, stamped when the attempt ended."""
-        from sat_node.dtn.bpv7 import BundleError, decode_bundle
-
         try:
             bid = decode_bundle(env.data).bundle_id
         except (BundleError, ValueError):

@@ -161,6 +161,8 @@ def _read_csv(path: Path) -> ValueGrid:
 
 
 def _read_nc(path: Path) -> ValueGrid:
+    # here, not at the top: scipy.io costs ~0.08 s to import (python -X importtime) in every process
+    # that loads the ground segment or a satellite, and only NetCDF value files need it
     from scipy.io import netcdf_file
 
     with open(path, "rb") as fh:
@@ -277,7 +279,7 @@ def write_value_grid(field: OsseField, path: str | Path) -> Path:
         np.savetxt(p, data, delimiter=",", header="t_s,lat_deg,lon_deg,value", comments="",
                    fmt=["%.3f", "%.17g", "%.17g", "%d"])
     else:
-        from scipy.io import netcdf_file
+        from scipy.io import netcdf_file  # (only for NetCDF: see _read_nc)
 
         with netcdf_file(p, "w") as nc:
             nc.createDimension("time", t_s.size)

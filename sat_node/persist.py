@@ -29,6 +29,9 @@ from __future__ import annotations
 import pickle
 import sqlite3
 
+from sat_node.dtn.bpv7 import encode_bundle
+from sat_node.dtn.store import StoredBundle
+
 __all__ = ["persistent_connection", "restore", "snapshot"]
 
 _SAT_SHARED = ("world", "sc", "belief", "agent")
@@ -72,9 +75,6 @@ def restore(sat, blob: bytes) -> None:
 
 
 def _reconcile_store(ag) -> dict:
-    from sat_node.dtn.bpv7 import encode_bundle
-    from sat_node.dtn.store import StoredBundle
-
     rows = {sb.bundle_id for sb in ag.store.load_all()}
     held = dict(ag._held)
     for bid, (_tx, h) in ag._in_flight.items():

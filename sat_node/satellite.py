@@ -46,9 +46,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from msgs_json import codec, schemas as S, topics as T
+from msgs_json import codec
+from msgs_json import schemas as S
+from msgs_json import topics as T
 from msgs_json.envelope import Emit, Envelope, StepResult
+from orbit_clock.contact_plan import node_name
 from sat_node import persist
+from sat_node.acs import angle_between_deg, nadir_unit, unit_vectors
+from sat_node.dtn.agent import PRIORITY_BLOCK, AgentConfig, BundleAgent, priority_of
+from sat_node.dtn.bpv7 import BundleError, decode_bundle
+from sat_node.dtn.store import BundleStore
 from sat_node.scheduler.planner import Knowledge, PersistenceView
 from sat_node.value import Belief, KnownObservation
 
@@ -86,9 +93,6 @@ class SatelliteLogic:
 
     def __init__(self, world, name: str, mode: str = "distributed", *, store_path: str | None = None,
                  dtn: bool | None = None):
-        from sat_node.dtn.agent import AgentConfig, BundleAgent
-        from sat_node.dtn.store import BundleStore
-
         if mode not in ("distributed", "centralized", "nonagile"):
             raise ValueError(f"mode {mode!r}: expected distributed, centralized or nonagile")
         self.name = name
@@ -262,8 +266,6 @@ class SatelliteLogic:
                     self._ev_info[id(ev)] = None
                 return
             if outcome == "delivered" or outcome.startswith("discarded"):
-                from sat_node.dtn.bpv7 import BundleError, decode_bundle
-
                 b = self.agent.last_received  # what receive() decoded from env.data (not altered)
                 if b is None:
                     try:
@@ -382,8 +384,6 @@ class SatelliteLogic:
         return emits
 
     def _slew_angle(self, t_ns: int, target: np.ndarray) -> float:
-        from sat_node.acs import angle_between_deg, nadir_unit, unit_vectors
-
         pos = self.world.ctx.track_ecef_km(self.name, np.array([t_ns / _NS]))[0]
         new = unit_vectors(target - pos)
         old = nadir_unit(pos) if self.target_km is None else unit_vectors(self.target_km - pos)
@@ -432,9 +432,6 @@ class SatelliteLogic:
         self.agent.transmission_failed(tx, t_ns)
 
     def _bundle_info(self, b) -> dict:
-        from orbit_clock.contact_plan import node_name
-        from sat_node.dtn.agent import PRIORITY_BLOCK, priority_of
-
         blk = b.block(PRIORITY_BLOCK)
         info = {"bundle_id": b.bundle_id, "src": node_name(b.src[0]), "dst": node_name(b.dest[0]),
                 "priority": priority_of(blk.data) if blk is not None else 0,
@@ -464,7 +461,6 @@ class SatelliteLogic:
                 return S.BundleDropped(**base, bundle_id="?", src=self.name, dst=self.name, priority=0,
                                        creation_ns=0, reason="malformed" if ev.kind == "dropped" else "other",
                                        detail=f"{ev.kind}.{ev.reason}") if ev.kind == "dropped" else None
-            from orbit_clock.contact_plan import node_name
 
             src = node_name(int(ev.bundle_id[3:].split(".", 1)[0]))
             bid, dst, prio, created = ev.bundle_id, ev.dest or self.name, ev.priority, ev.created_ns

@@ -171,7 +171,7 @@ def figure5_summary(data: dict) -> dict:
 
 def plot_figure5(path: Path, data: dict, title: str | None = None) -> Path:
     """Box plots per priority (bringup/analysis/figures.py figure_latency_vs_gaps) with the margin on top."""
-    # here, not at the top: matplotlib costs ~0.35 s to import (python -X importtime); the data and
+    # here, not at the top: matplotlib costs ~0.27 s to import (python -X importtime); the data and
     # summary above serve compare --json and the tests without it
     from bringup.analysis import figures as plots
 

@@ -79,7 +79,7 @@ def run(args: argparse.Namespace) -> int:
 
 def _plots(out: Path, seed: int, res: dict, sc, args) -> list[Path]:
     """Value over time per mode and Figure 5 (first seed), from the runs' bags."""
-    # here, not at the top: matplotlib costs ~0.35 s to import (python -X importtime), paid only
+    # here, not at the top: matplotlib costs ~0.27 s to import (python -X importtime), paid only
     # when plots are made (not with --no-plots)
     from bringup.analysis import figures as plots
 

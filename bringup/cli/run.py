@@ -245,7 +245,7 @@ def _finish(out: Path, bag_dir: Path, runtime: dict, world, args, say, *, rep: d
     (out / "report.json").write_text(json.dumps(rep, indent=2, sort_keys=True) + "\n")
     plots = []
     if not args.no_plots:
-        # here, not at the top: matplotlib costs ~0.35 s to import (python -X importtime), paid
+        # here, not at the top: matplotlib costs ~0.27 s to import (python -X importtime), paid
         # only when plots are made (not with --no-plots, as the tests and sweeps run)
         from bringup.analysis.run_figures import run_plots
 

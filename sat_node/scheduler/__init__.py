@@ -57,8 +57,9 @@ __all__ = [
 
 
 def __getattr__(name):
-    # The MILP reference pulls in scipy.optimize (~50 MB per process): import it only when asked,
-    # so the flight processes (one per satellite) do not carry it.
+    # The MILP reference pulls in scipy.optimize (~50 MB per process, ~0.21 s to import measured
+    # with python -X importtime): import it only when asked, so the flight processes (one per
+    # satellite) do not carry it.
     if name in ("MilpResult", "solve_milp"):
         from sat_node.scheduler import milp
 
