@@ -1,4 +1,7 @@
-"""Errors a user can fix; the CLI prints them as one line without a traceback."""
+"""Errors a user can fix; the CLI prints them as one line without a traceback.
+
+Checked by tests/unit/test_cli_exit.py (printed as one line, exit code 2).
+"""
 
 
 class UserError(Exception):

@@ -6,7 +6,7 @@ event the affected agent is asked what its radio sends up to now (:meth:`BundleA
 transmissions_until`); each transmission goes to :class:`dtn_router.link.LinkModel`, whose copies
 become arrival events and whose failures go back to the sender. Same inputs -> same event list.
 
-It also computes the latency lower bound of each bundle (issue 4): the larger of (a) its earliest
+It also computes the latency lower bound of each bundle: the larger of (a) its earliest
 arrival over the plan with transmission and light time and no contention, and (b) the time its
 source's radio, sending the source's bundles one at a time in creation order, would finish it.
 
@@ -16,8 +16,8 @@ earlier, summed over the source's bundles, than the creation-order finish b_i ab
 bundles on one radio: every work-conserving order gives the same set of finish times, idling or
 relaying for others only delays them), and then still needs h_i - 1 further transmissions and h_i
 light times, h_i = the fewest hops over contacts open at some time in [created, created + TTL]. So
-sum(latency) >= sum(b_i + h_i * light + (h_i - 1) * tx). The issue's bound takes max(a, b) instead of
-that sum: on the drawn two-bundle chain of tests/unit/test_dtn_des.py the optimal schedule is 1.27x it.
+sum(latency) >= sum(b_i + h_i * light + (h_i - 1) * tx). The per-bundle bound above takes max(a, b)
+instead of that sum: on the drawn two-bundle chain of tests/unit/test_dtn_des.py the optimal schedule is 1.27x it.
 
 How we know it is right: conservation on every run (created = delivered + dropped + held), tests in
 tests/unit/test_dtn_des.py on drawn plans with hand-worked delivery times, and the study's inputs.

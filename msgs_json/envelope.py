@@ -31,6 +31,9 @@ Envelope payloads are JSON text (msgs_json schemas) or raw bytes (BPv7 bundles);
 which (msgs_json/topics.py). On DDS and in the bag both travel as the wire envelope of
 msgs_json/wire.py on std_msgs/msg/String (bytes base64-encoded), so every record carries its
 exact t_ns, source and seq.
+
+Checked by tests/unit/test_local_engine.py and tests/unit/test_contract.py (the step and
+delivery rules, on toy participants, by hand) and tests/ros/test_lockstep.py (the same under ROS).
 """
 
 from __future__ import annotations

@@ -8,6 +8,9 @@ number (RFC 9171 section 4.2.5.1.2) of ``sat_PS`` is ``10*P + S`` and of the i-t
 
 File formats (read and write; owned by the DTN work, see the functions below this header):
 the study's six-tuple CSV, ION ``a contact`` / ``a range`` lines, HDTN JSON.
+
+Checked by tests/unit/test_contact_plan_io.py (each format written and read back, and the study's
+own plan read).
 """
 
 from __future__ import annotations

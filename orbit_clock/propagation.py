@@ -123,7 +123,7 @@ class Constellation:
         jd, fr = self.jd_fr(t)
         if sat_idx.size and sat_idx.size == t.size and (sat_idx == sat_idx[0]).all():
             # one satellite (a track, a slew-angle position): the same calls without np.unique and
-            # the masked copies (issue 5: one call per executed observation)
+            # the masked copies (called once per executed observation)
             i = int(sat_idx[0])
             err, r, _ = self.satrecs[i].sgp4_array(jd, fr)
             if np.any(err):

@@ -1,4 +1,4 @@
-"""What a satellite knows, saved after every lockstep step and restored after a crash (issue 7).
+"""What a satellite knows, saved after every lockstep step and restored after a crash.
 
 Pure module (no rclpy). A satellite process killed with SIGKILL and started again must go on as if
 nothing happened: no observation executed twice, none lost, no accepted bundle lost. Two parts:

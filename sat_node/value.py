@@ -31,7 +31,7 @@ deviation of (belief/absval - 1) within 3 standard errors of sigma_s; :func:`pri
 binary search) equal to the pairwise definition on random histories with observations exactly on the
 grid times and on grid times +- revisit_zero_s, on unsorted and repeated times.
 
-Not done: the optional spatial-diversity term of the issue.
+Not done: a spatial-diversity term (value for observing GPs far from recent observations).
 """
 
 from __future__ import annotations

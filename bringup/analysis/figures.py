@@ -1,4 +1,4 @@
-"""Plots of a run (issue 6): PNG figures from plain data, for report.md and the README.
+"""Plots of a run: PNG figures from plain data, for report.md and the README.
 
 Each figure comes as a pair: ``figure_<name>(...) -> matplotlib.figure.Figure`` builds it (tests
 inspect the artists and plotted arrays) and ``plot_<name>(path, ...) -> Path`` writes the PNG and

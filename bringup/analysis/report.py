@@ -16,7 +16,7 @@ Definitions:
   |assumed - true| / true, where assumed is what the planner expected (Observation.assumed_value).
 * coverage.gp_observed_fraction - distinct GPs observed / GPs of the scenario.
 * dtn.* - sat_node/dtn/stats.py over the bundle events (first delivery per bundle counts).
-* consensus.* - ISL-delayed implicit consensus (Nag et al. section 4; issue 7), see
+* consensus.* - ISL-delayed implicit consensus (Nag et al. section 4), see
   :func:`consensus_figures`: for each pair of successive passes of different satellites over a
   region, whether the earlier satellite's observations reached the later one (bundle delivered)
   before it planned the pass (the ``planned_ns`` of the schedule version its first observation of

@@ -1,4 +1,8 @@
-"""report.md: the human summary of a run's report.json, with its plots embedded."""
+"""report.md: the human summary of a run's report.json, with its plots embedded.
+
+Checked by tests/unit/test_cli_exit.py (a whole local run writes a non-empty report.md beside
+report.json and its plots).
+"""
 
 from __future__ import annotations
 

@@ -1,7 +1,11 @@
 """The plots of one run (PNG, bringup/analysis/figures.py), from its bag and world: written to OUT/plots/.
 
 Ground tracks, OSSE snapshot, contact plan, observation Gantt chart, value over time, and for a
-distributed run with bundles the study's Figure 5 (bringup/analysis/figure5.py)."""
+distributed run with bundles the study's Figure 5 (bringup/analysis/figure5.py).
+
+Checked by tests/unit/test_cli_exit.py (a whole local run writes its plots) and, figure by
+figure, tests/unit/test_plots.py.
+"""
 
 from __future__ import annotations
 

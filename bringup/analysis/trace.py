@@ -4,6 +4,8 @@
 ``deliveries_from_bag(bag)`` -> sorted [(bundle_id, receiver, t_ns)] of every bundle delivery.
 Two runs of the same scenario and seed must give equal traces whatever the engine, the hosts or the
 crashes on the way (DESIGN.md section 3).
+
+Used as the oracle of tests/system/test_engines_equal.py and tests/faults/test_restart_ros.py.
 """
 
 from __future__ import annotations

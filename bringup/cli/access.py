@@ -1,4 +1,7 @@
-"""`constellation access`: ground-point access windows of every satellite within the field of regard."""
+"""`constellation access`: ground-point access windows of every satellite within the field of regard.
+
+Checked by tests/unit/test_orbit_cli.py.
+"""
 
 from __future__ import annotations
 

@@ -2,6 +2,8 @@
 
 Reads the bag with bringup/recording/bag.py (rosbags; no rclpy). Times are sim time: ns since the
 scenario epoch, also shown in seconds. ``--json`` prints the same as one JSON object.
+
+Checked by tests/unit/test_recording.py (test_bag_info_command).
 """
 
 from __future__ import annotations

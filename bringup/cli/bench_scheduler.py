@@ -15,6 +15,8 @@ Two measurements in one run (DESIGN.md section 1 "scheduler runtime 1 % of the h
 
 The logic lives here (the package is installed; ``bench/`` is not) and ``bench/bench_scheduler.py``
 runs it with a human summary.
+
+Checked by tests/unit/test_dp_bench_cli.py.
 """
 
 from __future__ import annotations

@@ -1,4 +1,8 @@
-"""Argument helpers shared by subcommands."""
+"""Argument helpers shared by subcommands.
+
+Checked through the commands that use them (tests/unit/test_orbit_cli.py,
+tests/faults/test_faults_scenario_cli.py: bad scenario arguments are one line).
+"""
 
 from __future__ import annotations
 

@@ -7,6 +7,9 @@ runs also their plots), ``OUT/compare.json`` (the ``--json`` object), ``OUT/comp
 (bundle latency vs access gaps by priority, distributed, first seed; bringup/analysis/figure5.py).
 With K seeds each mode's report is the first seed's report.json plus per-key mean/std under
 ``"seeds"`` (bringup/analysis/compare.py combine).
+
+Checked by tests/system/test_compare_modes.py (a reduced real compare) and
+tests/unit/test_compare.py.
 """
 
 from __future__ import annotations

@@ -1,6 +1,8 @@
 """`constellation compose`: write a Docker Compose file (and its run spec) for N satellites.
 
 See bringup/deploy/compose.py for what the file holds and docker/README.md for how to run it.
+
+Checked by tests/unit/test_docker_files.py.
 """
 
 from __future__ import annotations

@@ -1,4 +1,7 @@
-"""`constellation constellation`: each satellite's orbital elements at the scenario epoch."""
+"""`constellation constellation`: each satellite's orbital elements at the scenario epoch.
+
+Checked by tests/unit/test_orbit_cli.py.
+"""
 
 from __future__ import annotations
 

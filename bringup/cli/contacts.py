@@ -1,4 +1,7 @@
-"""`constellation contacts`: the contact plan (ISL line of sight and/or ground-station passes)."""
+"""`constellation contacts`: the contact plan (ISL line of sight and/or ground-station passes).
+
+Checked by tests/unit/test_orbit_cli.py and tests/unit/test_contact_plan_io.py.
+"""
 
 from __future__ import annotations
 

@@ -1,5 +1,8 @@
 """``constellation dtn``: run the DTN alone (bundle agents + ISL link model) on a contact plan and a
-traffic table with the deterministic discrete-event engine, and print the report's dtn.* figures."""
+traffic table with the deterministic discrete-event engine, and print the report's dtn.* figures.
+
+Checked by tests/unit/test_dtn_des.py (the command's JSON on the study's inputs and drawn plans).
+"""
 
 from __future__ import annotations
 

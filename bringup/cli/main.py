@@ -9,6 +9,9 @@ The registry below names every subcommand of the contract with its help line. On
 in the help and fails loudly when called. Errors the user can fix (bad scenario, missing bag, bad
 file) are raised as :class:`bringup.errors.UserError` (or ScenarioError) and printed as one line
 ``constellation <cmd>: error: ...`` with exit code 2, no traceback.
+
+Checked by tests/unit/test_cli_exit.py (exit codes, one-line errors, the fast exit) and
+tests/unit/test_docker_files.py (every compose service's command parses).
 """
 
 from __future__ import annotations

@@ -5,6 +5,9 @@ it: role ``clock`` runs the lockstep clock and recorder (bringup/engine/ros/cloc
 hosts the participants the run spec's factory returns for it (bringup/engine/ros/host.py). With the
 spec's ``state_dir`` a host checkpoints every step and, started again after a crash, resumes from
 its checkpoint (bringup/engine/checkpoint.py).
+
+Checked by tests/ros/test_launcher.py (launched runs of toy participants) and
+tests/system/test_engines_equal.py.
 """
 
 from __future__ import annotations

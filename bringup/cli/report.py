@@ -1,4 +1,8 @@
-"""`constellation report BAG`: rebuild report.json from a run's bag alone."""
+"""`constellation report BAG`: rebuild report.json from a run's bag alone.
+
+Checked by tests/system/test_engines_equal.py and tests/unit/test_cli_exit.py (the report
+rebuilt from the bag equals the run's report.json).
+"""
 
 from __future__ import annotations
 

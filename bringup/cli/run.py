@@ -5,6 +5,9 @@ over DDS (bringup/engine/ros/launcher.py), recording every topic into ``OUT/bag`
 node logic in this process (bringup/engine/local.py), recording the same topics. Either way the run
 ends with ``OUT/report.json`` (rebuilt from the bag, bringup/analysis/report.py), ``OUT/report.md`` and
 ``OUT/plots/*.png``, and a non-zero exit with a one-line message if anything failed.
+
+Checked by tests/unit/test_cli_exit.py (a local run's outputs complete, one-line errors) and
+tests/system/test_engines_equal.py (both engines, same traces and report).
 """
 
 from __future__ import annotations

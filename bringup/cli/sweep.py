@@ -6,6 +6,8 @@ Each row is one local-engine run in this process on a scenario variant
 (bringup/analysis/compare.py scenario_variant / run_in_process); the default scenario is reduced (--sats,
 --hours) so the whole sweep runs in minutes. The scenario's own value of each parameter is marked
 with ``*`` (the baseline row).
+
+Checked by tests/unit/test_compare.py (the rows and the baseline mark, bad lists named).
 """
 
 from __future__ import annotations

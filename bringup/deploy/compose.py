@@ -1,4 +1,4 @@
-"""Docker Compose file for one container per process of a ROS-engine run (issue 7).
+"""Docker Compose file for one container per process of a ROS-engine run.
 
 :func:`compose_project` returns the compose file (a dict, written as YAML) and the run spec every
 container is started with. Services, all from one image (docker/Dockerfile) on one bridge network:

@@ -125,8 +125,8 @@ class LocalEngine:
         self.max_step_ns = int(max_step_ns)
         self.t0_ns = int(t0_ns)
         self.sink = sink
-        # each step's envelopes in one call, in the same order (issue 5: ~440k envelopes per paper
-        # run, one Python call each otherwise)
+        # each step's envelopes in one call, in the same order (~440k envelopes per paper run:
+        # one Python call each otherwise)
         self._sink_many = sink_many
         self.on_step = on_step
         self.progress = progress

@@ -16,13 +16,13 @@ msgs_json/envelope.py for participants spread over several OS processes, with on
   later step (trap 6).
 * rule 3, the step rule, is the engine contract's (bringup/engine/contract.py ``next_step_ns``): the
   clock applies it to the earliest wakeup the hosts acked.
-* crash and restart (issue 7): a host checkpoints after every step (bringup/engine/checkpoint.py) and, when
+* crash and restart: a host checkpoints after every step (bringup/engine/checkpoint.py) and, when
   restarted, says hello with ``resume_k`` = the last wire step it committed; the clock then re-sends
   (on :data:`RESEND_TOPIC`, :class:`ResendMsg`) the envelopes it recorded on that host's topics
   during the last few steps, and the host re-runs from ``resume_k + 1``. Re-running a step re-emits
   the same envelopes with the same (source, seq), so every receiver drops what it already holds
   (:meth:`TopicInbox.add` returns False for a duplicate): delivery stays exactly-once.
-* clock restart (issue 7): the clock checkpoints before publishing each step; a restarted clock
+* clock restart: the clock checkpoints before publishing each step; a restarted clock
   publishes that step again. A host that already ran it (``k == done_k``) does not run it again: it
   re-publishes that step's envelopes and its saved ack (a duplicate ack is ignored by the clock, a
   duplicate envelope by every receiver). The clock may also re-announce the current step (same

@@ -1,12 +1,12 @@
-"""The local engine's recorder, in a second process (issue 5: local engine >= 1000x real time).
+"""The local engine's recorder, in a second process beside the run.
 
 ``constellation run --engine local`` runs every node's logic in one process (bringup/engine/local.py).
 Recording the run - the MCAP bag (bringup/recording/bag.py), the visualisation frames
 (bringup/recording/viz_feed.py) and decoding what report.json is made of (bringup/analysis/report.py ReportBuilder) -
 does not change what any node does, so it runs beside the nodes in a forked child, on the machine's
-other core. On the paper run that was ~4 s of the ~26 s the one-process run took.
+other core.
 
-How it works: the parent buffers the calls it used to make on the bag - a step's envelopes (as plain
+How it works: the parent buffers the calls it would make on a bag - a step's envelopes (as plain
 tuples), then ``write_clock(t)`` and the visualisation of instant ``t`` - and sends them through a
 pipe in batches of a few thousand envelopes (marshal: tuples of ints, str and bytes, about twice as
 fast as pickle for them). The child makes exactly those calls, in that order, on

@@ -1,4 +1,4 @@
-"""Feeds the visualisation topics of a run into its bag at a modest rate (issue 5).
+"""Feeds the visualisation topics of a run into its bag at a modest rate.
 
 ``VizFeed(world, period_s)`` writes, every ``period_s`` of sim time, one NavSatFix per satellite and
 the constellation MarkerArray (bringup/recording/viz_messages.py): satellite positions from SGP4, ground points
@@ -6,16 +6,13 @@ coloured by their OSSE value at that time, and the ISL links open then (truth co
 engines call it with the step times, so a bag opened in Foxglove shows the constellation moving and
 the links coming and going.
 
-The ground-point marker (500 cubes coloured by value; when rosbags serialized message objects it was
-~90 % of the feed's cost) goes out only when its colours change (the OSSE field is piecewise
-constant, 15-min slots in the paper scenario) and at least every ``gp_keyframe_s``: a marker with
-lifetime 0 stays shown until replaced (visualization_msgs/Marker), so the picture is the same.
-Measured on the paper run: 361 frames, the GP marker in ~25 of them; viz 3.8 s -> ~0.6 s. Frames are
-written as CDR bytes directly (bringup/recording/viz_messages.py ``viz_cdr``, byte-identical to rosbags): the paper
-run's write_viz 2.3 s -> 0.5 s under cProfile; the 361-frame feed alone ~0.85 s -> ~0.15-0.25 s CPU
-side by side. The links
-open at a frame come from arrays of contact start/end times (the same test as a scan of the 1380
-contacts, in the same order; tests/unit/test_speed_paths.py).
+The ground-point marker (500 cubes coloured by value, most of a frame's bytes) goes out only when
+its colours change (the OSSE field is piecewise constant, 15-min slots in the paper scenario) and at
+least every ``gp_keyframe_s``: a marker with lifetime 0 stays shown until replaced
+(visualization_msgs/Marker), so the picture is the same. Frames are written as CDR bytes directly
+(bringup/recording/viz_messages.py ``viz_cdr``, byte-identical to rosbags' serialization,
+tests/unit/test_viz_fast.py). The links open at a frame come from arrays of contact start/end times
+(the same test as a scan of the contacts, in the same order; tests/unit/test_speed_paths.py).
 """
 
 from __future__ import annotations

@@ -9,6 +9,10 @@ router and the announcer share one truth ISL plan: the world's, with the run's f
 their run spec's factory (bringup/engine/ros/factory.py), one role each; ``all_participants(world,
 mode)`` gives the same participants, in the same order, for the local engine. Both build the
 satellites from the same World pickle, so every process sees identical inputs.
+
+Checked by tests/unit/test_ground_segment.py and tests/unit/test_contact_announcer.py (who is
+made for each mode) and tests/system/test_engines_equal.py (the same participants under both
+engines).
 """
 
 from __future__ import annotations

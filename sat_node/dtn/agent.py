@@ -32,10 +32,8 @@ Priority travels in the bundle in an experimental extension block (type 193, CBO
 beside the next-hop block (type 192); TTL comes from priority (the study: P1 900 s, P2-3 1800 s,
 P4-15 3000 s). The forwarding node writes its own EID in the previous-node block and increments the
 hop count (limit 32). ``hop_tolerance_s`` (default 0) lets CGR prefer fewer hops among routes
-arriving within that tolerance of the earliest. Measured on the study's inputs at 1 kb/s (DES): it
-pays only where relays queue. case1 with earliest-expiry order: 100 % delivered at mean/bound 3.11x
-(tolerance 0), 2.76x (300 s), 2.56x (600 s), 2.52x (900 s), 2.72x (1500 s); transmissions per bundle
-2.43 -> 2.15 at 900 s. case4, lightly loaded, loses: 1.19x -> 1.29x at 900 s (strict priority).
+arriving within that tolerance of the earliest (what it does on the study's inputs: README, "The
+DTN alone on the study's own inputs").
 
 Why one module: RFC 9171 section 5's processing steps (receive, forward, transmit, expire, the
 failure path) all act on one bundle store and one set of queues; the routing decision itself is in

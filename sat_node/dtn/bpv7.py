@@ -22,7 +22,7 @@ How we know it is right: exact-bytes golden encodings of small bundles written o
 the RFC's CDDL (tests/unit/test_bpv7.py), CRC check values of the standard catalogue ("123456789"
 -> CRC-16/X-25 0x906E, CRC-32C 0xE3069283), decode(encode(b)) == b on random bundles (hypothesis),
 every one-byte corruption of the primary block detected, and the RFC 9173 A.1 bundle (whose
-primary block is given in the RFC) decoding. Speed paths (issue 5): :func:`decode_bundle`'s fast
+primary block is given in the RFC) decoding. Speed paths: :func:`decode_bundle`'s fast
 path for the common shape and the encoding caches give exactly what the plain paths give
 (tests/unit/test_speed_paths.py: fast vs plain decode on random bundles of every shape and on
 random corruptions of them, cached vs fresh encodings, remembered vs parsed next hop).

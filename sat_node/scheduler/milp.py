@@ -1,6 +1,6 @@
 """Exact reference optimum for small single-satellite instances: a time-indexed MILP (HiGHS).
 
-Formulation (the classic time-indexed agile-EOS model, e.g. Lemaitre et al. 2002; issue 3):
+Formulation (the classic time-indexed agile-EOS model, e.g. Lemaitre et al. 2002):
 binary ``x[k, g]`` for every candidate observation (step k, GP g) with positive first-visit value
 reachable from the initial attitude; maximize ``sum v_first[k, g] x[k, g]`` subject to
 

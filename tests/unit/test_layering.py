@@ -6,7 +6,9 @@
   connected component has one module).
 * No folder holds more than ~20 % of the package lines; no module is longer than ~600 lines unless
   its docstring says why (a paragraph starting "Why one module:").
-* Every test file a package module names exists.
+* Every module (package ``__init__`` and ``__main__`` aside) names in its docstring a test file that
+  checks it, and every test file a module names exists.
+* No module speaks of issue numbers (history belongs to commit messages, the README and bench/).
 """
 
 from __future__ import annotations
@@ -135,3 +137,22 @@ def test_every_named_test_file_exists():
         if gone:
             missing[f.relative_to(ROOT).as_posix()] = sorted(gone)
     assert not missing, missing
+
+
+def test_every_module_names_its_test():
+    unnamed = []
+    for f in _modules():
+        if f.name in ("__init__.py", "__main__.py"):
+            continue
+        doc = ast.get_docstring(ast.parse(f.read_text())) or ""
+        if not _TEST_PATH.search(doc):
+            unnamed.append(f.relative_to(ROOT).as_posix())
+    assert not unnamed, f"module docstrings naming no test file under tests/: {unnamed}"
+
+
+_ISSUE = re.compile(r"\bissues?\s*#?\d+", re.IGNORECASE)
+
+
+def test_no_issue_numbers_in_the_code():
+    found = {f.relative_to(ROOT).as_posix(): _ISSUE.findall(f.read_text()) for f in _modules()}
+    assert not {k: v for k, v in found.items() if v}

@@ -1,4 +1,4 @@
-"""The lockstep coordinator of the ROS engine: owns simulated time (DESIGN.md section 3, issue 5).
+"""The lockstep coordinator of the ROS engine: owns simulated time (DESIGN.md section 3).
 
 Publishes /clock (rosgraph_msgs/Clock) and /sim/step, collects one /sim/ack per host process and
 picks the next step with rule 3 of msgs_json/envelope.py (bringup/engine/lockstep.py has the
@@ -18,7 +18,7 @@ String topic that appears on the graph (polled while waiting); hosts publish on 
 the recorder's subscription has matched, so the bag holds every envelope. SIGINT/SIGTERM: the
 clock tells the hosts to stop and closes the bag (readable).
 
-Crash and restart (issue 7): with ``restart_wait_s > 0`` a host that misses the ack deadline is
+Crash and restart: with ``restart_wait_s > 0`` a host that misses the ack deadline is
 reported by name on stderr and waited for (bounded by ``restart_wait_s``) while the launcher
 restarts it; the recorder then always listens (bag or not) and keeps the envelopes of the last
 ``_RESEND_STEPS`` wire steps. A hello from a host during the run is a rejoin: the clock re-sends it
@@ -26,7 +26,7 @@ restarts it; the recorder then always listens (bag or not) and keeps the envelop
 any step but the current one are ignored (a restarted host repeats its last one); the recorder
 keeps one copy per (topic, source, seq), so a re-run step is recorded once.
 
-Clock restart (issue 7): with ``restart_wait_s > 0`` and a ``state_dir`` the clock itself survives
+Clock restart: with ``restart_wait_s > 0`` and a ``state_dir`` the clock itself survives
 SIGKILL. It records into a journal (bringup/recording/bag.py BagJournal, ``state_dir/clock.sqlite``)
 instead of straight into the bag, and before publishing wire step k it commits, in one SQLite
 transaction, everything recorded through step k-1 plus its checkpoint: k, t_ns, the step message

@@ -1,4 +1,4 @@
-"""One OS process of the ROS engine hosting one or more lockstep participants (issue 5).
+"""One OS process of the ROS engine hosting one or more lockstep participants.
 
 Each participant (msgs_json/envelope.py) gets its own rclpy node with ``use_sim_time`` whose
 /clock subscription is remapped away: the host sets every node's clock from the step it runs
@@ -12,7 +12,7 @@ all envelopes of the previous steps, counted from the step message (bringup/engi
 topic (plus the recorder's), so nothing is lost to discovery. A message that does not decode is
 counted per topic and logged, never fatal.
 
-Crash and restart (issue 7): with ``state_path`` the host checkpoints after every wire step
+Crash and restart: with ``state_path`` the host checkpoints after every wire step
 (bringup/engine/checkpoint.py; in the participant's own SQLite store when it has one, one transaction per
 step). A host started on an existing checkpoint restores its participants and its lockstep state,
 says hello with ``resume_k``, answers again the step it had finished (its saved ack, after

@@ -1,4 +1,4 @@
-"""Launcher of the ROS engine: the clock process plus one process per participant group (issue 5).
+"""Launcher of the ROS engine: the clock process plus one process per participant group.
 
 ``launch(spec, out_dir)`` writes the run spec to ``out_dir/run_spec.json`` and starts, each as
 ``python -m bringup.cli node --run-spec ... --role R``: the clock (lockstep coordinator and MCAP
@@ -15,15 +15,14 @@ then write their Python stacks into their log) and SIGKILL, and its log says so.
 End of a run: after the clock exits 0 the hosts get 10 s to leave (they take ~0.1 s), then
 SIGTERM. A host that had to be killed then is not a failure of the run (it acked the final step,
 so everything it sent is in the bag and its per-step state is committed); it is listed in the
-result's ``lingered``. Seen under load: about one host in 30 runs hung in FastDDS participant
-destruction during its teardown (blocked in C, so SIGTERM went unhandled), which failed a complete
-run with "process 'sat_12' failed (exit code -9): no message"; node processes now skip that
-destruction (bringup/engine/ros/host.py exit_now), and this rule keeps any other hang at exit from
-failing a complete run.
+result's ``lingered``. A host can hang in FastDDS participant destruction during its teardown
+(blocked in C, so SIGTERM goes unhandled); node processes skip that destruction
+(bringup/engine/ros/host.py exit_now), and this rule keeps any other hang at exit from failing a
+complete run.
 Each child's stderr goes to ``out_dir/logs/<role>.log`` (appended across restarts) and its pid to
 ``out_dir/logs/<role>.pid``.
 
-Crash and restart (issue 7): when the spec has ``max_restarts > 0`` a host process that dies
+Crash and restart: when the spec has ``max_restarts > 0`` a host process that dies
 (any exit but 0, e.g. SIGKILL) while the clock runs is started again with the same command, up to
 ``max_restarts`` times per role; it resumes from its checkpoint (bringup/engine/ros/host.py) and the clock
 waits for it (``restart_wait_s``). Restarts are counted per role in the result.

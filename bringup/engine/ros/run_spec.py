@@ -42,7 +42,7 @@ class RunSpec(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
     # A host that does not ack a step within this wall time is reported by name.
     ack_timeout_s: float = 10.0
     startup_timeout_s: float = 60.0
-    # Crash/restart (issue 7): > 0 = the clock waits this long (wall s) for a silent host to come
+    # Crash/restart: > 0 = the clock waits this long (wall s) for a silent host to come
     # back, the launcher restarts a host that died (at most max_restarts times per role), and hosts
     # checkpoint every step into state_dir (or their participant's own store).
     restart_wait_s: float = 0.0
