@@ -1,4 +1,5 @@
-"""Ground segment: OSSE value forecast (synthetic or from a file); centralized mode lives beside it.
+"""Ground segment: the OSSE value forecast (synthetic or from a file) and the centralized mode's
+ground scheduler (ground_segment.py; Nag et al., section 5).
 
 Front door (no rclpy): ``osse_from_scenario(scenario, gps) -> OsseField``.
 """

@@ -1,8 +1,8 @@
-"""orbit_clock: orbital mechanics of the constellation (pure, no rclpy) and the simulation clock.
+"""orbit_clock: orbital mechanics of the constellation (pure, no rclpy; DESIGN.md section 1).
 
 Front door of the pure core: Walker generation, SGP4 propagation, frames, ground points, GP access,
-ISL and ground-station contact plans, bundle priority order, contact-plan types. The clock node
-(``bringup.engine.ros.clock_node``) is not imported here so that importing the package never pulls rclpy.
+ISL and ground-station contact plans, bundle priority order, contact-plan types. Simulated time is
+kept by the engines (bringup/engine), not here.
 """
 
 from orbit_clock.access import (
