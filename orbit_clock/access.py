@@ -14,8 +14,9 @@ Search, coarse then refine (``access_windows``):
 1. coarse grid (default 20 s): angle between each satellite and each region centre; a region is a
    candidate at a sample when that angle is within the largest possible access angle
    (:func:`for_central_angle_rad` of the highest satellite radius and the polar Earth radius) + the
-   region's half diagonal + the satellite's ground-relative angular motion over one coarse step. If a GP is visible at t in
-   [t_k, t_k+1], both t_k and t_k+1 are flagged, so no window escapes a candidate interval.
+   region's half diagonal + the satellite's ground-relative angular motion over one coarse step. If
+   a GP is visible at t in [t_k, t_k+1], both t_k and t_k+1 are flagged, so no window escapes a
+   candidate interval.
 2. candidate interval on a fine grid (default 1 s) with SGP4: eta for every GP of the region; runs of
    visible samples are windows; each edge is placed by linear interpolation of (limit - eta)
    between the bracketing samples (eta is smooth: the error is milliseconds, far below 1 s).
@@ -162,9 +163,8 @@ def visibility_matrix(constellation: Constellation, sat, t_s, gps: GroundPoints,
                       gp_ids=None):
     """For one satellite (index or name) on a time grid t_s [s]: (visible [n_t, n_gp] bool,
     off_nadir_deg [n_t, n_gp]) over all GPs or the given gp_ids (columns in that order)."""
-    i = constellation.index(sat) if isinstance(sat, str) else int(sat)
     t = np.atleast_1d(np.asarray(t_s, dtype=float))
-    r = constellation.positions_ecef_km_at(np.full(t.size, i), t)
+    r = constellation.track_ecef_km(sat, t)
     g = gps.ecef_km if gp_ids is None else gps.ecef_km[np.asarray(gp_ids)]
     eta, near = _eta_grid(r, g)
     return near & (eta <= max_off_nadir_deg), eta
@@ -356,7 +356,7 @@ def access_windows(constellation: Constellation, gps: GroundPoints, t0_s: float,
             t = time_grid(tc[a], tc[b], fine_step_s) if b > a else np.array([tc[a]])
             n_fine += t.size
             sat = int(sat_list[si])
-            rr = constellation.positions_ecef_km_at(np.full(t.size, sat), t)
+            rr = constellation.track_ecef_km(sat, t)
             gids = gps.in_region(int(ri))
             eta, near = _eta_grid(rr, gps.ecef_km[gids])
             col, st, en, mn = _runs(t, eta, near & (eta <= max_off_nadir_deg), max_off_nadir_deg)
@@ -379,7 +379,7 @@ def access_windows_bruteforce(constellation: Constellation, gps: GroundPoints, t
     out = {k: [] for k in ("sat", "gp", "start", "end", "min")}
     chunk = 2000
     for sat in sat_list:
-        r_all = constellation.positions_ecef_km_at(np.full(t.size, sat), t)
+        r_all = constellation.track_ecef_km(sat, t)
         eta = np.empty((t.size, len(gps)))
         vis = np.empty((t.size, len(gps)), dtype=bool)
         for c0 in range(0, t.size, chunk):
@@ -398,5 +398,5 @@ def off_nadir_profile(constellation: Constellation, gps: GroundPoints, windows: 
                       step_s: float = 1.0):
     """(t_s, off_nadir_deg) of window k sampled every step_s [s] from start_s to end_s inclusive."""
     t = time_grid(float(windows.start_s[k]), float(windows.end_s[k]), step_s)
-    r = constellation.positions_ecef_km_at(np.full(t.size, int(windows.sat[k])), t)
+    r = constellation.track_ecef_km(int(windows.sat[k]), t)
     return t, off_nadir_deg(r, gps.ecef_km[int(windows.gp[k])])

@@ -137,6 +137,12 @@ class Constellation:
             out[m] = teme_to_ecef(r, theta[m])
         return out
 
+    def track_ecef_km(self, sat: str | int, t_s) -> np.ndarray:
+        """ECEF positions (n, 3) km of one satellite (name or index) at times t_s [s] (1-D)."""
+        i = self.index(sat) if isinstance(sat, str) else int(sat)
+        t = np.asarray(t_s, dtype=float)
+        return self.positions_ecef_km_at(np.full(t.size, i), t)
+
 
 def build_constellation(scenario) -> Constellation:
     """The scenario's Walker constellation at its epoch (names in scenario.sat_names order)."""

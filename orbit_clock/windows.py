@@ -76,7 +76,8 @@ def windows_from_margin(t_s: np.ndarray, margin: np.ndarray,
     return si, start, end
 
 
-def mean_range_km(pos_a_km_at: Callable[[np.ndarray], np.ndarray], pos_b_km_at: Callable[[np.ndarray], np.ndarray],
+def mean_range_km(pos_a_km_at: Callable[[np.ndarray], np.ndarray],
+                  pos_b_km_at: Callable[[np.ndarray], np.ndarray],
                   start_s: np.ndarray, end_s: np.ndarray, n_samples: int = 21) -> np.ndarray:
     """Mean distance [km] between two moving points over each window [start_s[k], end_s[k]].
 

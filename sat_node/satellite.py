@@ -384,7 +384,7 @@ class SatelliteLogic:
         return emits
 
     def _slew_angle(self, t_ns: int, target: np.ndarray) -> float:
-        pos = self.world.ctx.track_ecef_km(self.name, np.array([t_ns / _NS]))[0]
+        pos = self.world.constellation.track_ecef_km(self.name, np.array([t_ns / _NS]))[0]
         new = unit_vectors(target - pos)
         old = nadir_unit(pos) if self.target_km is None else unit_vectors(self.target_km - pos)
         return float(angle_between_deg(old[None, :], new[None, :])[0])

@@ -65,10 +65,6 @@ class OrbitContext:
         return cls(scenario=sc, constellation=build_constellation(sc), gps=gps,
                    osse=osse_from_scenario(sc, gps), slew=SlewModel.from_scenario(sc))
 
-    def track_ecef_km(self, sat: str, times_s: np.ndarray) -> np.ndarray:
-        i = self.constellation.index(sat)
-        return self.constellation.positions_ecef_km_at(np.full(len(times_s), i), times_s)
-
     def planner(self) -> Planner:
         """The scenario's planner: its orbits, GPs, slew model and settings, with the region
         pre-filter over the horizon (orbit_clock.access.RegionPrefilter) as its GP pre-filter."""

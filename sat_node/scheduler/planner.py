@@ -70,7 +70,8 @@ class PersistenceView:
         return self._t
 
     def value_at(self, gp_idx, t_s):
-        t = np.broadcast_to(np.asarray(t_s, np.float64), np.broadcast(np.asarray(gp_idx), np.asarray(t_s)).shape)
+        shape = np.broadcast(np.asarray(gp_idx), np.asarray(t_s)).shape
+        t = np.broadcast_to(np.asarray(t_s, np.float64), shape)
         return self._field.value_at(gp_idx, np.minimum(t, self._t))
 
     def slot_of(self, t_s):
@@ -99,9 +100,11 @@ class PlannerSettings:
 
     @classmethod
     def from_scenario(cls, sc) -> PlannerSettings:
-        return cls(dp_step_s=float(sc.scheduler.dp_step_s), plan_lookahead_s=float(sc.scheduler.plan_lookahead_s),
+        return cls(dp_step_s=float(sc.scheduler.dp_step_s),
+                   plan_lookahead_s=float(sc.scheduler.plan_lookahead_s),
                    for_off_nadir_deg=float(sc.instrument.for_off_nadir_deg),
-                   revisit_zero_s=float(sc.value.revisit_zero_s), footprint_km=float(sc.instrument.footprint_km))
+                   revisit_zero_s=float(sc.value.revisit_zero_s),
+                   footprint_km=float(sc.instrument.footprint_km))
 
 
 #: name -> solver(instance, settings) -> Plan
@@ -112,7 +115,7 @@ SOLVERS: dict[str, Callable[[SchedulingProblem, PlannerSettings], Plan]] = {
 
 
 class Planner:
-    """Plans for any satellite of ``constellation`` (``index(name)``, ``positions_ecef_km_at``)
+    """Plans for any satellite of ``constellation`` (``track_ecef_km(name, t_s)``, orbit_clock)
     over the GPs ``gp_ecef_km`` [km, ECEF, row = GP id]; ``candidates(sat, t0_s, t1_s)`` is the GP
     pre-filter (None: the exact FOR mask over every GP picks the columns)."""
 
@@ -123,11 +126,6 @@ class Planner:
         self.slew = slew
         self.settings = settings
         self.candidates = candidates
-
-    def track_ecef_km(self, sat: str, times_s: np.ndarray) -> np.ndarray:
-        """Positions [km, ECEF] of satellite ``sat`` at ``times_s`` (n, 3)."""
-        i = self.constellation.index(sat)
-        return self.constellation.positions_ecef_km_at(np.full(len(times_s), i), times_s)
 
     def plan(self, sat: str, t0_s: float, window_s: float, knowledge: Knowledge, *,
              init_target_km: np.ndarray | None = None, solver: str = "dp") -> Plan | None:
@@ -158,7 +156,7 @@ class Planner:
         window = float(window_s or st.plan_lookahead_s)
         n = max(1, round(window / step))
         times = t0_s + step * np.arange(n)
-        sat_pos = self.track_ecef_km(sat, times)
+        sat_pos = self.constellation.track_ecef_km(sat, times)
         all_gp = self.gp_ecef_km if gp_ids is None else self.gp_ecef_km[np.asarray(gp_ids)]
         vis = for_mask(sat_pos, all_gp, st.for_off_nadir_deg)
         if gp_ids is None:
@@ -175,16 +173,17 @@ class Planner:
         count, recent = prior_state(knowledge.known, ids, times, sat, st.revisit_zero_s)
         init_pos = None
         if init_target_km is not None and init_t_s is not None:
-            init_pos = self.track_ecef_km(sat, np.array([float(init_t_s)]))[0]
+            init_pos = self.constellation.track_ecef_km(sat, np.array([float(init_t_s)]))[0]
         return build_problem(t0_s=t0_s, step_s=step, sat_pos_km=sat_pos, gp_ecef_km=self.gp_ecef_km[ids],
                              in_for=vis, absval=absval, slew=self.slew, revisit_zero_s=st.revisit_zero_s,
-                             gp_ids=ids, prior_count=count, prior_recent=recent, init_target_km=init_target_km,
-                             init_sat_pos_km=init_pos, ready_t_s=init_t_s if init_pos is not None else None,
-                             sat_name=sat)
+                             gp_ids=ids, prior_count=count, prior_recent=recent,
+                             init_target_km=init_target_km, init_sat_pos_km=init_pos,
+                             ready_t_s=init_t_s if init_pos is not None else None, sat_name=sat)
 
     def pass_starts_s(self, sat: str, t0_s: float, t1_s: float, step_s: float = 10.0) -> np.ndarray:
         """Times [s] (on a step_s grid) when some GP enters the satellite's FOR after none was in it."""
         times = np.arange(t0_s, t1_s, step_s)
-        vis = for_mask(self.track_ecef_km(sat, times), self.gp_ecef_km, self.settings.for_off_nadir_deg).any(axis=1)
+        pos = self.constellation.track_ecef_km(sat, times)
+        vis = for_mask(pos, self.gp_ecef_km, self.settings.for_off_nadir_deg).any(axis=1)
         rise = np.flatnonzero(vis & ~np.concatenate([[False], vis[:-1]]))
         return times[rise]

@@ -21,8 +21,9 @@ def run(paper_scenario):
     sc = world.scenario
     res = run_local(all_participants(world, "centralized"), horizon_ns=sc.horizon_ns,
                     max_step_ns=int(sc.scenario.lockstep_max_step_s * 1e9))
+    wanted = ("/ground/uplink", "/ground/downlink")
     msgs = [codec.decode(e.topic, e.data) for e in res.envelopes
-            if e.topic == "/ground/uplink" or e.topic.endswith("/observations") or e.topic == "/ground/downlink"]
+            if e.topic in wanted or e.topic.endswith("/observations")]
     return world, msgs
 
 
@@ -60,7 +61,8 @@ def test_downlinks_carry_every_observation_once(run):
     first pass after it."""
     _world, msgs = run
     obs = {(m.sat, m.gp, m.t_ns) for m in msgs if isinstance(m, S.Observation)}
-    down = [(d.t_ns, (o.sat, o.gp, o.t_ns)) for d in msgs if isinstance(d, S.GroundDownlink) for o in d.observations]
+    down = [(d.t_ns, (o.sat, o.gp, o.t_ns))
+            for d in msgs if isinstance(d, S.GroundDownlink) for o in d.observations]
     keys = [k for _t, k in down]
     assert len(keys) == len(set(keys)) and set(keys) <= obs
     assert all(k[2] <= t for t, k in down)

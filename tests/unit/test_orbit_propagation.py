@@ -104,6 +104,9 @@ def test_ecef_against_skyfield(paper_scenario):
         assert np.abs(np.linalg.norm(r[i], axis=-1) - np.linalg.norm(r_teme[i], axis=-1)).max() < 1e-9
     one = c.positions_ecef_km_at([5, 5, 7], [0.0, 1234.5, 10000.0])
     np.testing.assert_allclose(one, np.stack([r[5, 0], r[5, 1], r[7, 2]]), atol=1e-9)
+    # one satellite's track, by name or index
+    np.testing.assert_allclose(c.track_ecef_km(c.names[13], t_s), r[13], atol=1e-9)
+    np.testing.assert_array_equal(c.track_ecef_km(13, t_s), c.track_ecef_km(c.names[13], t_s))
 
 
 def test_ground_points_paper(paper_scenario):

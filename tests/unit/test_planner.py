@@ -49,7 +49,8 @@ def test_persistence_view_reads_later_times_at_the_cut_off(world):
         assert view.slot_of(t) == osse.slot_of(min(t, t_known))
     # broadcasting (T, 1) x (1, G), as the planner queries it
     t = np.array([[0.0], [3000.0]])
-    np.testing.assert_array_equal(view.value_at(gp[None, :], t), osse.value_at(gp[None, :], np.minimum(t, t_known)))
+    np.testing.assert_array_equal(view.value_at(gp[None, :], t),
+                                  osse.value_at(gp[None, :], np.minimum(t, t_known)))
 
 
 def test_instance_equals_one_built_by_hand(world):
@@ -62,14 +63,14 @@ def test_instance_equals_one_built_by_hand(world):
     window = 600.0
     belief = Belief.from_scenario(sc, SAT, world.n_gp, world.osse.n_slots)
     ids = planner.candidates(SAT, t0, t0 + window)
-    known = [KnownObservation(t0 - 100.0, int(ids[3]), "sat_12"), KnownObservation(t0 + 50.0, int(ids[7]), "sat_12",
-                                                                                    planned=True)]
+    known = [KnownObservation(t0 - 100.0, int(ids[3]), "sat_12"),
+             KnownObservation(t0 + 50.0, int(ids[7]), "sat_12", planned=True)]
     view = PersistenceView(world.osse, t0)
     p = planner.instance(SAT, t0, Knowledge(view, known, belief), window_s=window, gp_ids=ids)
 
     step = float(sc.scheduler.dp_step_s)
     times = t0 + step * np.arange(round(window / step))
-    pos = world.ctx.track_ecef_km(SAT, times)
+    pos = world.constellation.track_ecef_km(SAT, times)
     gp = world.gps.ecef_km[ids]
     forecast = world.osse.value_at(ids[None, :], np.minimum(times, t0)[:, None]).astype(float)
     absval = forecast * belief.factor(ids[None, :], world.osse.slot_of(np.minimum(times, t0))[:, None])
@@ -89,7 +90,8 @@ def test_prefiltered_plan_equals_the_plan_on_the_exact_columns(world):
     """The pre-filter only adds GPs that are never in the field of regard: the DP's plan is the plan
     on the instance whose columns the exact mask chose (every GP in the FOR at some step)."""
     planner = world.planner
-    exact = Planner(planner.constellation, planner.gp_ecef_km, planner.slew, planner.settings, candidates=None)
+    exact = Planner(planner.constellation, planner.gp_ecef_km, planner.slew, planner.settings,
+                    candidates=None)
     for sat, t0 in _busy_starts(world)[:3]:
         k = Knowledge(PersistenceView(world.osse, t0), (), None)
         a = planner.plan(sat, t0, 600.0, k)
