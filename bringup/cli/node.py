@@ -5,6 +5,9 @@ it: role ``clock`` runs the lockstep clock and recorder (bringup/engine/ros/cloc
 hosts the participants the run spec's factory returns for it (bringup/engine/ros/host.py). With the
 spec's ``state_dir`` a host checkpoints every step and, started again after a crash, resumes from
 its checkpoint (bringup/engine/checkpoint.py).
+Before a host says hello (ready) it runs the spec's prepare hook for its role (e.g. loads the
+numba kernels its participants use); ``--prepare`` runs the hook once for the whole run, as the
+launcher does before it starts any process.
 
 Checked by tests/ros/test_launcher.py (launched runs of toy participants) and
 tests/system/test_engines_equal.py.
@@ -13,6 +16,8 @@ tests/system/test_engines_equal.py.
 from __future__ import annotations
 
 import argparse
+import sys
+import time
 from pathlib import Path
 
 from bringup.engine.ros.clock_node import run_clock
@@ -23,11 +28,20 @@ from bringup.errors import UserError
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--run-spec", type=Path, required=True, help="run spec JSON written by the launcher")
-    p.add_argument("--role", required=True, help=f"'{CLOCK_ROLE}' or one of the run spec's roles")
+    p.add_argument("--role", help=f"'{CLOCK_ROLE}' or one of the run spec's roles")
+    p.add_argument("--prepare", action="store_true",
+                   help="only run the spec's prepare hook for the whole run (the launcher does, before any process)")
 
 
 def run(args: argparse.Namespace) -> int:
     spec = RunSpec.from_file(args.run_spec)
+    if args.prepare:
+        if args.role is not None:
+            raise UserError("--prepare readies the whole run: give no --role")
+        _prepare(spec, None)
+        return 0
+    if args.role is None:
+        raise UserError("give --role (or --prepare)")
     if args.role == CLOCK_ROLE:
         return run_clock(spec)
     if args.role not in spec.roles:
@@ -35,8 +49,23 @@ def run(args: argparse.Namespace) -> int:
     participants = load_factory(spec.factory)(spec, args.role)
     if not participants:
         raise UserError(f"participant factory {spec.factory} returned no participants for role {args.role}")
+    # ready = participants built and what they need loaded (the hello run_host sends first)
+    _prepare(spec, args.role)
 
+    idle = max(300.0, 10 * spec.ack_timeout_s, 2 * spec.restart_wait_s)
+    bounded = spec.startup_timeout_s is not None
+    # an unbounded start: this host waits for step 0 as long as the clock waits for the others
     return run_host(args.role, participants, ack_timeout_s=spec.ack_timeout_s,
-                    startup_timeout_s=spec.startup_timeout_s,
-                    idle_timeout_s=max(300.0, 10 * spec.ack_timeout_s, 2 * spec.restart_wait_s),
+                    startup_timeout_s=spec.startup_timeout_s if bounded else 60.0,
+                    idle_timeout_s=idle, first_step_timeout_s=idle if bounded else None,
                     state_path=str(Path(spec.state_dir) / f"{args.role}.state.sqlite") if spec.state_dir else None)
+
+
+def _prepare(spec: RunSpec, role: str | None) -> None:
+    """The spec's prepare hook for ``role`` (None: the whole run), its time on stderr (the log)."""
+    if spec.prepare is None:
+        return
+    t0 = time.perf_counter()
+    load_factory(spec.prepare)(spec, role)
+    print(f"node {role or 'prepare'}: ready ({spec.prepare} took {time.perf_counter() - t0:.2f} s)",
+          file=sys.stderr, flush=True)

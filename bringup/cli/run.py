@@ -26,7 +26,7 @@ from bringup.analysis.report import ReportBuilder, RunMeta, report_from_bag
 from bringup.analysis.report_md import write_report_md
 from bringup.cli.common import add_scenario_args, scenario_from_args
 from bringup.engine.local import run_local
-from bringup.engine.ros.factory import FACTORY
+from bringup.engine.ros.factory import FACTORY, PREPARE
 from bringup.engine.ros.launcher import launch
 from bringup.engine.ros.run_spec import RunSpec
 from bringup.engine.store_batches import StoreBatches
@@ -206,7 +206,10 @@ def _run_ros(world, world_path: Path, args, meta, bag_dir: Path, out: Path, rout
     if store_dir.exists():
         shutil.rmtree(store_dir)
     store_dir.mkdir()
-    spec = RunSpec(factory=FACTORY, roles=roles_for(world, args.mode), scenario=str(Path(sc.source_path).resolve()),
+    # the satellites' numba kernels compiled once before the processes start (prepare), and no bound
+    # on the start: a slow one (cold caches, a loaded machine) is waited for and named, never fatal
+    spec = RunSpec(factory=FACTORY, prepare=PREPARE, startup_timeout_s=None,
+                   roles=roles_for(world, args.mode), scenario=str(Path(sc.source_path).resolve()),
                    overrides={"sats": args.sats, "hours": args.hours, "seed": args.seed}, mode=args.mode,
                    real_time_factor=args.real_time_factor, bag_dir=str(bag_dir.resolve()),
                    max_restarts=args.restart, restart_wait_s=120.0 if args.restart else 0.0,
@@ -216,7 +219,15 @@ def _run_ros(world, world_path: Path, args, meta, bag_dir: Path, out: Path, rout
                           "router": router_kw})
     prog, update = _progress_display(show, sc.horizon_ns)
 
+    last_status = [""]
+
     def progress(p) -> None:
+        if p.status:  # before step 0: preparing, or waiting for processes to be ready
+            update(t_ns=0, rtf=None, extra=p.status)
+            if not show and p.status != last_status[0]:
+                print(f"run: {p.status}", file=sys.stderr)
+            last_status[0] = p.status
+            return
         extra = f"{p.steps:,} steps, {p.steps_per_s:,.0f} steps/s"
         if p.in_flight is not None:  # the ISL medium's copies still travelling, from the hosts' acks
             extra += f", {p.in_flight} bundles in flight"

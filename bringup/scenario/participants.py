@@ -29,7 +29,7 @@ from orbit_clock.contact_faults import truth_plan
 from sat_node.dtn.store import BundleStore
 from sat_node.satellite import SatelliteLogic
 
-__all__ = ["MODES", "all_participants", "make_participant", "roles_for"]
+__all__ = ["MODES", "all_participants", "kernels_for", "make_participant", "roles_for"]
 
 MODES = ("distributed", "centralized", "nonagile")
 ROUTER_ROLE = "router"
@@ -48,6 +48,17 @@ def roles_for(world_or_sats, mode: str) -> list[str]:
         roles.append(GROUND_ROLE)
     roles.append(CONTACTS_ROLE)
     return roles
+
+
+def kernels_for(mode: str, role: str | None) -> tuple[str, ...]:
+    """Numba kernel groups (sat_node/kernels.py) the participants of ``role`` use in ``mode`` (role
+    None: the whole run's): the DP scheduler for a distributed satellite and the centralized ground
+    segment, CGR for a distributed satellite."""
+    if mode == "distributed" and role not in (ROUTER_ROLE, CONTACTS_ROLE, GROUND_ROLE):
+        return ("dp", "cgr")
+    if mode == "centralized" and role in (None, GROUND_ROLE):
+        return ("dp",)
+    return ()
 
 
 def make_participant(world: World, role: str, mode: str, *, store_dir: Path | None, router_kw: dict | None):

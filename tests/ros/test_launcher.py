@@ -96,6 +96,40 @@ def test_killed_process_is_named(tmp_path):
     assert time.monotonic() - t0 < 60
 
 
+def test_slow_start_is_waited_for_and_named_not_fatal(tmp_path):
+    """Ready is not a step: a host that takes longer to get ready (its prepare hook: 8 s) than the
+    per-step ack deadline (3 s) is waited for; the clock names it while it waits (the progress's
+    status and not_ready, and the clock's log), and the run completes. The launcher's own prepare
+    call runs once, before any process starts."""
+    spec = RunSpec(factory="tests.ros.toy_participants:make", prepare="tests.ros.toy_participants:slow_prepare",
+                   roles=toy.roles(3, pingpong=False), horizon_ns=60 * S, max_step_ns=10 * S,
+                   bag_dir=str(tmp_path / "bag"), ack_timeout_s=3.0, startup_timeout_s=None,
+                   extra={"n_counters": 3, "prepare_s": {"c1": 8.0, "run": 0.5}})
+    seen = []
+    res = launch(spec, tmp_path / "run", progress=seen.append)
+    assert res.ok, res.message
+    assert res.last.t_ns == spec.horizon_ns
+    statuses = [p for p in seen if p.status]
+    assert statuses[0].status.startswith("preparing the run")
+    waiting = [p for p in statuses if p.not_ready]
+    assert waiting and all(p.not_ready == ("c1",) for p in waiting), [p.status for p in statuses]
+    assert "c1" in waiting[0].status and waiting[0].wall_s >= 5.0
+    log = (tmp_path / "run" / "logs" / "clock.log").read_text()
+    assert "waiting for 1 of 3 processes to be ready after 5 s: c1" in log
+    assert "node prepare: ready" in (tmp_path / "run" / "logs" / "prepare.log").read_text()
+    assert "node c1: ready" in (tmp_path / "run" / "logs" / "c1.log").read_text()
+
+
+def test_failed_prepare_is_named_and_starts_nothing(tmp_path):
+    spec = RunSpec(factory="tests.ros.toy_participants:make", prepare="tests.ros.toy_participants:slow_prepare",
+                   roles=toy.roles(2, pingpong=False), horizon_ns=60 * S, max_step_ns=10 * S,
+                   extra={"n_counters": 2, "prepare_fail": "run"})
+    res = launch(spec, tmp_path / "run")
+    assert not res.ok and res.failed_roles == ["prepare"]
+    assert "preparing the run" in res.message and "cannot get ready" in res.message, res.message
+    assert not (tmp_path / "run" / "logs" / "clock.log").exists()
+
+
 def test_host_that_does_not_exit_after_a_clean_run_is_killed_and_the_run_stands(tmp_path):
     """Seen under load (full suite, 2 cores): after the clock's stop, one host hung in rclpy's
     destroy_node (SIGTERM unhandled, blocked in C) and the launcher's SIGKILL turned a complete run

@@ -20,6 +20,7 @@ role ``c<i>`` hosts counter i (``spec.extra["n_counters"]`` counters in the ring
 ``spec.extra["stall"] = {"role": ..., "at_ns": ...}`` makes one a Staller; ``spec.extra["linger"] = role``
 makes that role's process ignore SIGTERM and not exit after its run). ``all_participants``
 returns fresh instances of every role's participants, for the local engine reference run.
+``slow_prepare`` is a run-spec prepare hook that makes chosen processes slow to get ready.
 """
 
 from __future__ import annotations
@@ -190,6 +191,14 @@ def make(spec, role: str, host: bool = True) -> list:
             return [Breaker(i, n, brk["kind"], int(brk["at_ns"]))]
         return [Counter(i, n, int(spec.extra.get("blob_every", 3)), spec.extra.get("period_s"))]
     raise ValueError(f"toy factory: unknown role {role!r}")
+
+
+def slow_prepare(spec, role: str | None) -> None:
+    """Run-spec prepare hook: ``spec.extra["prepare_s"][role]`` seconds of sleep (a slow start; the
+    key ``"run"`` is the launcher's once-per-run call); ``spec.extra["prepare_fail"]`` == role: fails."""
+    if spec.extra.get("prepare_fail") == (role or "run"):
+        raise ValueError(f"toy prepare: {role or 'run'} cannot get ready")
+    time.sleep(float(spec.extra.get("prepare_s", {}).get(role or "run", 0.0)))
 
 
 def all_participants(spec) -> list:

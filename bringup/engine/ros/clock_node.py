@@ -11,6 +11,13 @@ holds after that step, summed from the acks; bringup/engine/ros/launcher.py read
 ack within ``ack_timeout_s`` wall seconds is reported by name (with its participants) and the run
 stops; so does a host that acks an error.
 
+Ready is not a step: before step 0 the clock waits for every host's hello (sent once its
+participants are built and their numba kernels loaded, bringup/cli/node.py), as long as it takes
+unless the spec bounds it (``startup_timeout_s``), naming every ``_READY_REPORT_S`` the hosts not
+ready yet and how long it has waited (stderr, and a ``waiting`` record on stdout for the launcher's
+progress display); the per-step ack deadline starts with step 0. Oracle for the cold start:
+tests/system/test_cold_start.py (24 satellites from an empty numba cache).
+
 The same process records every topic into a rosbag2 MCAP bag (bringup/recording/bag.py BagWriter):
 /clock and /sim/step as written, /sim/ack and every data topic from raw (CDR) subscriptions, log
 time = the step's / the envelope's t_ns. Data topics are those the hosts subscribe to plus any
@@ -95,6 +102,8 @@ _QOS_CLOCK = QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT)
 _RESEND_STEPS = 6
 # Wall seconds the clock waits for the recorder before re-announcing the step (clock restart).
 _REANNOUNCE_S = 1.0
+# Wall seconds between two reports of the hosts not ready yet (before step 0).
+_READY_REPORT_S = 5.0
 
 
 class ClockError(RuntimeError):
@@ -266,6 +275,35 @@ class LockstepClock:
             parts.append(f"{r} (participants {ps})")
         return "; ".join(parts)
 
+    def _wait_ready(self) -> None:
+        """Wait until every host said hello (it is ready: participants built, kernels loaded).
+
+        Separate from the per-step deadline: a slow start (a cold numba cache, a loaded machine) is
+        waited for, and every ``_READY_REPORT_S`` the hosts not ready yet are named, with how long
+        the clock has waited, on stderr and as a ``waiting`` record on stdout (the launcher's progress).
+        Bounded only when the spec says so (``startup_timeout_s``; None: as long as it takes)."""
+        spec = self.spec
+        t0 = time.monotonic()
+        bound = float("inf") if spec.startup_timeout_s is None else spec.startup_timeout_s
+
+        def ready() -> bool:
+            return len(self.hellos) == len(self.roles)
+
+        while not ready():
+            waited = time.monotonic() - t0
+            try:
+                self._spin_until(ready, max(0.0, min(_READY_REPORT_S, bound - waited)), lambda: "")
+            except ClockError:
+                waited = time.monotonic() - t0
+                missing = [r for r in self.roles if r not in self.hellos]
+                if waited >= bound:
+                    raise ClockError(f"hosts not ready after {waited:.0f} s: " + self._who(missing)) from None
+                print(f"clock: waiting for {len(missing)} of {len(self.roles)} processes to be ready "
+                      f"after {waited:.0f} s: {', '.join(missing)}", file=sys.stderr, flush=True)
+                print(json.dumps({"waiting": {"not_ready": missing, "roles": len(self.roles),
+                                              "wall_s": round(waited, 1), "horizon_ns": self.horizon_ns}}),
+                      flush=True)
+
     def _publish_step(self, msg: StepMsg) -> None:
         if not msg.start and not msg.stop:
             c = Clock()
@@ -354,8 +392,7 @@ class LockstepClock:
                 return 0
             k, t, msg, wall_done = got
         else:
-            self._spin_until(lambda: len(self.hellos) == len(self.roles), spec.startup_timeout_s,
-                             lambda: "hosts not up: " + self._who(r for r in self.roles if r not in self.hellos))
+            self._wait_ready()
             rec = 1 if (self.bag is not None or self.restart) else 0
             subs: dict[str, int] = {}
             for h in self.hellos.values():

@@ -5,6 +5,12 @@ A run spec (bringup/engine/ros/run_spec.py) names the factory every node process
 world pickle the launcher wrote (``spec.extra["world"]``) and returns the one participant ``role``
 hosts, made by bringup/scenario/participants.py exactly as the local engine makes it, so both
 engines run the same participants from the same inputs (tests/system/test_engines_equal.py).
+
+``PREPARE`` is the same runs' prepare hook: ``prepare(spec, role)`` compiles (cold numba cache) or
+loads the numba kernels the role's participants use (bringup/scenario/participants.py kernels_for,
+sat_node/kernels.py); the launcher calls it once before it starts the processes (role None), so they
+load the kernels from the cache, and each process before it reports ready
+(tests/system/test_cold_start.py).
 """
 
 from __future__ import annotations
@@ -13,12 +19,14 @@ from pathlib import Path
 
 from bringup.engine.ros.run_spec import RunSpec
 from bringup.errors import UserError
-from bringup.scenario.participants import make_participant
+from bringup.scenario.participants import kernels_for, make_participant
 from bringup.scenario.world import World
+from sat_node.kernels import warm_up
 
-__all__ = ["FACTORY", "build"]
+__all__ = ["FACTORY", "PREPARE", "build", "prepare"]
 
 FACTORY = "bringup.engine.ros.factory:build"
+PREPARE = "bringup.engine.ros.factory:prepare"
 
 
 def build(spec: RunSpec, role: str) -> list:
@@ -30,3 +38,10 @@ def build(spec: RunSpec, role: str) -> list:
     store_dir = spec.extra.get("store_dir")
     return [make_participant(world, role, spec.mode, store_dir=Path(store_dir) if store_dir else None,
                              router_kw=spec.extra.get("router"))]
+
+
+def prepare(spec: RunSpec, role: str | None) -> dict[str, float]:
+    """The numba kernels ``role`` uses (None: the whole run's), compiled or loaded in this process;
+    returns the seconds each kernel group took."""
+    which = kernels_for(spec.mode, role)
+    return warm_up(which) if which else {}

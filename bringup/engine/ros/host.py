@@ -121,6 +121,7 @@ class ParticipantHost:
 
     def __init__(self, role: str, participants: Sequence[Participant], *, ack_timeout_s: float = 10.0,
                  startup_timeout_s: float = 60.0, idle_timeout_s: float = 300.0,
+                 first_step_timeout_s: float | None = 300.0,
                  state_path: str | None = None, rejoin_period_s: float = 2.0):
         try:
             check_names(participants)
@@ -131,6 +132,8 @@ class ParticipantHost:
         self.ack_timeout_s = ack_timeout_s
         self.startup_timeout_s = startup_timeout_s
         self.idle_timeout_s = idle_timeout_s
+        # before the first step the clock may still wait for slower hosts (None: no bound)
+        self.first_step_timeout_s = first_step_timeout_s
         self._stop_requested = False
         self.ctx = Context()
         rclpy.init(context=self.ctx, signal_handler_options=SignalHandlerOptions.NO)
@@ -408,7 +411,10 @@ class ParticipantHost:
         self._hello()
         while True:
             if not self._steps:
-                self._spin_until(lambda: bool(self._steps), self.idle_timeout_s, "no step message from the clock")
+                wait = self.idle_timeout_s
+                if self.done_k < 0:
+                    wait = float("inf") if self.first_step_timeout_s is None else self.first_step_timeout_s
+                self._spin_until(lambda: bool(self._steps), wait, "no step message from the clock")
             m = self._steps.popleft()
             if m.stop:
                 if m.reason:

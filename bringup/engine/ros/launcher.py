@@ -22,6 +22,13 @@ complete run.
 Each child's stderr goes to ``out_dir/logs/<role>.log`` (appended across restarts) and its pid to
 ``out_dir/logs/<role>.pid``.
 
+Ready before steps: with the spec's ``prepare`` hook the launcher first runs it once
+(``constellation node --prepare``, log ``logs/prepare.log``; e.g. the satellites' numba kernels
+compiled into numba's cache, so 24 processes load them instead of all compiling them at once on a
+cold cache), then starts the processes; each runs the hook for its role before it says hello. The
+clock waits for every hello before step 0 and names the processes it still waits for; those
+reports reach ``progress`` as ``LaunchProgress.status`` / ``not_ready`` (bringup/engine/ros/clock_node.py).
+
 Crash and restart: when the spec has ``max_restarts > 0`` a host process that dies
 (any exit but 0, e.g. SIGKILL) while the clock runs is started again with the same command, up to
 ``max_restarts`` times per role; it resumes from its checkpoint (bringup/engine/ros/host.py) and the clock
@@ -140,6 +147,9 @@ class LaunchProgress:
     wall_s: float
     # bundle copies in flight in the DTN router after step t_ns (None: the run has no router)
     in_flight: int | None = None
+    # before step 0: what the run is doing ("" once it steps) and the roles not ready yet
+    status: str = ""
+    not_ready: tuple[str, ...] = ()
 
     @property
     def real_time_factor(self) -> float:
@@ -258,6 +268,25 @@ def _clear_checkpoints(state_dir: Path, roles: list[str]) -> None:
             (state_dir / (name + suffix)).unlink(missing_ok=True)
 
 
+def _prepare(spec: RunSpec, spec_path: Path, out_dir: Path, env: dict[str, str], python: str,
+             progress: Callable[[LaunchProgress], None] | None) -> str:
+    """Run the spec's prepare hook once (``constellation node --prepare``, in the run's environment)
+    before any process starts: e.g. the satellites' numba kernels compiled into the cache, which the
+    processes then load instead of each compiling them (bringup/scenario/participants.py prepare).
+    Returns "" or the run's one-line error."""
+    if progress is not None:
+        progress(LaunchProgress(0, 0, 0, 0.0, status=f"preparing the run ({spec.prepare})"))
+    log = out_dir / "logs" / "prepare.log"
+    with open(log, "ab") as fh:
+        proc = subprocess.run([python, "-m", "bringup.cli", "node", "--run-spec", str(spec_path), "--prepare"],
+                              env=env, cwd=str(REPO), stdout=subprocess.DEVNULL, stderr=fh, stdin=subprocess.DEVNULL,
+                              check=False)
+    if proc.returncode != 0:
+        return (f"preparing the run ({spec.prepare}) failed (exit code {proc.returncode}): "
+                f"{_Child('prepare', proc, log).last_error() or 'no message'}")
+    return ""
+
+
 Wrap = Callable[[str, list[str], dict[str, str]], tuple[list[str], dict[str, str]]]
 
 
@@ -273,7 +302,7 @@ def launch(spec: RunSpec, out_dir: Path, *, progress: Callable[[LaunchProgress],
         _clear_checkpoints(Path(spec.state_dir), [CLOCK_ROLE, *spec.roles])
     # FastDDS shared-memory files that no live process holds are leftovers of killed processes; a port
     # file a process was killed while creating stays empty, and the next participant to pick its port
-    # number waits on it forever ("hosts not up"): remove them, whole groups only (shm_cleanup.py)
+    # number waits on it forever ("hosts not ready"): remove them, whole groups only (shm_cleanup.py)
     remove_unheld()
     lease = lease_domain_id() if domain_id is None else None
     dom = lease.domain_id if lease else int(domain_id)  # type: ignore[arg-type]
@@ -302,6 +331,15 @@ def launch(spec: RunSpec, out_dir: Path, *, progress: Callable[[LaunchProgress],
                 rec = json.loads(line)
             except ValueError:
                 continue
+            w = rec.get("waiting")
+            if isinstance(w, dict) and progress is not None:
+                nr = tuple(str(r) for r in w.get("not_ready", ()))
+                names = ", ".join(nr[:6]) + (f" and {len(nr) - 6} more" if len(nr) > 6 else "")
+                progress(LaunchProgress(0, int(w.get("horizon_ns", 0)), 0, float(w.get("wall_s", 0.0)),
+                                        status=f"waiting for {len(nr)} of {w.get('roles')} processes to be "
+                                               f"ready ({float(w.get('wall_s', 0.0)):.0f} s): {names}",
+                                        not_ready=nr))
+                continue
             body = rec.get("progress") or rec.get("done")
             if not isinstance(body, dict):
                 continue
@@ -318,6 +356,10 @@ def launch(spec: RunSpec, out_dir: Path, *, progress: Callable[[LaunchProgress],
             raise KeyboardInterrupt
         old_term = signal.signal(signal.SIGTERM, _on_term)
     try:
+        if spec.prepare is not None:
+            failed_prep = _prepare(spec, spec_path, out_dir, env, python, progress)
+            if failed_prep:
+                return LaunchResult(1, failed_prep, dom, out_dir, None, ["prepare"])
         clock = start(CLOCK_ROLE, stdout=subprocess.PIPE, text=True)
         reader = threading.Thread(target=read_progress, args=(clock.proc.stdout,), daemon=True)
         reader.start()

@@ -5,6 +5,8 @@
 the roles (one OS process each, besides the ``clock`` role) and a participant factory as a dotted
 path ``"module:function"``; ``function(spec, role) -> list[Participant]`` returns the participants
 one role hosts, so tests can plug in toy participants.
+An optional ``prepare`` hook (same form) readies what processes need before they report ready
+(the scenario's: bringup/scenario/participants.py prepare, the satellites' numba kernels).
 
 Oracle: round trip (write -> read is identity) and one-line errors on bad files
 (tests/ros/test_launcher.py).
@@ -41,7 +43,15 @@ class RunSpec(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
     real_time_factor: float | None = None
     # A host that does not ack a step within this wall time is reported by name.
     ack_timeout_s: float = 10.0
-    startup_timeout_s: float = 60.0
+    # Before step 0 the clock waits this long (wall s) for every host to be ready, naming the ones
+    # it waits for every few seconds; None = as long as it takes (hosts then wait for the first step
+    # without bound too; the launcher still ends the run when a process dies). Hosts also bound their
+    # publishers' discovery by it (60 s when None).
+    startup_timeout_s: float | None = 60.0
+    # "module:function" run before the run's processes say they are ready: ``function(spec, role)``,
+    # once by the launcher with role None before it starts any process (e.g. compile numba kernels
+    # into the cache), then in each host process with its role (load them); None = nothing to do.
+    prepare: str | None = None
     # Crash/restart: > 0 = the clock waits this long (wall s) for a silent host to come
     # back, the launcher restarts a host that died (at most max_restarts times per role), and hosts
     # checkpoint every step into state_dir (or their participant's own store).
@@ -77,6 +87,10 @@ class RunSpec(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
             raise UserError(f"{where}: 'restart_wait_s' and 'max_restarts' must be >= 0")
         if self.real_time_factor is not None and self.real_time_factor <= 0:
             raise UserError(f"{where}: 'real_time_factor' must be > 0")
+        if self.startup_timeout_s is not None and not self.startup_timeout_s > 0:
+            raise UserError(f"{where}: 'startup_timeout_s' must be > 0 or null")
+        if self.prepare is not None and ":" not in self.prepare:
+            raise UserError(f"{where}: 'prepare' must be 'module:function', got {self.prepare!r}")
 
     def load_scenario(self):
         """The scenario with overrides (None when the spec names none, e.g. toy runs)."""

@@ -11,7 +11,7 @@ What hangs a later run (seen in CI, diagnosed with ``py-spy dump --native``): a 
 FastDDS was creating its port leaves ``fastrtps_port<N>`` empty (0 bytes). Participants take the
 shared-memory ports 7000, 7001, ... in turn, and the next one to reach N opens that file with boost's
 ``open_or_create``, which spins forever waiting for the dead creator to initialise it: that process
-never comes up and the clock reports "hosts not up". Only removing the file ends it.
+never comes up and the clock reports "hosts not ready". Only removing the file ends it.
 
 :func:`remove_unheld` removes a file group (a segment with its lock, or a port with its lock and
 mutex) only when no member is mapped or open by any live process (read from /proc/*/maps and

@@ -1,0 +1,86 @@
+"""The satellite's numba kernels, compiled or loaded from numba's cache before their first real use.
+
+The DP scheduler's inner loop (:mod:`sat_node.scheduler.dp_kernels`) and contact graph routing
+(:mod:`sat_node.dtn.cgr`) are ``numba.njit(cache=True)`` functions: the first call in a process
+compiles them (seconds of CPU: ~3 s for the DP on this project's 2-core machine) unless numba's
+on-disk cache holds them (``__pycache__`` beside the sources, or ``NUMBA_CACHE_DIR``); then it loads
+them (~0.1 s). A process that must answer within a deadline (a satellite stepped by the lockstep
+clock of a ROS run, bringup/engine/ros/clock_node.py) calls :func:`warm_up` before it says it is
+ready, and the launcher runs it once before it starts the satellites, so that 24 processes load the
+kernels from the cache instead of all compiling them at once.
+
+:func:`warm_up` runs each kernel through its ordinary caller (``solve_dp`` on a two-step, two-GP
+instance; a CGR route and a one-to-all query on a three-contact plan), so it compiles exactly the
+argument types a run uses. How we know it is right: tests/unit/test_kernels_warm_up.py (after
+``warm_up``, a paper run on the local engine adds no signature to any kernel; a second process with
+the same cache finds every kernel there: cache hits, no misses).
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+__all__ = ["KERNELS", "dispatchers", "warm_up"]
+
+# name -> the kernels it warms (module, function names), for the stats and the tests
+KERNELS = {
+    "dp": ("sat_node.scheduler.dp_kernels", ("dp_forward", "path_gain", "table_gain")),
+    "cgr": ("sat_node.dtn.cgr", ("_dijkstra", "_first_open")),
+}
+
+
+def dispatchers(which=tuple(KERNELS)) -> dict[str, object]:
+    """``{"module.function": numba dispatcher}`` of the kernels named in ``which``."""
+    import importlib
+
+    out = {}
+    for name in which:
+        mod, fns = KERNELS[name]
+        m = importlib.import_module(mod)
+        for fn in fns:
+            out[f"{mod}.{fn}"] = getattr(m, fn)
+    return out
+
+
+def _dp() -> None:
+    from sat_node.acs import SlewModel
+    from sat_node.scheduler import build_problem, solve_dp
+
+    r = 6378.137 + 700.0
+    sat = np.array([[r, 0.0, 0.0], [r, 0.0, 50.0]])
+    gp = np.array([[6378.137, 0.0, 0.0], [6378.137, 0.0, 30.0]])
+    p = build_problem(t0_s=0.0, step_s=10.0, sat_pos_km=sat, gp_ecef_km=gp, in_for=np.ones((2, 2), bool),
+                      absval=np.array([1.0, 2.0]), slew=SlewModel((0.0, 0.0, 0.1, 1.0), 0.0), revisit_zero_s=900.0)
+    solve_dp(p, check=True)
+    solve_dp(p, check=True, table_cells=0)  # the branch that walks back-pointers (same signature)
+
+
+def _cgr() -> None:
+    from orbit_clock.contact_plan import Contact, ContactPlan
+    from sat_node.dtn.cgr import ContactGraph
+
+    g = ContactGraph(ContactPlan([Contact(0.0, 100.0, "sat_11", "sat_12", 1000.0, 0.01),
+                                  Contact(50.0, 150.0, "sat_12", "sat_13", 1000.0, 0.01),
+                                  Contact(0.0, 10.0, "sat_11", "sat_13", 1000.0, 0.01)]))
+    g.route("sat_11", "sat_13", 20.0, 2000.0, excluded=np.zeros(len(g.contacts), dtype=np.bool_),
+            excluded_nodes=("sat_12",), first_backlog_bits=g._no_backlog.copy())
+    g.route("sat_11", "sat_13", 20.0, 2000.0)
+    g.earliest_arrivals("sat_11", 0.0, 2000.0)
+
+
+_WARM = {"dp": _dp, "cgr": _cgr}
+
+
+def warm_up(which=tuple(KERNELS)) -> dict[str, float]:
+    """Compile (empty cache) or load (warm cache) the kernels named in ``which`` ("dp", "cgr") in
+    this process; returns the wall seconds each took."""
+    took = {}
+    for name in which:
+        if name not in _WARM:
+            raise ValueError(f"warm_up: unknown kernel group {name!r} (known: {', '.join(_WARM)})")
+        t0 = time.perf_counter()
+        _WARM[name]()
+        took[name] = time.perf_counter() - t0
+    return took
