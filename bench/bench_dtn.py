@@ -16,7 +16,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from dtn_router.des import latency_lower_bounds, run_dtn, store_forward_bound_mean
-from orbit_clock.contact_plan import read_contact_plan
+from orbit_clock.contact_plan_io import read_contact_plan
 from sat_node.dtn.agent import AgentConfig
 from sat_node.dtn.cgr import ContactGraph
 from sat_node.dtn.traffic import read_traffic

@@ -29,7 +29,8 @@ from orbit_clock import (
     isl_contact_plan,
     isl_windows,
 )
-from orbit_clock.contact_plan import canonical_node, read_contact_plan
+from orbit_clock.contact_plan import canonical_node
+from orbit_clock.contact_plan_io import read_contact_plan
 
 
 def _t(fn):

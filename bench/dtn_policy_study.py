@@ -52,7 +52,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from dtn_router.des import latency_lower_bounds
-from orbit_clock.contact_plan import read_contact_plan
+from orbit_clock.contact_plan_io import read_contact_plan
 from sat_node.dtn.agent import AgentConfig, ttl_s_for_priority
 from sat_node.dtn.traffic import read_traffic
 

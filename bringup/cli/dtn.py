@@ -13,7 +13,7 @@ from pathlib import Path
 
 from bringup.errors import UserError
 from dtn_router.des import latency_lower_bounds, run_dtn, store_forward_bound_mean
-from orbit_clock.contact_plan import ContactPlanError, read_contact_plan
+from orbit_clock.contact_plan_io import ContactPlanError, read_contact_plan
 from sat_node.dtn.agent import AgentConfig
 from sat_node.dtn.traffic import TrafficError, read_traffic
 

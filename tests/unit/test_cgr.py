@@ -83,7 +83,7 @@ def test_no_loops_and_light_time():
 
 
 def test_study_plan_routes_are_feasible(paper_inputs):
-    from orbit_clock.contact_plan import read_contact_plan
+    from orbit_clock.contact_plan_io import read_contact_plan
 
     plan = read_contact_plan(paper_inputs / "contact_plan_3p_8s.csv", rate_bps=1000)
     g = ContactGraph(plan)

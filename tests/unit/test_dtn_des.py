@@ -5,7 +5,8 @@ import pytest
 import random
 
 from dtn_router.des import latency_lower_bounds, run_dtn, store_forward_bound_mean
-from orbit_clock.contact_plan import Contact, ContactPlan, read_contact_plan
+from orbit_clock.contact_plan import Contact, ContactPlan
+from orbit_clock.contact_plan_io import read_contact_plan
 from sat_node.dtn.traffic import TrafficItem, read_traffic
 
 #   sat_11 --[0;1000] owlt 0.5--> sat_12 --[0;1000] owlt 0.5--> sat_13   (and reverse)
@@ -186,7 +187,7 @@ def test_cli_deadline_queue_changes_the_order(tmp_path, capsys):
     import json
 
     from bringup.cli.main import main
-    from orbit_clock.contact_plan import write_contact_plan
+    from orbit_clock.contact_plan_io import write_contact_plan
     with open(tmp_path / "plan.csv", "w") as fh:
         write_contact_plan(PLAN, "csv", fh)
     head = "source,time_s,packet_id,region," + ",".join(f"Sat{p}{s}" for p in (1,) for s in (1, 2, 3))
@@ -228,7 +229,7 @@ def test_cli_hop_tolerance_takes_the_direct_contact(tmp_path, capsys):
     import json
 
     from bringup.cli.main import main
-    from orbit_clock.contact_plan import write_contact_plan
+    from orbit_clock.contact_plan_io import write_contact_plan
     plan = ContactPlan(PLAN.contacts + [Contact(50.0, 1000.0, "sat_11", "sat_13", 1000.0, 0.5)])
     with open(tmp_path / "plan.csv", "w") as fh:
         write_contact_plan(plan, "csv", fh)

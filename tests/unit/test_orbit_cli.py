@@ -6,7 +6,7 @@ import csv
 import json
 
 from bringup.cli.main import main
-from orbit_clock.contact_plan import read_contact_plan
+from orbit_clock.contact_plan_io import read_contact_plan
 
 
 def test_constellation_json_and_csv(tmp_path):

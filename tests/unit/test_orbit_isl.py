@@ -20,7 +20,8 @@ from orbit_clock import (
     priority_order,
 )
 from orbit_clock.access import AccessWindows
-from orbit_clock.contact_plan import canonical_node, read_contact_plan
+from orbit_clock.contact_plan import canonical_node
+from orbit_clock.contact_plan_io import read_contact_plan
 from orbit_clock.frames import WGS84_A_KM, WGS84_B_KM
 
 coord = st.floats(min_value=-12000.0, max_value=12000.0, allow_nan=False)

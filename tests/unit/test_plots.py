@@ -83,7 +83,7 @@ def test_observation_gantt(tmp_path):
 
 
 def test_contact_timeline_paper_plan(tmp_path, paper_inputs):
-    from orbit_clock.contact_plan import read_contact_plan
+    from orbit_clock.contact_plan_io import read_contact_plan
 
     plan = read_contact_plan(paper_inputs / "contact_plan_3p_8s.csv", rate_bps=1000.0)
     fig = plots.figure_contact_timeline(plan)
