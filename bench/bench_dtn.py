@@ -15,7 +15,8 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from dtn_router.des import latency_lower_bounds, run_dtn, store_forward_bound_mean
+from bringup.analysis.dtn_alone import run_dtn
+from bringup.analysis.dtn_bounds import latency_lower_bounds, store_forward_bound_mean
 from orbit_clock.contact_plan_io import read_contact_plan
 from sat_node.dtn.agent import AgentConfig
 from sat_node.dtn.cgr import ContactGraph
@@ -64,7 +65,8 @@ def main() -> int:
               f"measured / it = {r['dtn.latency_s.mean'] / sf:.2f}; the issue's bound / it = "
               f"{r['dtn.latency_s.lower_bound_mean'] / sf:.2f}")
         print("   drops by reason:", {k.split(".")[-1]: v for k, v in r.items() if k.startswith("dtn.dropped_detail.")},
-              " transmissions:", sum(a.counters["forwarded"] for a in run.agents.values()),
+              " transmissions:", r["dtn.transmissions"], f"({r['dtn.transmissions_per_bundle']:.3f} per bundle)",
+              " failed:", r["dtn.tx_failed"], " steps:", run.steps,
               " sim wall s:", round(run.wall_s, 1))
         print("   prio created delivered median_s  p95_s  max_s")
         for p in range(1, 16):

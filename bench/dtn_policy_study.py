@@ -1,7 +1,7 @@
 """Study: which send order and which routing knowledge could meet issue 4's case1 targets?
 
-A simplified store-and-forward model of the DTN (not the product's engine, which is
-dtn_router/des.py): one radio per node, every bundle ``bits / rate`` on air, light time from the
+A simplified store-and-forward model of the DTN (not the product's, which is
+bringup/analysis/dtn_alone.py: the bundle agents and the ISL medium on the run's engine): one radio per node, every bundle ``bits / rate`` on air, light time from the
 plan, routes recomputed at each hop when the radio is free by a time-dependent Dijkstra over the
 contact plan whose cost is the arrival time plus ``lam * tx * Q[v]`` for every relay v on the route
 (Q = bundles queued at v, as far as the deciding node knows them). No BPv7, no BIB, no contact
@@ -51,7 +51,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from dtn_router.des import latency_lower_bounds
+from bringup.analysis.dtn_bounds import latency_lower_bounds
 from orbit_clock.contact_plan_io import read_contact_plan
 from sat_node.dtn.agent import AgentConfig, ttl_s_for_priority
 from sat_node.dtn.traffic import read_traffic

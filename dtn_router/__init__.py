@@ -1,7 +1,6 @@
-"""dtn_router: the ISL medium (link.py) and a deterministic discrete-event engine for the DTN alone (des.py)."""
+"""dtn_router: the ISL medium - the link model (link.py) and the participant that applies it (router.py)."""
 
-from .des import DtnRun, latency_lower_bounds, run_dtn, store_forward_bound_mean
 from .link import Copy, LinkModel, LinkOutcome
+from .router import ROUTER_NAME, RouterLogic
 
-__all__ = ["LinkModel", "LinkOutcome", "Copy", "run_dtn", "DtnRun", "latency_lower_bounds",
-           "store_forward_bound_mean"]
+__all__ = ["Copy", "LinkModel", "LinkOutcome", "ROUTER_NAME", "RouterLogic"]

@@ -12,8 +12,9 @@ asks to be woken exactly then.
 A transmission the truth plan does not carry (the contact ends before its last bit - e.g. an ISL
 cut the agents' predicted plan does not know -, no contact to the next hop, the sender's radio still
 busy) is not delivered to anyone; the sender is told on ``/sat_XX/dtn/status``
-(msgs_json TransmissionFailed) at the time the attempt ended, so its agent takes the bundle back and
-re-routes it (Nag et al. rely on CGR's contact plan; the status path is what a real medium's missing
+(msgs_json TransmissionFailed) at the time the attempt ended, at the first step at or after that
+time - and the router then asks for the next step at once, so the sender learns of it 1 ns later
+whatever the step length -; its agent takes the bundle back and re-routes it (Nag et al. rely on CGR's contact plan; the status path is what a real medium's missing
 acknowledgement gives). Inputs that are not bundles of a known satellite are rejected and counted
 by reason (``rejected_by_reason``).
 
@@ -89,10 +90,15 @@ class RouterLogic:
         while self.pending and self.pending[0][0] <= t_ns:
             arrival, receiver, _, data = heapq.heappop(self.pending)
             emits.append(Emit(self._in_topic[receiver], data, arrival))
+        reported = False
         while self.status_pending and self.status_pending[0][0] <= t_ns:
             at, _, sender, text = heapq.heappop(self.status_pending)
             emits.append(Emit(self._status_topic[sender], text, at))
-        return StepResult(emits, self._wakeup(t_ns), len(self.pending))
+            reported = True
+        wake = self._wakeup(t_ns)
+        if reported:  # the sender learns of a failure at the very next step, whatever the step length
+            wake = t_ns + 1
+        return StepResult(emits, wake, len(self.pending))
 
     def finish(self, t_ns: int) -> list[Emit]:
         return []

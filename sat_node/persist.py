@@ -7,8 +7,9 @@ nothing happened: no observation executed twice, none lost, no accepted bundle l
 * everything else (:func:`snapshot`): the scheduler's knowledge - known observations (own and
   delivered by DTN), the current plan and its version, the last executed observation time, the next
   replan time, the pointing target, counters - and the bundle agent's routing state (queues, parked
-  groups, radio-free time, in-flight transmissions, duplicates seen) with its event cursor
-  (events not yet turned into messages and what is known about them). It is one pickle, so objects
+  groups, radio-free time, in-flight transmissions, duplicates seen) and its port's state
+  (sat_node/dtn/port.py: the event cursor, events not yet turned into messages and what is known
+  about them, transmissions not yet settled). It is one pickle, so objects
   shared between the satellite and its agent (a transmission and its held record) stay shared.
   The shared read-only inputs (world, scenario, belief noise, contact graph, store connection,
   agent config) are rebuilt from the world pickle by the new process, not saved.
@@ -34,8 +35,9 @@ from sat_node.dtn.store import StoredBundle
 
 __all__ = ["persistent_connection", "restore", "snapshot"]
 
-_SAT_SHARED = ("world", "sc", "belief", "agent")
+_SAT_SHARED = ("world", "sc", "belief", "agent", "port")
 _AGENT_SHARED = ("graph", "store", "config", "on_event", "_out_starts")
+_PORT_SHARED = ("agent",)
 
 
 def persistent_connection(sat) -> sqlite3.Connection | None:
@@ -52,9 +54,13 @@ def snapshot(sat) -> bytes:
     ag = sat.agent
     if ag is not None:
         state["__agent__"] = {k: v for k, v in vars(ag).items() if k not in _AGENT_SHARED}
-        if "_ev_info" in state:  # keyed by id(event): keep the events themselves (same pickle)
-            by_id = {id(ev): ev for ev in (ag.events or ())}
-            state["_ev_info"] = [(by_id[i], info) for i, info in state["_ev_info"].items() if i in by_id]
+    port = sat.port
+    if port is not None:
+        ps = {k: v for k, v in vars(port).items() if k not in _PORT_SHARED}
+        # keyed by id(event): keep the events themselves (same pickle)
+        by_id = {id(ev): ev for ev in (ag.events or ())}
+        ps["_ev_info"] = [(by_id[i], info) for i, info in ps["_ev_info"].items() if i in by_id]
+        state["__port__"] = ps
     return pickle.dumps(state, protocol=pickle.HIGHEST_PROTOCOL)
 
 
@@ -62,8 +68,10 @@ def restore(sat, blob: bytes) -> None:
     """Put ``blob`` (from :func:`snapshot`) into ``sat``, freshly built for the same world and name."""
     state = pickle.loads(blob)
     agent_state = state.pop("__agent__", None)
-    if "_ev_info" in state:
-        state["_ev_info"] = {id(ev): info for ev, info in state["_ev_info"]}
+    port_state = state.pop("__port__", None)
+    if port_state is not None:
+        port_state["_ev_info"] = {id(ev): info for ev, info in port_state["_ev_info"]}
+        vars(sat.port).update(port_state)
     vars(sat).update(state)
     report = {"store_rows_added": 0, "store_rows_removed": 0}
     ag = sat.agent

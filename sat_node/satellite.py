@@ -12,7 +12,8 @@ local engine in one process. It owns the satellite's three functions of DESIGN.m
 * ACS - tracks the pointing target and reports each slew (/sat_XX/acs/state);
 * DTN bundle agent - one BPv7 bundle per executed observation and destination satellite
   (the satellites next on scene over the observed region, priority 1 = next), routed by CGR
-  (sat_node/dtn/agent.py); arriving bundles update what it knows.
+  (sat_node/dtn/agent.py) and put on the bus by its port (sat_node/dtn/port.py: transmissions,
+  the medium's failure reports, bundle events); bundles delivered here update what it knows.
 
 Value knowledge (the :class:`~sat_node.scheduler.planner.Knowledge` it hands the planner): the OSSE
 field as it was at planning time (persistence forecast: it cannot know the future flood state)
@@ -29,13 +30,12 @@ tests/system/test_engines_equal.py); its plans are the planner's plans for what 
 (tests/unit/test_planner.py); hostile or malformed messages are rejected and counted
 (tests/faults/test_faults_hostile.py).
 
-Transmission status: the ISL medium (dtn_router) reports a transmission that did not get
-through (contact ended mid-transmission, e.g. an ISL cut; no contact; radio busy) on
-``/sat_XX/dtn/status``; the satellite hands it to its agent (``transmission_failed``) so the bundle
-goes back to its queue, re-routed without that contact. The report may come after the attempt's end,
-when the agent already counted the bundle as gone; the satellite keeps each transmission (and the
-agent's record of it) until it is confirmed, and puts it back first. Oracle: tests/faults/test_faults_link.py (a cut ending a contact mid-transmission; conservation created = delivered +
-dropped by reason + held).
+Transmission status: the ISL medium (dtn_router) reports a transmission that did not get through
+(contact ended mid-transmission, e.g. an ISL cut; no contact; radio busy) on ``/sat_XX/dtn/status``;
+the port gives it back to the agent, re-routed without that contact, and keeps every transmission
+until no such report can come (sat_node/dtn/port.py, from the contract's delivery rule alone).
+Oracle: tests/faults/test_faults_link.py (a cut ending a contact mid-transmission; conservation
+created = delivered + dropped by reason + held).
 """
 
 from __future__ import annotations
@@ -50,11 +50,10 @@ from msgs_json import codec
 from msgs_json import schemas as S
 from msgs_json import topics as T
 from msgs_json.envelope import Emit, Envelope, StepResult
-from orbit_clock.contact_plan import node_name
 from sat_node import persist
 from sat_node.acs import angle_between_deg, nadir_unit, unit_vectors
-from sat_node.dtn.agent import PRIORITY_BLOCK, AgentConfig, BundleAgent, priority_of
-from sat_node.dtn.bpv7 import BundleError, decode_bundle
+from sat_node.dtn.agent import AgentConfig, BundleAgent
+from sat_node.dtn.port import DtnPort, count_rejection
 from sat_node.dtn.store import BundleStore
 from sat_node.scheduler.planner import Knowledge, PersistenceView
 from sat_node.value import Belief, KnownObservation
@@ -62,8 +61,6 @@ from sat_node.value import Belief, KnownObservation
 __all__ = ["SatelliteLogic", "observation_payload", "parse_observation_payload"]
 
 _NS = 1_000_000_000
-_NO_INFO = object()  # sentinel: no _ev_info entry for an event
-# a transmission's status report comes at most a few lockstep steps after its end; keep it this long
 
 
 def observation_payload(sat: str, gp: int, t_ns: int, value: float) -> bytes:
@@ -121,33 +118,23 @@ class SatelliteLogic:
                                      if c.src == name})
         self._next_pass_i = 0
         self.agent = None
+        self.port = None  # the agent on the lockstep bus (sat_node/dtn/port.py)
         if self.dtn:
             i = sc.isl
-            # the router's report of a failed transmission comes a few lockstep steps after it (the
-            # copy reaches the router at the next step, the report the sender at the one after, and
-            # transmissions are computed retroactively up to the step): the agent keeps a sent bundle
-            # for twelve of the longest steps before it forgets it (56 s seen at 10 s steps)
+            # settle_delay_s=None: the port settles each transmission when no failure report can come
             cfg = AgentConfig.for_policy(
                 i.send_order, i.hop_tolerance_s, ttl_s_by_priority={1: i.ttl_p1_s, 3: i.ttl_p2_3_s, 15: i.ttl_p4_15_s},
-                bundle_bits=i.bundle_bits, settle_delay_s=12 * sc.scenario.lockstep_max_step_s)
+                bundle_bits=i.bundle_bits, settle_delay_s=None)
             store = BundleStore(store_path) if store_path else None
             self.agent = BundleAgent(name, world.isl_plan, cfg, store=store)
-            self._ev_done = 0
-            self._creations: dict[str, tuple[int, int]] = {}
-            self._ev_info: dict[int, dict | None] = {}
-            self.overheard = 0
-            self._next_hop: dict[str, str] = {}
-            self.tx_failed: dict[str, int] = {}
+            self.port = DtnPort(name, self.agent)
         self.rejected_by_reason: dict[str, int] = {}
-        self._topics: tuple[str, str] | None = None  # (status, in) topic names, made on first use
-        self._radio_topics: tuple[str, str] | None = None  # (dtn out, dtn events), made on first use
 
     # ------------------------------------------------------------------ contract
     def subscriptions(self) -> list[str]:
         subs = []
-        if self.dtn:
-            subs.append(T.dtn_in_topic(self.name))
-            subs.append(T.dtn_status_topic(self.name))
+        if self.port is not None:
+            subs += self.port.subscriptions()
         if self.mode == "centralized":
             subs.append(T.GROUND_UPLINK)
         return subs
@@ -178,8 +165,7 @@ class SatelliteLogic:
                 self._on_message(env, t_ns)
             except (ValueError, KeyError, TypeError) as exc:  # a bad message never kills the node
                 self.rejected += 1
-                reason = f"{env.topic.rsplit('/', 1)[-1]}.{type(exc).__name__}"
-                self.rejected_by_reason[reason] = self.rejected_by_reason.get(reason, 0) + 1
+                count_rejection(self.rejected_by_reason, env, exc)
                 self.last_error = f"{env.topic}: {exc}"
         emits += self._execute(t_ns)
         periodic = self.next_replan_ns is not None and t_ns >= self.next_replan_ns
@@ -230,56 +216,19 @@ class SatelliteLogic:
             store.close()
 
     def _counters_emit(self, t_ns: int) -> Emit:
-        c = {"discarded.not_next_hop": self.overheard, "held": self.agent.held_count(),
-             "rejected_messages": self.rejected}
-        for k, v in self.rejected_by_reason.items():
-            c[f"rejected.{k}"[:64]] = v
-        for k, v in self.agent.counters.items():
-            if k.startswith(("dropped.", "discarded.")) and k != "discarded.not_next_hop":
-                c[f"agent.{k}"[:64]] = v
-        for k, v in self.tx_failed.items():
-            c[f"tx_failed.{k}"] = v
-        for k, v in self.host_rejected.items():  # set by the ROS host before finish (bringup/engine/ros/host.py)
-            c[f"host.{k}"[:64]] = v
-        msg = S.DtnCounters(sat=self.name, t_ns=t_ns, counters=c)
-        return Emit(T.dtn_counters_topic(self.name), codec.encode(msg), t_ns)
+        # host_rejected: set by the ROS host before finish (bringup/engine/ros/host.py)
+        return self.port.counters_emit(t_ns, rejected=self.rejected, rejected_by_reason=self.rejected_by_reason,
+                                       host_rejected=self.host_rejected)
 
     # ------------------------------------------------------------------ inputs
     def _on_message(self, env: Envelope, t_ns: int) -> None:
-        topics = self._topics
-        if topics is None:
-            topics = self._topics = (T.dtn_status_topic(self.name), T.dtn_in_topic(self.name))
-        if self.agent is not None and env.topic == topics[0]:
-            self._on_status(codec.decode(env.topic, env.data), t_ns)
-        elif self.agent is not None and env.topic == topics[1]:
-            if not isinstance(env.data, bytes):
-                raise ValueError("bundle topic carries text")
-            if self.agent.overheard(env.data, env.t_ns):  # a copy for another node (broadcast medium)
-                self.overheard += 1
-                return
-            n_ev = len(self.agent.events)
-            outcome = self.agent.receive(env.data, env.source, env.t_ns)
-            if outcome == "discarded.not_next_hop":
-                # overheard on the broadcast medium: counted (DtnCounters), not one event per copy
-                self.overheard += 1
-                for ev in self.agent.events[n_ev:]:
-                    self._ev_info[id(ev)] = None
-                return
-            if outcome == "delivered" or outcome.startswith("discarded"):
-                b = self.agent.last_received  # what receive() decoded from env.data (not altered)
-                if b is None:
-                    try:
-                        b = decode_bundle(env.data)
-                    except BundleError:
-                        b = None
-                if b is not None:
-                    info = self._bundle_info(b)
-                    for ev in self.agent.events[n_ev:]:
-                        self._ev_info[id(ev)] = info
-                if outcome == "delivered" and b is not None:
-                    src, gp, obs_ns = parse_observation_payload(b.payload)
-                    self._learn(gp, obs_ns, src)
-                    self._check_news(gp, obs_ns)
+        port = self.port
+        if port is not None and port.is_mine(env.topic):
+            b = port.receive(env, t_ns)
+            if b is not None:  # delivered here: what another satellite observed
+                src, gp, obs_ns = parse_observation_payload(b.payload)
+                self._learn(gp, obs_ns, src)
+                self._check_news(gp, obs_ns)
         elif env.topic == T.GROUND_UPLINK:
             up = codec.decode(env.topic, env.data)
             if up.sat != self.name:
@@ -392,95 +341,11 @@ class SatelliteLogic:
     # ------------------------------------------------------------------ DTN
     def _originate(self, gp: int, t_ns: int, value: float) -> list[Emit]:
         payload = observation_payload(self.name, gp, t_ns, value)
-        for dest, prio in self.world.destinations(gp, t_ns / _NS, self.name):
-            bid = self.agent.originate(payload, dest, prio, t_ns)
-            self._creations[bid] = (gp, t_ns)
+        self.port.originate(payload, self.world.destinations(gp, t_ns / _NS, self.name), t_ns, gp=gp)
         return []
 
     def _radio(self, t_ns: int) -> list[Emit]:
-        emits: list[Emit] = []
-        self.agent.expire(t_ns)
-        radio_topics = self._radio_topics
-        if radio_topics is None:
-            radio_topics = self._radio_topics = (T.dtn_out_topic(self.name), T.dtn_events_topic(self.name))
-        out_topic, topic = radio_topics
-        for tx in self.agent.transmissions_until(t_ns):
-            emits.append(Emit(out_topic, tx.bundle_bytes, tx.start_ns))
-            self._next_hop[tx.bundle_id] = tx.next_hop
-        evs = self.agent.events
-        if len(evs) > self._ev_done:
-            encode = codec.encode
-            for ev in evs[self._ev_done:]:
-                msg = self._event_msg(ev)
-                if msg is not None:
-                    emits.append(Emit(topic, encode(msg), min(ev.t_ns, t_ns)))
-        self._ev_done = len(evs)
-        if len(evs) > 4096:  # keep memory flat over long runs
-            del evs[:]
-            self._ev_done = 0
-            self._ev_info.clear()
-        return emits
-
-    def _on_status(self, st, t_ns: int) -> None:
-        """The medium says a transmission failed: give the bundle back to the agent (see module doc)."""
-        if st.sat != self.name:
-            raise ValueError(f"status for {st.sat} on {self.name}'s topic")
-        tx = self.agent.in_flight(st.bundle_id)
-        if tx is None or tx.start_ns != st.start_ns or tx.next_hop != st.next_hop:
-            raise ValueError(f"status names no transmission of ours: {st.bundle_id} at {st.start_ns}")
-        self.tx_failed[st.reason] = self.tx_failed.get(st.reason, 0) + 1
-        self.agent.transmission_failed(tx, t_ns)
-
-    def _bundle_info(self, b) -> dict:
-        blk = b.block(PRIORITY_BLOCK)
-        info = {"bundle_id": b.bundle_id, "src": node_name(b.src[0]), "dst": node_name(b.dest[0]),
-                "priority": priority_of(blk.data) if blk is not None else 0,
-                "creation_ns": (b.creation_ms - self.agent.config.epoch_dtn_ms) * 1_000_000,
-                "hop_count": (b.hop_count[1] if b.hop_count else 0)}
-        try:
-            nh = b.next_hop
-            if nh is not None:
-                info["next_hop"] = node_name(nh)
-        except ValueError:
-            pass
-        return info
-
-    def _event_msg(self, ev):
-        """The agent's event as a msgs_json bundle event (None when it names no bundle we can tell)."""
-        info = self._ev_info.pop(id(ev), _NO_INFO)
-        if info is None:  # marked: an overheard copy's event, reported as a counter only
-            return None
-        if info is _NO_INFO:
-            info = None
-        base = {"sat": self.name, "t_ns": ev.t_ns}
-        if info is not None:
-            bid, src, dst, prio, created = (info["bundle_id"], info["src"], info["dst"], info["priority"],
-                                            info["creation_ns"])
-        else:
-            if ev.bundle_id == "?":
-                return S.BundleDropped(**base, bundle_id="?", src=self.name, dst=self.name, priority=0,
-                                       creation_ns=0, reason="malformed" if ev.kind == "dropped" else "other",
-                                       detail=f"{ev.kind}.{ev.reason}") if ev.kind == "dropped" else None
-
-            src = node_name(int(ev.bundle_id[3:].split(".", 1)[0]))
-            bid, dst, prio, created = ev.bundle_id, ev.dest or self.name, ev.priority, ev.created_ns
-        common = dict(base, bundle_id=bid, src=src, dst=dst, priority=prio, creation_ns=min(created, ev.t_ns))
-        if ev.kind == "created":
-            gp, obs_ns = self._creations.pop(bid, (0, ev.t_ns))
-            return S.BundleCreated(**common, gp=gp, obs_t_ns=obs_ns,
-                                   lifetime_ns=int(self.sc.isl.ttl_s(max(1, prio)) * _NS),
-                                   size_bits=self.sc.isl.bundle_bits)
-        if ev.kind == "forwarded":
-            return S.BundleForwarded(**common, next_hop=self._next_hop.pop(bid, dst))
-        if ev.kind == "delivered":
-            return S.BundleDelivered(**common, hop_count=(info or {}).get("hop_count", 0))
-        if ev.kind == "dropped":
-            reason = ev.reason if ev.reason in S.DROP_REASONS else "other"
-            return S.BundleDropped(**common, reason=reason, detail=ev.reason)
-        if ev.kind == "discarded":
-            reason = ev.reason if ev.reason in ("not_next_hop", "duplicate") else "other"
-            return S.CopyDiscarded(**common, reason=reason, intended_next_hop=(info or {}).get("next_hop"))
-        return None
+        return self.port.radio(t_ns)
 
     # ------------------------------------------------------------------ centralized
     def _downlink(self, t_ns: int) -> list[Emit]:

@@ -1,7 +1,8 @@
-"""``constellation dtn``: run the DTN alone (bundle agents + ISL link model) on a contact plan and a
-traffic table with the deterministic discrete-event engine, and print the report's dtn.* figures.
+"""``constellation dtn``: run the DTN alone (bundle agents + the ISL medium) on a contact plan and a
+traffic table, on the engine of a whole run (bringup/analysis/dtn_alone.py), and print the dtn.*
+figures with the latency bounds (bringup/analysis/dtn_bounds.py).
 
-Checked by tests/unit/test_dtn_des.py (the command's JSON on the study's inputs and drawn plans).
+Checked by tests/unit/test_dtn_alone.py (the command's JSON on the study's inputs and drawn plans).
 """
 
 from __future__ import annotations
@@ -12,7 +13,8 @@ import time
 from pathlib import Path
 
 from bringup.errors import UserError
-from dtn_router.des import latency_lower_bounds, run_dtn, store_forward_bound_mean
+from bringup.analysis.dtn_alone import run_dtn
+from bringup.analysis.dtn_bounds import latency_lower_bounds, store_forward_bound_mean
 from orbit_clock.contact_plan_io import ContactPlanError, read_contact_plan
 from sat_node.dtn.agent import AgentConfig
 from sat_node.dtn.traffic import TrafficError, read_traffic
@@ -77,7 +79,7 @@ def run(args: argparse.Namespace) -> int:
     run_ = run_dtn(plan, traffic, config=config, dump_dir=dump, dump_count=100)
     report = run_.report(None if args.no_lower_bound else
                          latency_lower_bounds(plan, traffic, args.bundle_bits, run_.created_ids))
-    if not args.no_lower_bound:  # what no routing or send order can beat on the mean (des.py)
+    if not args.no_lower_bound:  # what no routing or send order can beat on the mean (dtn_bounds.py)
         report["dtn.latency_s.store_forward_bound_mean"] = store_forward_bound_mean(
             plan, traffic, args.bundle_bits, ttl)
     report["dtn.sim_wall_s"] = run_.wall_s
@@ -102,7 +104,7 @@ def _print_table(r: dict) -> None:
             "dtn.latency_s.lower_bound_mean",
             "dtn.latency_s.store_forward_bound_mean", "dtn.latency_s.median", "dtn.latency_s.p95", "dtn.latency_s.max",
             "dtn.dropped.ttl", "dtn.dropped.integrity", "dtn.dropped.other", "dtn.copies_discarded",
-            "dtn.bundles_held_at_end", "runtime.wall_s"]
+            "dtn.bundles_held_at_end", "dtn.transmissions_per_bundle", "dtn.tx_failed", "runtime.wall_s"]
     for k in keys:
         if k in r:
             print(f"{k:34s} {_fmt(r[k])}")

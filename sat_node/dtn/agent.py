@@ -26,7 +26,8 @@ agents live in one process:
   lifetime ends is dropped at once (``no_route``) rather than carried to its TTL; expired ones
   are dropped (``ttl``);
 * :meth:`BundleAgent.transmission_failed` - the medium reports a failure: the bundle goes back and
-  is re-routed without that contact; :meth:`expire`, :meth:`next_event_ns`, ``counters``, ``events``.
+  is re-routed without that contact; :meth:`BundleAgent.settle` - no report can come any more, the
+  bundle is gone; :meth:`expire`, :meth:`next_event_ns`, ``counters``, ``events``.
 
 Priority travels in the bundle in an experimental extension block (type 193, CBOR uint 1..15),
 beside the next-hop block (type 192); TTL comes from priority (the study: P1 900 s, P2-3 1800 s,
@@ -43,11 +44,14 @@ Conservation (tested): created = delivered + dropped (by reason) + held (queued 
 
 Bundles are 'forwarded' when their transmission starts; the sender forgets them (and deletes them
 from the persistent store) only when the transmission has ended without a failure report (BPv7
-without custody transfer), so a process killed mid-transmission still has the bundle.
+without custody transfer), so a process killed mid-transmission still has the bundle: by time
+(``settle_delay_s`` after the end), or, with ``settle_delay_s=None``, when the holder says so
+(:meth:`BundleAgent.settle`: the lockstep port knows from the engine contract when no report can
+still come).
 
 How we know it is right: hand-stepped agents on drawn plans (tests/unit/test_agent.py: delivery
 times, priority order, parking until a contact opens, TTL, integrity, failures), the discrete-event
-engine's hand-worked latencies and conservation (tests/unit/test_dtn_des.py), SIGKILL mid-air
+DTN-alone runs' hand-worked latencies and conservation (tests/unit/test_dtn_alone.py), SIGKILL mid-air
 (tests/unit/test_store.py), and the study's whole runs against the per-bundle lower bound.
 """
 
@@ -119,8 +123,10 @@ class AgentConfig:
     verify_integrity: bool = True
     hop_tolerance_s: float = 0.0
     # How long after a transmission's end the agent still expects a failure report from the medium
-    # before it forgets the bundle (the lockstep medium reports one or two steps later) [s].
-    settle_delay_s: float = 0.0
+    # before it forgets the bundle [s]; None: never by time - whoever feeds the agent the medium's
+    # reports settles each transmission when no report can come any more (BundleAgent.settle; the
+    # lockstep port does, sat_node/dtn/port.py).
+    settle_delay_s: float | None = 0.0
     priority_delay_s: tuple | None = None
 
     @classmethod
@@ -221,7 +227,8 @@ class BundleAgent:
         self._expiry_heap: list = []
         self._out_starts = self.graph.out_starts.get(node, np.zeros(0))
         self.radio_free_ns = 0
-        self._settle_ns = int(round(self.config.settle_delay_s * 1e9))
+        sd = self.config.settle_delay_s
+        self._settle_ns = None if sd is None else int(round(sd * 1e9))
         self._settle_at = _NEVER  # when the oldest transmission in flight is settled (O(1) check per copy heard)
         self.last_received: Bundle | None = None  # what the last receive() decoded (None: nothing)
         self._seq = 0 if store is None else store.get_meta("seq")
@@ -622,10 +629,22 @@ class BundleAgent:
         self._reset_settle_at()
 
     def _reset_settle_at(self) -> None:
-        if self._in_flight:
+        if self._in_flight and self._settle_ns is not None:
             self._settle_at = next(iter(self._in_flight.values()))[0].end_ns + self._settle_ns
         else:
             self._settle_at = _NEVER
+
+    def settle(self, tx: Transmission) -> bool:
+        """``tx`` got through (no failure report can come any more): the bundle leaves this node and
+        its persistent store. False (nothing done) when ``tx`` is not in flight (it failed)."""
+        item = self._in_flight.get(tx.bundle_id)
+        if item is None or item[0] != tx:
+            return False
+        del self._in_flight[tx.bundle_id]
+        if self.store is not None:
+            self.store.delete(tx.bundle_id)
+        self._reset_settle_at()
+        return True
 
     def in_flight(self, bundle_id: str) -> Transmission | None:
         """The transmission of ``bundle_id`` not yet settled (sent, no verdict from the medium)."""
@@ -672,7 +691,7 @@ class BundleAgent:
             heapq.heappop(self._expiry_heap)
         if self._expiry_heap:
             cands.append(self._expiry_heap[0][0])
-        if self._in_flight and self.store is not None:
+        if self._in_flight and self.store is not None and self._settle_ns is not None:
             cands.append(min(tx.end_ns for tx, _h in self._in_flight.values()))
         return min(cands) if cands else None
 

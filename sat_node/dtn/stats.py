@@ -6,7 +6,7 @@ Latency is delivery time minus creation time [s]; a bundle counts once as delive
 delivery). Drop reasons map to the report's keys: ttl, integrity, other (no_route, hop_limit and
 anything else, also listed one by one under ``dtn.dropped_detail``).
 
-How we know it is right: tests/unit/test_dtn_des.py on hand-worked chains (per-priority medians,
+How we know it is right: tests/unit/test_dtn_alone.py on hand-worked chains (per-priority medians,
 the mean against its lower bound, delivery ratio, copies discarded, conservation).
 """
 

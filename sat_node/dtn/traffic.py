@@ -1,12 +1,25 @@
-"""The study's traffic table (../shared/paper_inputs/traffic_case*.csv; Nag et al. 2021's DTN inputs).
+"""The study's traffic table (../shared/paper_inputs/traffic_case*.csv; Nag et al. 2021's DTN inputs),
+and the node that sends it.
 
 One row per executed observation: ``source,time_s,packet_id,region,Sat11..Sat38``; the satellite
 columns hold the bundle priority for that destination (-1: not a destination, 0: the source). Each
 (row, destination with priority > 0) is one bundle. Items come out in creation order: by time, then
 file row, then priority, then destination name.
 
+:class:`TrafficNode` is a lockstep participant (msgs_json/envelope.py) for one node of a DTN-alone
+run: a satellite whose bundles come from the table instead of its observations. It creates the
+bundles of each creation time at that instant (a payload naming the packet, padded to
+``payload_bytes``); everything else - receiving, the medium's failure reports, the radio, the bundle
+events - is the satellite's own code path (sat_node/dtn/port.py). It asks to be woken just after
+its next creation time and its port's next event (the radio's next decision, an expiry, the end of
+a transmission in flight), so every decision is taken at its own instant after every arrival and
+creation up to it, and the medium hears of every transmission by its end: the run is the DTN in
+continuous time. A step with an empty inbox before that wakeup changes nothing, and is answered at
+once.
+
 How we know it is right: the study's README counts (traffic_case4: 7430 bundles; case1: 52413),
-checked in tests/unit/test_dtn_des.py.
+and DTN-alone runs on drawn plans with hand-worked delivery times, checked in
+tests/unit/test_dtn_alone.py.
 """
 
 from __future__ import annotations
@@ -15,9 +28,15 @@ import csv
 from dataclasses import dataclass
 from pathlib import Path
 
+from msgs_json.envelope import Emit, Envelope, StepResult
 from orbit_clock.contact_plan import canonical_node
+from sat_node.dtn.agent import BundleAgent
+from sat_node.dtn.port import DtnPort, count_rejection
 
-__all__ = ["TrafficItem", "TrafficError", "read_traffic"]
+__all__ = ["TrafficError", "TrafficItem", "TrafficNode", "read_traffic", "traffic_payload"]
+
+_NS = 1_000_000_000
+_NEVER = 1 << 62
 
 
 class TrafficError(ValueError):
@@ -67,3 +86,77 @@ def read_traffic(path) -> list[TrafficItem]:
                     out.append(TrafficItem(t_s, src, d, p, row[2], row[3], line))
     out.sort(key=lambda x: (x.t_s, x.row, x.priority, x.dest))
     return out
+
+
+def traffic_payload(item: TrafficItem, size: int) -> bytes:
+    """The payload of one traffic item's bundle: which packet, region and time, padded to ``size``."""
+    head = f'{{"packet_id":"{item.packet_id}","region":"{item.region}","t_s":{item.t_s}}}'.encode()
+    return head + b" " * max(0, size - len(head))
+
+
+class TrafficNode:
+    """Node ``agent.node`` of a DTN-alone run, sending ``items`` [(index, item)] (module docstring).
+
+    ``on_created(index, bundle_id)`` is called right after each bundle is created (before it is sent).
+    """
+
+    def __init__(self, agent: BundleAgent, items, *, payload_bytes: int = 160, on_created=None):
+        self.name = agent.node
+        self.agent = agent
+        self.port = DtnPort(self.name, agent)
+        self._items = sorted(((int(round(it.t_s * _NS)), i, it) for i, it in items), key=lambda x: (x[0], x[1]))
+        self._next = 0
+        self.payload_bytes = payload_bytes
+        self.on_created = on_created
+        self.created_ids: dict[int, str] = {}  # traffic index -> bundle id
+        self.rejected = 0
+        self.rejected_by_reason: dict[str, int] = {}
+        self._wake: int | None = None  # the wakeup asked for at the last full step
+        self._quiet_until = -1  # before this, with an empty inbox, a step changes nothing but settling
+
+    def subscriptions(self) -> list[str]:
+        return self.port.subscriptions()
+
+    def start(self, t0_ns: int) -> StepResult:
+        return self.step(t0_ns, [])
+
+    def step(self, t_ns: int, inbox: list[Envelope]) -> StepResult:
+        port = self.port
+        if not inbox and t_ns < self._quiet_until:
+            # nothing arrives, nothing is due (creation, radio decision or expiry all lie after t_ns,
+            # as the last full step found): only the port's step bookkeeping moves on
+            port.tick(t_ns)
+            return StepResult([], self._wake)
+        for env in inbox:
+            try:
+                port.receive(env, t_ns)
+            except (ValueError, KeyError, TypeError) as exc:  # a bad message never kills the node
+                self.rejected += 1
+                count_rejection(self.rejected_by_reason, env, exc)
+        # Up to t_ns - 1 only: a copy stamped t_ns itself is emitted by the medium at this very step
+        # and seen at the next one, so what is due at t_ns waits for the wakeup at t_ns + 1
+        # (at one instant: arrivals first, then creations, then the radio's decision).
+        upto = t_ns - 1
+        items, i = self._items, self._next
+        while i < len(items) and items[i][0] <= upto:
+            at, index, item = items[i]
+            i += 1
+            bid = port.originate(traffic_payload(item, self.payload_bytes), [(item.dest, item.priority)], at)[0]
+            self.created_ids[index] = bid
+            if self.on_created is not None:
+                self.on_created(index, bid)
+        self._next = i
+        emits = port.radio(upto)
+        due = items[i][0] if i < len(items) else None
+        nxt = port.next_event_ns(upto)  # the radio's next decision, an expiry, a transmission's end
+        if nxt is not None and (due is None or nxt < due):
+            due = nxt
+        wake = None if due is None else due + 1
+        self._wake = wake
+        self._quiet_until = _NEVER if wake is None else wake
+        return StepResult(emits, wake)
+
+    def finish(self, t_ns: int) -> list[Emit]:
+        emits = self.port.radio(t_ns)
+        emits.append(self.port.counters_emit(t_ns, rejected=self.rejected, rejected_by_reason=self.rejected_by_reason))
+        return emits

@@ -120,7 +120,7 @@ def test_contact_ending_mid_transmission_is_reported_and_bundle_goes_later(cut_c
     assert not failed_arrivals
     created, delivered, dropped, held = _assert_conserved(parts, envs)
     sender = next(p for p in parts if p.name == st.sat)
-    assert sender.tx_failed.get("contact_ended", 0) >= 1
+    assert sender.port.tx_failed.get("contact_ended", 0) >= 1
     assert c["bid"] in created or any(c["bid"] == b for b in delivered)  # relayed bundles are created elsewhere
     again = [codec.decode(e.topic, e.data) for e in envs if e.topic == f"/{st.sat}/dtn/events"]
     again = [m for m in again if isinstance(m, S.BundleForwarded) and m.bundle_id == c["bid"] and m.t_ns > st.t_ns]
@@ -149,7 +149,7 @@ def test_forged_status_is_rejected_and_counted(world):
     inbox.append(Envelope(5, "rogue", 9, dtn_status_topic(sat.name), "{not json"))
     sat.step(10, inbox)
     assert sat.rejected == 3 and sum(sat.rejected_by_reason.values()) == 3
-    assert sat.agent.held_count() == held0 and sat.tx_failed == {}
+    assert sat.agent.held_count() == held0 and sat.port.tx_failed == {}
 
 
 def test_consensus_figures_plain_delay_cut(world, plain, cut_case):

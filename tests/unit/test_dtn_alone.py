@@ -1,10 +1,13 @@
-"""The DTN-alone discrete-event engine: drawn plans, conservation, the study's inputs."""
+"""The DTN alone (bringup/analysis/dtn_alone.py: traffic nodes and the ISL medium on the local engine)
+and its latency bounds (bringup/analysis/dtn_bounds.py): drawn plans with hand-worked delivery
+times and bounds, conservation, send orders and hop tolerance through the CLI, the study's inputs."""
 
 import pytest
 
 import random
 
-from dtn_router.des import latency_lower_bounds, run_dtn, store_forward_bound_mean
+from bringup.analysis.dtn_alone import run_dtn
+from bringup.analysis.dtn_bounds import latency_lower_bounds, store_forward_bound_mean
 from orbit_clock.contact_plan import Contact, ContactPlan
 from orbit_clock.contact_plan_io import read_contact_plan
 from sat_node.dtn.traffic import TrafficItem, read_traffic
