@@ -15,7 +15,9 @@ ROS run records the same /orbit/contacts as the local run).
 
 from __future__ import annotations
 
-from msgs_json import codec, schemas as S, topics as T
+from msgs_json import codec
+from msgs_json import schemas as S
+from msgs_json import topics as T
 from msgs_json.envelope import Emit, Envelope, StepResult
 from orbit_clock.contact_plan import ContactPlan
 

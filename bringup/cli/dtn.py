@@ -12,9 +12,9 @@ import json
 import time
 from pathlib import Path
 
-from bringup.errors import UserError
 from bringup.analysis.dtn_alone import run_dtn
 from bringup.analysis.dtn_bounds import latency_lower_bounds, store_forward_bound_mean
+from bringup.errors import UserError
 from orbit_clock.contact_plan_io import ContactPlanError, read_contact_plan
 from sat_node.dtn.agent import AgentConfig
 from sat_node.dtn.traffic import TrafficError, read_traffic

@@ -56,7 +56,7 @@ from bringup.engine.contract import (
     failed,
     next_step_ns,
 )
-from msgs_json.envelope import Envelope, Participant, StepResult
+from msgs_json.envelope import Envelope, Participant
 
 __all__ = ["ContractError", "EngineError", "LocalEngine", "Progress", "RunResult", "run_local"]
 

@@ -37,7 +37,9 @@ from __future__ import annotations
 
 from collections import deque
 
-from msgs_json import codec, schemas as S, topics as T
+from msgs_json import codec
+from msgs_json import schemas as S
+from msgs_json import topics as T
 from msgs_json.envelope import Emit, Envelope
 from orbit_clock.contact_plan import node_name
 from sat_node.dtn.agent import PRIORITY_BLOCK, BundleAgent, priority_of, ttl_s_for_priority

@@ -13,7 +13,8 @@ import pytest
 
 from bringup.engine.local import run_local
 from bringup.scenario.participants import CONTACTS_ROLE, MODES, roles_for
-from msgs_json import codec, topics as T
+from msgs_json import codec
+from msgs_json import topics as T
 from orbit_clock.contact_announcer import ContactAnnouncer
 from orbit_clock.contact_faults import truth_plan
 from orbit_clock.contact_plan import Contact, ContactPlan

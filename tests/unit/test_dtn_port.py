@@ -13,7 +13,9 @@ from __future__ import annotations
 import pytest
 
 from bringup.analysis.dtn_alone import run_dtn
-from msgs_json import codec, schemas as S, topics as T
+from msgs_json import codec
+from msgs_json import schemas as S
+from msgs_json import topics as T
 from msgs_json.envelope import Envelope
 from orbit_clock.contact_faults import truth_plan
 from orbit_clock.contact_plan import Contact, ContactPlan
