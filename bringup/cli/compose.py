@@ -1,8 +1,9 @@
-"""`constellation compose`: write a Docker Compose file (and its run spec) for N satellites.
+"""`constellation compose`: write a Docker Compose file (with its run spec and world) for N satellites.
 
-See bringup/deploy/compose.py for what the file holds and docker/README.md for how to run it.
+See bringup/deploy/compose.py for what the file holds and docker/README.md for how to run it
+(`docker compose`, `podman-compose`, or `constellation containers up`).
 
-Checked by tests/unit/test_docker_files.py.
+Checked by tests/unit/test_docker_files.py and tests/containers/test_container_run.py.
 """
 
 from __future__ import annotations
@@ -12,7 +13,7 @@ import os
 from pathlib import Path
 
 from bringup.cli.common import add_scenario_args
-from bringup.deploy.compose import compose_project, repo_root, write_project
+from bringup.deploy.compose import IMAGE, compose_project, repo_root, write_project
 from bringup.errors import UserError
 
 
@@ -21,24 +22,52 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--mode", default="distributed", choices=["distributed", "centralized", "nonagile"],
                    help="scheduling mode (default: distributed)")
     p.add_argument("--out", type=Path, default=Path("docker-compose.yml"),
-                   help="compose file to write; run_spec.json goes beside it (default: ./docker-compose.yml)")
+                   help="compose file to write; run_spec.json and world.pkl go beside it (default: ./docker-compose.yml)")
+    p.add_argument("--name", default=None, help="compose project name (default: <scenario>-<mode>-<N>sats)")
     p.add_argument("--domain-id", type=int, default=7, help="ROS_DOMAIN_ID of every service, 0..101 (default: 7)")
     p.add_argument("--subnet", default="10.231.0.0/24",
                    help="IPv4 subnet of the compose network; fixed service addresses come from it")
+    p.add_argument("--image", default=IMAGE, help=f"image of every service (default: {IMAGE})")
+    p.add_argument("--restart", type=int, default=0, metavar="N",
+                   help="restart policy on-failure:N for every service; processes checkpoint every step and a "
+                        "restarted one resumes (default 0: a crash ends the run)")
+    p.add_argument("--isl-delay-s", type=float, default=0.0, help="extra one-way ISL delay [s] added by the router")
+    p.add_argument("--cut", action="append", default=[], metavar="A-B@T1-T2",
+                   help="cut the ISL between satellites A and B from T1 to T2 [s] (repeatable)")
     p.add_argument("--factory", default=None,
-                   help="participant factory 'module:function' (default: the ROS engine's)")
+                   help="participant factory 'module:function' (default: the ROS engine's, "
+                        "bringup.engine.ros.factory:build)")
     p.add_argument("--context", type=Path, default=None,
                    help="repository root to build the image from (default: this checkout)")
 
 
 def run(args: argparse.Namespace) -> int:
+    from bringup.cli.run import parse_cut
+
     context = (args.context or repo_root()).resolve()
     if not (context / "docker" / "Dockerfile").is_file() or not (context / "pyproject.toml").is_file():
         raise UserError(f"--context {context}: no docker/Dockerfile and pyproject.toml there")
+    cuts = [parse_cut(c) for c in args.cut]
+    router_kw = {"extra_delay_s": args.isl_delay_s, "cuts": cuts} if (args.isl_delay_s or cuts) else None
     out = args.out.resolve()
+
+    def meta(world, mode: str) -> dict:
+        from bringup.analysis.report import RunMeta
+
+        sc = world.scenario
+        return RunMeta(scenario=sc.name, mode=mode, engine="ros", seed=sc.scenario.seed,
+                       horizon_s=sc.scenario.horizon_s, n_sats=len(world.sat_names), n_gp=world.n_gp,
+                       revisit_zero_s=sc.value.revisit_zero_s).__dict__
+
     project = compose_project(scenario=args.scenario, sats=args.sats, hours=args.hours, seed=args.seed,
                               mode=args.mode, domain_id=args.domain_id, subnet=args.subnet,
-                              factory=args.factory, build_context=os.path.relpath(context, out.parent))
+                              factory=args.factory, build_context=os.path.relpath(context, out.parent),
+                              project_name=args.name, image=args.image, restart=args.restart, router_kw=router_kw,
+                              meta=meta)
+    for a, b, _, _ in cuts:
+        for n in (a, b):
+            if n not in project.world.sat_names:
+                raise UserError(f"--cut: {n!r} is not a satellite of the scenario ({project.world.sat_names[0]}..)")
     for path in write_project(project, out):
         print(path)
     return 0

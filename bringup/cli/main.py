@@ -53,7 +53,9 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "node": ("node",
              "run one process of a ROS-engine run (the clock or one participant group) from a run spec"),
     "compose": ("compose",
-                "write docker-compose.yml (+ run_spec.json beside it): one container per process of a run"),
+                "write docker-compose.yml (+ run_spec.json, world.pkl beside it): one container per process of a run"),
+    "containers": ("containers",
+                   "container images and runs with podman: build, up COMPOSE (run to the end), down, ls"),
 }
 
 

@@ -1,8 +1,10 @@
 """`constellation node --run-spec FILE --role ROLE`: one process of a ROS-engine run.
 
-The launcher (bringup/engine/ros/launcher.py), and later the docker compose files, start every process with
-it: role ``clock`` runs the lockstep clock and recorder (bringup/engine/ros/clock_node.py); any other role
-hosts the participants the run spec's factory returns for it (bringup/engine/ros/host.py). With the
+The launcher (bringup/engine/ros/launcher.py) and the compose files (bringup/deploy/compose.py)
+start every process with it: role ``clock`` runs the lockstep clock and recorder
+(bringup/engine/ros/clock_node.py) and, when the spec names ``extra.report_dir`` (a container
+run), writes report.json / report.md there from the bag once it is closed; any other role hosts
+the participants the run spec's factory returns for it (bringup/engine/ros/host.py). With the
 spec's ``state_dir`` a host checkpoints every step and, started again after a crash, resumes from
 its checkpoint (bringup/engine/checkpoint.py).
 Before a host says hello (ready) it runs the spec's prepare hook for its role (e.g. loads the
@@ -33,6 +35,22 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="only run the spec's prepare hook for the whole run (the launcher does, before any process)")
 
 
+def _write_report(spec: RunSpec, rc: int) -> None:
+    """After a complete run: ``report.json`` and ``report.md`` rebuilt from the bag (as `constellation
+    report BAG` does) into the spec's ``extra.report_dir`` (a container's run folder)."""
+    if rc != 0 or not spec.bag_dir:
+        return
+    import json
+
+    from bringup.analysis.report import report_from_bag
+    from bringup.analysis.report_md import write_report_md
+
+    out = Path(spec.extra["report_dir"])
+    rep = report_from_bag(Path(spec.bag_dir))
+    (out / "report.json").write_text(json.dumps(rep, indent=2, sort_keys=True) + "\n")
+    write_report_md(out / "report.md", rep, [])
+
+
 def run(args: argparse.Namespace) -> int:
     spec = RunSpec.from_file(args.run_spec)
     if args.prepare:
@@ -43,7 +61,8 @@ def run(args: argparse.Namespace) -> int:
     if args.role is None:
         raise UserError("give --role (or --prepare)")
     if args.role == CLOCK_ROLE:
-        return run_clock(spec)
+        report = spec.extra.get("report_dir")
+        return run_clock(spec, on_closed=(lambda rc: _write_report(spec, rc)) if report else None)
     if args.role not in spec.roles:
         raise UserError(f"--role {args.role!r} is not in the run spec's roles {spec.roles}")
     participants = load_factory(spec.factory)(spec, args.role)

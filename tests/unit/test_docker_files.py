@@ -1,4 +1,5 @@
-"""Static checks of docker/ and `constellation compose` (issue 7; no Docker engine on the build machines).
+"""Static checks of docker/ and `constellation compose` (no Docker engine on the build machines; the
+files run for real under podman in tests/containers/).
 
 Oracles, independent of bringup/deploy/compose.py:
 * COMPOSE_SUBSET_SCHEMA below: a JSON schema of the part of the Compose Specification
@@ -102,6 +103,21 @@ COMPOSE_SUBSET_SCHEMA = {
                 "stop_grace_period": {"type": "string", "pattern": "^[0-9]+(ms|s|m|h)$"},
                 "pull_policy": {"type": "string", "enum": ["always", "never", "if_not_present", "build",
                                                            "missing"]},
+                "restart": {"type": "string", "pattern": "^(no|always|unless-stopped|on-failure(:[0-9]+)?)$"},
+                "ulimits": {
+                    "type": "object",
+                    "patternProperties": {
+                        "^[a-z]+$": {
+                            "oneOf": [
+                                {"type": "integer"},
+                                {"type": "object", "required": ["soft", "hard"],
+                                 "properties": {"soft": {"type": "integer"}, "hard": {"type": "integer"}},
+                                 "additionalProperties": False},
+                            ]
+                        }
+                    },
+                    "additionalProperties": False,
+                },
             },
             "additionalProperties": False,
         },
@@ -109,6 +125,7 @@ COMPOSE_SUBSET_SCHEMA = {
             "type": ["object", "null"],
             "properties": {
                 "driver": {"type": "string"},
+                "internal": {"type": "boolean"},
                 "ipam": {
                     "type": "object",
                     "properties": {
@@ -133,8 +150,7 @@ COMPOSE_SUBSET_SCHEMA = {
 
 def _write(tmp_path: Path, n_sats: int, *extra: str) -> tuple[dict, Path]:
     out = tmp_path / f"n{n_sats}" / "docker-compose.yml"
-    rc = main(["compose", "--sats", str(n_sats), "--scenario", "paper", "--out", str(out),
-               "--factory", "bringup.toy:participants", *extra])
+    rc = main(["compose", "--sats", str(n_sats), "--scenario", "paper", "--hours", "1", "--out", str(out), *extra])
     assert rc == 0
     return yaml.safe_load(out.read_text(encoding="utf-8")), out
 
@@ -150,13 +166,25 @@ def test_compose_file_is_valid_and_complete(tmp_path, n_sats):
                                format_checker=jsonschema.Draft7Validator.FORMAT_CHECKER).validate(doc)
     services = doc["services"]
     sats = [s for s in services if s.startswith("sat_")]
-    assert len(sats) == n_sats and len(services) == n_sats + 4
-    assert {CLOCK_ROLE, "router", "ground", "contacts"} <= set(services)
+    # distributed: clock, router, contact-window announcer, satellites
+    assert len(sats) == n_sats and len(services) == n_sats + 3
+    assert {CLOCK_ROLE, "router", "contacts"} <= set(services)
 
     spec = RunSpec.from_file(out.parent / "run_spec.json")
     assert sorted(spec.roles) == sorted(s for s in services if s != CLOCK_ROLE)
     assert spec.overrides["sats"] == n_sats
     assert spec.bag_dir and spec.bag_dir.startswith("/runs/")
+    # the ROS engine's own factory and roles (the file runs as written, with no --factory)
+    from bringup.engine.ros.factory import FACTORY
+    from bringup.scenario.participants import roles_for
+    from bringup.scenario.world import World
+
+    assert spec.factory == FACTORY
+    world = World.load(out.parent / "world.pkl", spec.extra["world_key"])
+    assert sorted(spec.roles) == sorted(roles_for(world, "distributed")) and len(world.sat_names) == n_sats
+    assert spec.extra["world"] in {v.split(":")[1] for v in services[CLOCK_ROLE]["volumes"]}
+    assert spec.extra["store_dir"].startswith("/runs/") and spec.extra["report_dir"].startswith("/runs/")
+    assert doc["networks"]["constellation"]["internal"] is True
 
     # every image is built by some service (the others never pull it)
     built = {s["image"] for s in services.values() if "build" in s}
@@ -173,7 +201,7 @@ def test_compose_file_is_valid_and_complete(tmp_path, n_sats):
         for v in s["volumes"]:
             if v.startswith("./"):
                 assert (out.parent / v.split(":")[0]).exists(), v
-    assert any(v.endswith(":/runs") for v in services[CLOCK_ROLE]["volumes"])
+    assert all(any(v.endswith(":/runs") for v in s["volumes"]) for s in services.values())
 
     # addresses: unique, inside the declared subnet; peers = exactly every other service's address
     net = ipaddress.IPv4Network(doc["networks"]["constellation"]["ipam"]["config"][0]["subnet"])
@@ -211,6 +239,19 @@ def test_every_command_is_a_real_subcommand(tmp_path, n_sats):
         assert str(args.run_spec) in mounted
 
 
+def test_compose_restart_and_router_options(tmp_path):
+    doc, out = _write(tmp_path, 3, "--restart", "2", "--isl-delay-s", "30", "--cut", "sat_11-sat_21@600-1200",
+                      "--mode", "centralized")
+    spec = RunSpec.from_file(out.parent / "run_spec.json")
+    assert spec.max_restarts == 2 and spec.restart_wait_s > 0 and spec.state_dir.startswith("/runs/")
+    assert all(s["restart"] == "on-failure:2" for s in doc["services"].values())
+    assert spec.extra["router"] == {"extra_delay_s": 30.0, "cuts": [["sat_11", "sat_21", 600.0, 1200.0]]}
+    assert "ground" in doc["services"] and "router" not in doc["services"]
+    doc0, out0 = _write(tmp_path / "plain", 3)
+    assert all("restart" not in s for s in doc0["services"].values())
+    assert RunSpec.from_file(out0.parent / "run_spec.json").state_dir is None
+
+
 def test_compose_rejects_bad_options(tmp_path, capsys):
     out = str(tmp_path / "c.yml")
     base = ["compose", "--sats", "3", "--out", out, "--factory", "a:b"]
@@ -221,6 +262,8 @@ def test_compose_rejects_bad_options(tmp_path, capsys):
     assert main(["compose", "--sats", "24", "--out", out, "--factory", "a:b", "--subnet", "10.1.0.0/28"]) == 2
     assert "too small" in capsys.readouterr().err
     assert main([*base, "--factory", "nocolon"]) == 2
+    assert main([*base, "--cut", "sat_11-sat_99@1-2"]) == 2
+    assert "sat_99" in capsys.readouterr().err
     assert not Path(out).exists()
 
 
@@ -233,10 +276,15 @@ def _dockerfile_instructions() -> list[tuple[str, str]]:
 
 def test_dockerfile_installs_the_project_from_existing_files():
     ins = _dockerfile_instructions()
-    assert ins[0] == ("FROM", "python:3.11-slim")
+    # the base is a build argument, python:3.11-slim by default (bringup/deploy/images.py passes the
+    # Debian-built one)
+    assert ins[0] == ("ARG", "BASE=python:3.11-slim") and ins[1] == ("FROM", "${BASE}")
     copied = []
     for op, arg in ins:
         assert op != "ADD", "use COPY (ADD fetches URLs and unpacks archives)"
+        if op == "RUN" and arg.startswith("--mount="):
+            opts = dict(kv.split("=", 1) for kv in arg.split()[0].removeprefix("--mount=").split(","))
+            assert opts["type"] == "bind" and (REPO / opts["source"]).is_dir(), arg
         if op == "COPY":
             *srcs, _dst = arg.split()
             assert not any(s.startswith("--") for s in srcs), arg
@@ -248,20 +296,20 @@ def test_dockerfile_installs_the_project_from_existing_files():
     packages = [p.rstrip("*") for p in pyproject["tool"]["setuptools"]["packages"]["find"]["include"]]
     assert sorted(packages) == sorted(c for c in copied if c not in ("pyproject.toml", "README.md"))
     runs = " ".join(arg for op, arg in ins if op == "RUN")
-    assert "pip install --no-deps ." in runs and "pip install -r" in runs
+    assert "pip install --no-deps ." in runs and "pip install -r" in runs and "python3 -m venv /opt/venv" in runs
     assert "constellation --help" in runs  # the console script exists in the image
     assert ("USER", "sat") in ins
-    # the compose file builds with docker/Dockerfile from the repo root, and BuildKit's ignore file
-    # beside it keeps local state out of the context
-    ignore = (REPO / "docker" / "Dockerfile.dockerignore").read_text(encoding="utf-8").split()
-    assert ".venv" in ignore and ".git" in ignore
+    # the compose file builds with docker/Dockerfile from the repo root, and the ignore file at the
+    # context root (read by BuildKit and buildah) keeps local state out of the context
+    ignore = (REPO / ".dockerignore").read_text(encoding="utf-8").split()
+    assert ".venv" in ignore and ".git" in ignore and "docker" not in ignore
 
 
 def test_dockerfile_profile_is_the_launchers():
     """The image points FastDDS at the profile the local launcher uses (same lockstep timing)."""
     env = dict(re.findall(r"(\w+)=(\S+)", " ".join(a for op, a in _dockerfile_instructions() if op == "ENV")))
     installed = env["FASTRTPS_DEFAULT_PROFILES_FILE"]
-    prefix = "/usr/local/lib/python3.11/site-packages/"
+    prefix = "/opt/venv/lib/python3.11/site-packages/"
     assert installed.startswith(prefix)
     assert (REPO / installed.removeprefix(prefix)).is_file()
     assert env["ROS_AUTOMATIC_DISCOVERY_RANGE"] == "LOCALHOST"

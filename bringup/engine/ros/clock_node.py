@@ -521,9 +521,11 @@ class LockstepClock:
                 rclpy.try_shutdown(context=self.ctx)
 
 
-def run_clock(spec: RunSpec) -> int:
+def run_clock(spec: RunSpec, on_closed=None) -> int:
     """Process entry of the clock role. Exit code 0 ok, 3 a host failed or went silent (named on
-    stderr), 130 interrupted (hosts told to stop, bag closed)."""
+    stderr), 130 interrupted (hosts told to stop, bag closed). ``on_closed(rc)``, if given, runs once
+    the bag is closed, before the process ends (a container's clock writes the run's report there);
+    an exception in it is printed and makes the exit code 1."""
     # SIGUSR1 writes every thread's Python stack into the log (bringup/engine/ros/launcher.py, before a SIGKILL)
     faulthandler.register(signal.SIGUSR1, all_threads=True)
     clock = LockstepClock(spec)
@@ -545,5 +547,11 @@ def run_clock(spec: RunSpec) -> int:
         raise
     # the bag is closed here; the DDS participant is not destroyed (a FastDDS deadlock: exit_now)
     clock.close(dds=False)
+    if on_closed is not None:
+        try:
+            on_closed(rc)
+        except Exception as exc:  # noqa: BLE001 - the bag is safe; say what failed after it
+            print(f"clock: error after the run: {type(exc).__name__}: {exc}", file=sys.stderr)
+            rc = rc or 1
     exit_now(rc)
     return rc  # not reached
