@@ -31,6 +31,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--restart", type=int, default=0, metavar="N",
                    help="restart policy on-failure:N for every service; processes checkpoint every step and a "
                         "restarted one resumes (default 0: a crash ends the run)")
+    p.add_argument("--real-time-factor", type=float, default=None,
+                   help="pace the clock at this many sim seconds per wall second (default: as fast as possible)")
     p.add_argument("--isl-delay-s", type=float, default=0.0, help="extra one-way ISL delay [s] added by the router")
     p.add_argument("--cut", action="append", default=[], metavar="A-B@T1-T2",
                    help="cut the ISL between satellites A and B from T1 to T2 [s] (repeatable)")
@@ -63,7 +65,7 @@ def run(args: argparse.Namespace) -> int:
                               mode=args.mode, domain_id=args.domain_id, subnet=args.subnet,
                               factory=args.factory, build_context=os.path.relpath(context, out.parent),
                               project_name=args.name, image=args.image, restart=args.restart, router_kw=router_kw,
-                              meta=meta)
+                              meta=meta, real_time_factor=args.real_time_factor)
     for a, b, _, _ in cuts:
         for n in (a, b):
             if n not in project.world.sat_names:

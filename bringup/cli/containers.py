@@ -82,6 +82,8 @@ def _up(args: argparse.Namespace) -> int:
         raise UserError(str(exc)) from None
     cr = ContainerRun(args.compose, impair=imp, seed=args.seed)
     out = (args.out or args.compose.resolve().parent / cr.project).resolve()
+    if out.exists():
+        raise UserError(f"--out {out} exists: name a new folder for the run")
     say = lambda m: print(f"containers up: {m}", file=sys.stderr)
     say(f"project {cr.project}: {len(cr.containers)} containers on internal network {cr.network} ({cr.subnet})"
         + (f", impairment {imp} on every container" if imp else ""))

@@ -124,6 +124,7 @@ def compose_project(
     router_kw: dict | None = None,
     ack_timeout_s: float = 30.0,
     meta: Callable[[Any, str], dict] | None = None,
+    real_time_factor: float | None = None,
 ) -> ComposeProject:
     """Compose document + run spec for the scenario with ``sats`` satellites.
 
@@ -187,6 +188,7 @@ def compose_project(
         # silent for this long (after the start, where every container imports numpy/numba/rclpy)
         ack_timeout_s=ack_timeout_s,
         startup_timeout_s=180.0,
+        real_time_factor=real_time_factor,
         max_restarts=restart,
         restart_wait_s=RESTART_WAIT_S if restart else 0.0,
         state_dir=f"{run_dir}/state" if restart else None,

@@ -17,7 +17,7 @@ file and does what ``up`` / ``down`` must, with the settings measured on the pro
   sees it (its sandbox changed) and impairs the new one too.
 * ``copy_out``: the run folder (bag, report.json, report.md) from the volume to a host folder.
 * ``down``: remove every container, network and volume labelled with the project (also after a
-  crash of the driver: the labels find them).
+  crash of the driver: the labels find them), by this driver or by podman-compose.
 
 Oracle: tests/containers/ (a 12-satellite run through this driver equals the local engine's
 observations and bundle deliveries; with an impairment on every container too; a satellite killed
@@ -45,6 +45,7 @@ from bringup.errors import UserError
 __all__ = ["ContainerRun", "Outcome", "down", "leftovers", "load_compose"]
 
 CLOCK = "clock"
+PODMAN_COMPOSE_LABEL = "io.podman.compose.project"
 # Wall seconds hosts get to leave after the clock ended the run (bringup/engine/ros/launcher.py)
 _HOST_EXIT_GRACE_S = 10.0
 
@@ -67,13 +68,18 @@ def load_compose(path: Path) -> dict:
 
 
 def leftovers(project: str | None = None) -> dict[str, list[str]]:
-    """Containers, networks and volumes labelled with ``project`` (any project when None)."""
-    f = label_filter(project)
-    return {
-        "containers": podman("ps", "-a", *f, "--format", "{{.Names}}").stdout.decode().split(),
-        "networks": podman("network", "ls", *f, "--format", "{{.Name}}").stdout.decode().split(),
-        "volumes": podman("volume", "ls", *f, "--format", "{{.Name}}").stdout.decode().split(),
-    }
+    """Containers, networks and volumes labelled with ``project`` by this driver or by podman-compose
+    (every project of this driver when None)."""
+    filters = [label_filter(project)]
+    if project:
+        filters.append(("--filter", f"label={PODMAN_COMPOSE_LABEL}={project}"))
+    found: dict[str, list[str]] = {"containers": [], "networks": [], "volumes": []}
+    for f in filters:
+        for kind, argv in (("containers", ("ps", "-a", *f, "--format", "{{.Names}}")),
+                           ("networks", ("network", "ls", *f, "--format", "{{.Name}}")),
+                           ("volumes", ("volume", "ls", *f, "--format", "{{.Name}}"))):
+            found[kind] += [n for n in podman(*argv).stdout.decode().split() if n not in found[kind]]
+    return found
 
 
 def down(project: str | None, *, volumes: bool = True) -> dict[str, list[str]]:
@@ -295,10 +301,13 @@ class ContainerRun:
 
     # -- results and teardown -----------------------------------------------------------------------
     def copy_out(self, dest: Path) -> Path:
-        """Copy the run folder (bag/, report.json, report.md, store/, state/) to ``dest``."""
+        """Copy the run folder (bag/, report.json, report.md, store/, state/) to ``dest`` (which must
+        not exist yet)."""
         spec = json.loads((self.path.parent / "run_spec.json").read_text())
         run_dir = spec["extra"].get("report_dir") or str(Path(spec["bag_dir"]).parent)
         dest = Path(dest)
+        if dest.exists():
+            raise UserError(f"{dest} exists: the run folder is copied to a new folder")
         dest.parent.mkdir(parents=True, exist_ok=True)
         podman("cp", f"{self.containers[CLOCK]}:{run_dir}", str(dest), timeout=600)
         return dest

@@ -152,12 +152,13 @@ def wheelhouse(context: Path, *, python: str = sys.executable, log=None) -> floa
 
 
 def build_image(tag: str = IMAGE, *, base: str = BASE_IMAGE, context: Path | None = None, offline: bool = True,
-                no_cache: bool = False, log=None) -> float:
+                no_cache: bool = False, layers: bool = True, log=None) -> float:
     """``podman build`` docker/Dockerfile on ``base`` as ``tag``; ``offline``: no network in the
-    build, dependencies from the wheelhouse only. Returns wall s."""
+    build, dependencies from the wheelhouse only; ``layers``: keep the intermediate layers as a cache
+    for the next build (without, removing ``tag`` removes everything the build made). Returns wall s."""
     context = Path(context or repo_root())
     args = ["build", *ULIMITS, "--file", str(context / "docker" / "Dockerfile"), "--tag", tag,
-            "--build-arg", f"BASE={base}", "--layers"]
+            "--build-arg", f"BASE={base}", f"--layers={'true' if layers else 'false'}"]
     if offline:
         args += ["--network", "none", "--build-arg", "PIP_NO_INDEX=1"]
     if no_cache:
