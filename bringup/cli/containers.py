@@ -6,6 +6,9 @@ container per process, optionally with a network impairment on every container
 (bringup/deploy/impair.py), copy the run folder out (bag, report.json, report.md) and remove the
 project's containers, network and volume (bringup/deploy/containers.py). ``down [PROJECT]``: remove
 what a project (or every project, ``--all``) left. ``ls``: what is there.
+
+Checked by tests/containers/test_container_run.py (``up`` of a 12-satellite run equals the local
+engine; a run that cannot start leaves nothing).
 """
 
 from __future__ import annotations

@@ -19,7 +19,7 @@ file and does what ``up`` / ``down`` must, with the settings measured on the pro
 * ``down``: remove every container, network and volume labelled with the project (also after a
   crash of the driver: the labels find them), by this driver or by podman-compose.
 
-Oracle: tests/containers/ (a 12-satellite run through this driver equals the local engine's
+Oracle: tests/containers/test_container_run.py, test_impair.py and test_container_faults.py (a 12-satellite run through this driver equals the local engine's
 observations and bundle deliveries; with an impairment on every container too; a satellite killed
 inside its container is restarted by its restart policy and nothing is lost; nothing labelled is
 left afterwards).

@@ -12,7 +12,8 @@ Two images:
   from that wheelhouse with no network at all (``--network none``, ``PIP_NO_INDEX=1``): the same
   ``pip install`` lines as a build from the package index.
 
-Oracle: tests/containers/ build both images and run the project in them (equal results to the host);
+Oracle: tests/containers/conftest.py builds both images (cold, every test session) and the tests
+in tests/containers/test_container_run.py run the project in them (equal results to the host);
 tests/unit/test_docker_files.py checks the Dockerfile against the repository statically.
 """
 

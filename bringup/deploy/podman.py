@@ -10,8 +10,8 @@ explicit ulimits (podman otherwise asks for RLIMIT_NOFILE 1048576, above the har
 Objects the project makes carry the label ``LABEL=<project name>`` so that ``constellation
 containers down`` finds every container, network and volume of a project, also after a crash.
 
-Oracle: tests/containers/ run real containers with these settings (and fail loudly when podman is
-missing: scripts/setup_containers.sh installs it).
+Oracle: tests/containers/test_container_run.py and the other container tests run real containers
+with these settings (and fail loudly when podman is missing: scripts/setup_containers.sh installs it).
 """
 
 from __future__ import annotations
