@@ -12,12 +12,13 @@ traffic on its interface; the namespaces are gone afterwards.
 
 from __future__ import annotations
 
+import os
 import subprocess
 import sys
 from pathlib import Path
 
 import pytest
-from netns import list_netns, netns_lab, ros_env
+from netns import _NAME_ROOT, list_netns, netns_lab, ros_env
 
 pytestmark = [pytest.mark.multihost, pytest.mark.system]
 
@@ -44,7 +45,10 @@ def test_scenario_across_namespace_hosts_equals_single_host(tmp_path):
     from bringup.engine.ros.run_spec import RunSpec
     from bringup.scenario.world import World
 
-    before = list_netns()
+    def own() -> list[str]:  # this process's namespaces: other runs on the machine (podman) make theirs
+        return [n for n in list_netns() if n.startswith(f"{_NAME_ROOT}{os.getpid()}x")]
+
+    before = own()
     ref = _local(tmp_path / "local")
     world_path = next((ref / "cache").glob("world-*.pkl"))
     world = World.load(world_path)
@@ -74,7 +78,7 @@ def test_scenario_across_namespace_hosts_equals_single_host(tmp_path):
     logs = {p.name: p.read_text(errors="replace")[-800:] for p in (out / "logs").glob("*.log")}
     assert res.ok, (res.message, logs)
     assert all(n > 0 for n in sent.values()), sent
-    assert list_netns() == before
+    assert own() == before
     obs_ref, obs = _observations(ref / "bag"), _observations(out / "bag")
     dl_ref, dl = _deliveries(ref / "bag"), _deliveries(out / "bag")
     print(f"MULTIHOST hosts={len(all_roles)} observations={len(obs)} deliveries={len(dl)} "
