@@ -22,32 +22,32 @@ import time
 
 import numpy as np
 
+from orbit_clock.contact_plan import Contact, ContactPlan
+from sat_node.acs import SlewModel
+from sat_node.dtn import cgr
+from sat_node.dtn.cgr import ContactGraph
+from sat_node.scheduler import build_problem, dp_kernels, solve_dp
+
 __all__ = ["KERNELS", "dispatchers", "warm_up"]
 
 # name -> the kernels it warms (module, function names), for the stats and the tests
 KERNELS = {
-    "dp": ("sat_node.scheduler.dp_kernels", ("dp_forward", "path_gain", "table_gain")),
-    "cgr": ("sat_node.dtn.cgr", ("_dijkstra", "_first_open")),
+    "dp": (dp_kernels, ("dp_forward", "path_gain", "table_gain")),
+    "cgr": (cgr, ("_dijkstra", "_first_open")),
 }
 
 
 def dispatchers(which=tuple(KERNELS)) -> dict[str, object]:
     """``{"module.function": numba dispatcher}`` of the kernels named in ``which``."""
-    import importlib
-
     out = {}
     for name in which:
         mod, fns = KERNELS[name]
-        m = importlib.import_module(mod)
         for fn in fns:
-            out[f"{mod}.{fn}"] = getattr(m, fn)
+            out[f"{mod.__name__}.{fn}"] = getattr(mod, fn)
     return out
 
 
 def _dp() -> None:
-    from sat_node.acs import SlewModel
-    from sat_node.scheduler import build_problem, solve_dp
-
     r = 6378.137 + 700.0
     sat = np.array([[r, 0.0, 0.0], [r, 0.0, 50.0]])
     gp = np.array([[6378.137, 0.0, 0.0], [6378.137, 0.0, 30.0]])
@@ -58,9 +58,6 @@ def _dp() -> None:
 
 
 def _cgr() -> None:
-    from orbit_clock.contact_plan import Contact, ContactPlan
-    from sat_node.dtn.cgr import ContactGraph
-
     g = ContactGraph(ContactPlan([Contact(0.0, 100.0, "sat_11", "sat_12", 1000.0, 0.01),
                                   Contact(50.0, 150.0, "sat_12", "sat_13", 1000.0, 0.01),
                                   Contact(0.0, 10.0, "sat_11", "sat_13", 1000.0, 0.01)]))
