@@ -12,7 +12,9 @@ import argparse
 import os
 from pathlib import Path
 
+from bringup.analysis.report import RunMeta
 from bringup.cli.common import add_scenario_args
+from bringup.cli.run import parse_cut
 from bringup.deploy.compose import IMAGE, compose_project, repo_root, write_project
 from bringup.errors import UserError
 
@@ -44,8 +46,6 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from bringup.cli.run import parse_cut
-
     context = (args.context or repo_root()).resolve()
     if not (context / "docker" / "Dockerfile").is_file() or not (context / "pyproject.toml").is_file():
         raise UserError(f"--context {context}: no docker/Dockerfile and pyproject.toml there")
@@ -54,8 +54,6 @@ def run(args: argparse.Namespace) -> int:
     out = args.out.resolve()
 
     def meta(world, mode: str) -> dict:
-        from bringup.analysis.report import RunMeta
-
         sc = world.scenario
         return RunMeta(scenario=sc.name, mode=mode, engine="ros", seed=sc.scenario.seed,
                        horizon_s=sc.scenario.horizon_s, n_sats=len(world.sat_names), n_gp=world.n_gp,

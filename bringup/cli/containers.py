@@ -18,12 +18,16 @@ import json
 import sys
 from pathlib import Path
 
+from bringup.cli.run import _progress_display
+from bringup.deploy.containers import ContainerRun, down, leftovers
+from bringup.deploy.images import BASE_IMAGE, IMAGE, build_all
+from bringup.deploy.impair import parse_impairment
+from bringup.errors import UserError
+
 HELP = "container images and runs with podman: build, up COMPOSE (run to the end), down, ls"
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    from bringup.deploy.images import BASE_IMAGE, IMAGE
-
     sub = p.add_subparsers(dest="action", metavar="ACTION", required=True)
     b = sub.add_parser("build", help="build the base image (debootstrap, when missing) and the project image")
     b.add_argument("--image", default=IMAGE, help=f"tag of the project image (default {IMAGE})")
@@ -49,23 +53,15 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from bringup.errors import UserError
-
     if args.action == "build":
-        from bringup.deploy.images import build_all
-
         t = build_all(image=args.image, base=args.base, rebuild_base=args.rebuild_base, online=args.online,
                       log=lambda m: print(f"containers build: {m}", file=sys.stderr))
         print(json.dumps({"image": args.image, "base": args.base, **t.__dict__}))
         return 0
     if args.action == "ls":
-        from bringup.deploy.containers import leftovers
-
         print(json.dumps(leftovers(None), indent=2))
         return 0
     if args.action == "down":
-        from bringup.deploy.containers import down
-
         if not args.project and not args.all:
             raise UserError("down: name a project or pass --all")
         removed = down(None if args.all else args.project, volumes=not args.keep_volumes)
@@ -75,10 +71,6 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _up(args: argparse.Namespace) -> int:
-    from bringup.deploy.containers import ContainerRun
-    from bringup.deploy.impair import parse_impairment
-    from bringup.errors import UserError
-
     try:
         imp = parse_impairment(args.impair) if args.impair else None
     except ValueError as exc:
@@ -93,8 +85,6 @@ def _up(args: argparse.Namespace) -> int:
     prog = None
     update = None
     if not args.no_progress:
-        from bringup.cli.run import _progress_display
-
         sc_h = json.loads((args.compose.resolve().parent / "run_spec.json").read_text())
         prog, update = _progress_display(True, int(sc_h["extra"]["meta"]["horizon_s"] * 1e9))
     try:

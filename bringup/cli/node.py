@@ -18,10 +18,13 @@ tests/system/test_engines_equal.py.
 from __future__ import annotations
 
 import argparse
+import json
 import sys
 import time
 from pathlib import Path
 
+from bringup.analysis.report import report_from_bag
+from bringup.analysis.report_md import write_report_md
 from bringup.engine.ros.clock_node import run_clock
 from bringup.engine.ros.host import run_host
 from bringup.engine.ros.run_spec import CLOCK_ROLE, RunSpec, load_factory
@@ -40,10 +43,7 @@ def _write_report(spec: RunSpec, rc: int) -> None:
     report BAG` does) into the spec's ``extra.report_dir`` (a container's run folder)."""
     if rc != 0 or not spec.bag_dir:
         return
-    import json
 
-    from bringup.analysis.report import report_from_bag
-    from bringup.analysis.report_md import write_report_md
 
     out = Path(spec.extra["report_dir"])
     rep = report_from_bag(Path(spec.bag_dir))

@@ -50,9 +50,12 @@ from typing import Any
 
 import yaml
 
+from bringup.engine.ros.factory import FACTORY, PREPARE
 from bringup.engine.ros.run_spec import CLOCK_ROLE, RunSpec
 from bringup.errors import UserError
+from bringup.scenario.config import load_scenario
 from bringup.scenario.participants import CONTACTS_ROLE, GROUND_ROLE, ROUTER_ROLE, roles_for
+from bringup.scenario.world import World
 
 __all__ = [
     "GROUND_ROLE",
@@ -135,10 +138,6 @@ def compose_project(
     ``meta(world, mode)``: the run's ``/run/meta`` record (bringup/analysis/report.py ``RunMeta``);
     with it the clock also writes report.json / report.md next to the bag.
     """
-    from bringup.engine.ros.factory import FACTORY, PREPARE
-    from bringup.scenario.config import load_scenario
-    from bringup.scenario.world import World
-
     sc = load_scenario(scenario)
     if sats is not None or hours is not None or seed is not None:
         sc = sc.with_overrides(sats=sats, hours=hours, seed=seed)
