@@ -1,16 +1,17 @@
 """The ISL medium model: the truth about which transmissions get through, to whom, and when.
 
-Given one transmission (sender, intended next hop, start [ns], bits), :meth:`LinkModel.transmit`
+Given one transmission (sender, intended next hops, start [ns], bits), :meth:`LinkModel.transmit`
 looks up the *truth* contact plan (which may differ from what the agents believe: cut contacts,
 extra light time) and returns:
 
-* ``ok`` - a truth contact sender -> next hop is open at the start and stays open until the last bit
-  has left (duration = bits / that contact's rate); otherwise a failure with the reason
-  (``no_contact``: none open at the start; ``contact_ended``: it closes mid-transmission);
+* ``ok`` - for every intended next hop a truth contact sender -> next hop is open at the start and
+  stays open until the last bit has left (duration = bits / the slowest of those contacts' rates; a
+  multicast transmission serves several next hops at once); otherwise a failure with the reason per
+  next hop that misses it (``failed``; ``no_contact``: none open at the start; ``contact_ended``: it
+  closes mid-transmission);
 * ``copies`` - broadcast medium: every node with a truth contact from the sender covering the whole
-  transmission gets a copy, at end + that contact's one-way light time (receivers that are not the
-  intended next hop discard it, which the agents count). The intended next hop gets a copy only if
-  ``ok``.
+  transmission gets a copy, at end + that contact's one-way light time (receivers that are not an
+  intended next hop discard it, which the agents count). A failed next hop gets no copy.
 
 One transmission at a time per sender: a transmission that starts before the sender's previous one
 ended fails with ``radio_busy``. Receiver-side collisions (two senders heard at once) are not
@@ -45,7 +46,8 @@ class LinkOutcome:
     ok: bool
     end_ns: int
     copies: list[Copy] = field(default_factory=list)
-    reason: str = ""
+    reason: str = ""  # the first failed next hop's reason ("" when ok)
+    failed: dict = field(default_factory=dict)  # next hop -> reason, for each that missed it
 
 
 class LinkModel:
@@ -68,22 +70,29 @@ class LinkModel:
         lo = bisect.bisect_left(starts, t_s - self._span_s, 0, k)
         return [c for c in cs[lo:k] if c.end_s > t_s]
 
-    def transmit(self, sender: str, next_hop: str, start_ns: int, bits: int) -> LinkOutcome:
+    def transmit(self, sender: str, next_hop, start_ns: int, bits: int) -> LinkOutcome:
+        """One transmission to ``next_hop`` (a node name, or a sequence of them for a multicast one)."""
         self.counters["tx"] += 1
+        hops = (next_hop,) if isinstance(next_hop, str) else tuple(next_hop)
         if start_ns < self._busy_until_ns.get(sender, -1):
             self.counters["radio_busy"] += 1
-            return LinkOutcome(False, start_ns, [], "radio_busy")
+            return LinkOutcome(False, start_ns, [], "radio_busy", {h: "radio_busy" for h in hops})
         t_s = start_ns / _NS
         open_now = self.open_contacts(sender, t_s)
-        mine = [c for c in open_now if c.dst == next_hop]
-        if not mine:
+        links = {}
+        for h in hops:
+            mine = [c for c in open_now if c.dst == h]
+            if mine:
+                links[h] = max(mine, key=lambda c: c.end_s)
+        if not links:
             self.counters["no_contact"] += 1
-            return LinkOutcome(False, start_ns, [], "no_contact")
-        link = max(mine, key=lambda c: c.end_s)
-        end_ns = start_ns + int(-(-bits * _NS // int(link.rate_bps))) if float(link.rate_bps).is_integer() \
-            else start_ns + int(bits / link.rate_bps * _NS + 0.999999)
+            return LinkOutcome(False, start_ns, [], "no_contact", {h: "no_contact" for h in hops})
+        rate = min(c.rate_bps for c in links.values())
+        end_ns = start_ns + int(-(-bits * _NS // int(rate))) if float(rate).is_integer() \
+            else start_ns + int(bits / rate * _NS + 0.999999)
         self._busy_until_ns[sender] = end_ns
-        ok = end_ns <= link.end_s * _NS
+        failed = {h: ("no_contact" if h not in links else "contact_ended") for h in hops
+                  if h not in links or end_ns > links[h].end_s * _NS}
         copies = []
         seen = set()
         for c in open_now:
@@ -93,9 +102,10 @@ class LinkModel:
             copies.append(Copy(c.dst, end_ns + int(round(c.range_light_s * _NS))))
         copies.sort(key=lambda x: (x.arrival_ns, x.node))
         self.counters["copies"] += len(copies)
-        if not ok:
-            self.counters["contact_ended"] += 1
-            copies = [x for x in copies if x.node != next_hop]
-            return LinkOutcome(False, end_ns, copies, "contact_ended")
+        if failed:
+            for reason in failed.values():
+                self.counters[reason] += 1
+            copies = [x for x in copies if x.node not in failed]
+            return LinkOutcome(False, end_ns, copies, next(iter(failed.values())), failed)
         self.counters["ok"] += 1
         return LinkOutcome(True, end_ns, copies, "")

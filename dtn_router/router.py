@@ -2,10 +2,12 @@
 
 Reads every satellite's ``/sat_XX/dtn/out`` (raw BPv7 bytes, stamped with the transmission's start
 time by the sending agent), checks the transmission against the truth contact plan with
-dtn_router/link.py (a contact from the sender to the intended next hop covers it, the sender's radio
-is free, the transmission ends before the contact does), and delivers a copy to every satellite in
-contact with the sender at that time (broadcast medium) on ``/sat_YY/dtn/in``, stamped with its
-arrival time (start + bits / rate + light time). A delivery waits in the router until the step that
+dtn_router/link.py (for each intended next hop named in the bundle's next-hops block - several for
+a multicast transmission - a contact from the sender covers it, the sender's radio is free, the
+transmission ends before the contact does), and delivers a copy to every satellite in contact with
+the sender at that time (broadcast medium) on ``/sat_YY/dtn/in``, stamped with its arrival time
+(start + bits / rate + light time). The bits on air are the scenario's bundle size plus the copy's
+recipient-list overhead (sat_node/dtn/routing_blocks.py overhead_bits), read from the bytes. A delivery waits in the router until the step that
 reaches its arrival time (contract rule 2: nothing is emitted stamped in the future), and the router
 asks to be woken exactly then.
 
@@ -39,7 +41,8 @@ from msgs_json import topics as T
 from msgs_json.envelope import Emit, Envelope, StepResult
 from orbit_clock.contact_faults import truth_plan as with_faults
 from orbit_clock.contact_plan import ContactPlan, node_name
-from sat_node.dtn.bpv7 import BundleError, decode_bundle, peek_next_hop
+from sat_node.dtn.bpv7 import BundleError, decode_bundle
+from sat_node.dtn.routing_blocks import overhead_bits, peek_next_hops
 
 __all__ = ["RouterLogic", "ROUTER_NAME"]
 
@@ -109,19 +112,21 @@ class RouterLogic:
         if env.topic != self._out_topic.get(env.source):
             return self._reject("unknown_sender")
         try:
-            nh = peek_next_hop(env.data)
-            next_hop = node_name(nh) if nh is not None else None
+            hops = tuple(node_name(nh) for nh in peek_next_hops(env.data))
+            bits = self.bits + overhead_bits(env.data)
         except (BundleError, ValueError):
             return self._reject("malformed")
-        if next_hop is None:
+        if not hops:
             return self._reject("no_next_hop")
-        if next_hop not in self._sat_set:
+        if not all(h in self._sat_set for h in hops):
             return self._reject("unknown_next_hop")
-        out = self.link.transmit(env.source, next_hop, env.t_ns, self.bits)
+        out = self.link.transmit(env.source, hops[0] if len(hops) == 1 else hops, env.t_ns, bits)
         if not out.ok:
-            self.failures[out.reason] = self.failures.get(out.reason, 0) + 1
-            self._tell_failed(env, next_hop, out)
-            return
+            for h, reason in out.failed.items():
+                self.failures[reason] = self.failures.get(reason, 0) + 1
+                self._tell_failed(env, h, reason, out.end_ns)
+            if len(out.failed) == len(hops):  # nobody it was meant for got it: no copy goes out
+                return
         for cp in out.copies:
             heapq.heappush(self.pending, (cp.arrival_ns, cp.node, next(self._order), env.data))
 
@@ -129,14 +134,15 @@ class RouterLogic:
         self.rejected += 1
         self.rejected_by_reason[reason] = self.rejected_by_reason.get(reason, 0) + 1
 
-    def _tell_failed(self, env: Envelope, next_hop: str, out) -> None:
-        """Queue a TransmissionFailed for the sender, stamped when the attempt ended."""
+    def _tell_failed(self, env: Envelope, next_hop: str, reason: str, end_ns: int) -> None:
+        """Queue a TransmissionFailed for the sender (one per next hop that missed it), stamped when
+        the attempt ended."""
         try:
             bid = decode_bundle(env.data).bundle_id
         except (BundleError, ValueError):
             return self._reject("malformed")
-        reason = out.reason if out.reason in ("contact_ended", "no_contact", "radio_busy") else "other"
-        at = max(int(out.end_ns), env.t_ns)
+        reason = reason if reason in ("contact_ended", "no_contact", "radio_busy") else "other"
+        at = max(int(end_ns), env.t_ns)
         msg = S.TransmissionFailed(sat=env.source, t_ns=at, bundle_id=bid, next_hop=next_hop,
                                    start_ns=env.t_ns, reason=reason)
         heapq.heappush(self.status_pending, (at, next(self._order), env.source, codec.encode(msg)))

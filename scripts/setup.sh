@@ -15,6 +15,8 @@ stamp=.venv/.installed-$(sha256sum pyproject.toml | cut -c1-16)
 if [ ! -f "$stamp" ]; then
     .venv/bin/python -m pip install --quiet --upgrade pip
     .venv/bin/python -m pip install --quiet -e '.[dev]'
+    # the [interop] extra (pyproject.toml): its own cbor2 pin would clash with ours, so without deps
+    .venv/bin/python -m pip install --quiet --no-deps "$(grep -o 'pyd3tn==[0-9.]*' pyproject.toml)"
     rm -f .venv/.installed-*
     touch "$stamp"
 fi

@@ -29,9 +29,10 @@ agents live in one process:
   is re-routed without that contact; :meth:`BundleAgent.settle` - no report can come any more, the
   bundle is gone; :meth:`expire`, :meth:`next_event_ns`, ``counters``, ``events``.
 
-Priority travels in the bundle in an experimental extension block (type 193, CBOR uint 1..15),
-beside the next-hop block (type 192); TTL comes from priority (the study: P1 900 s, P2-3 1800 s,
-P4-15 3000 s). The forwarding node writes its own EID in the previous-node block and increments the
+Priority and lifetime travel in the bundle's recipients block (one recipient: the destination),
+the intended next hop in its next-hops block (sat_node/dtn/routing_blocks.py: private block types
+200 and 201, off ION's codes); TTL comes from priority (the study: P1 900 s, P2-3 1800 s, P4-15
+3000 s). The forwarding node writes its own EID in the previous-node block and increments the
 hop count (limit 32). ``hop_tolerance_s`` (default 0) lets CGR prefer fewer hops among routes
 arriving within that tolerance of the earliest (what it does on the study's inputs: README, "The
 DTN alone on the study's own inputs").
@@ -63,27 +64,26 @@ from collections import Counter
 from dataclasses import dataclass, field, replace
 from typing import Callable, NamedTuple
 
-import cbor2
 import numpy as np
 
 from orbit_clock.contact_plan import ContactPlan, node_name, node_number
 
 from .bpsec import IntegrityError, add_bib, verify_bib
-from .bpv7 import PAPER_EPOCH_DTN_MS, Bundle, BundleError, decode_bundle, encode_bundle, ipn, peek_next_hop
+from .bpv7 import PAPER_EPOCH_DTN_MS, Bundle, BundleError, decode_bundle, encode_bundle, ipn
 from .cgr import ContactGraph
+from .routing_blocks import peek_next_hops, recipients_of, set_routing
 from .store import BundleStore, StoredBundle
 
-__all__ = ["BundleAgent", "AgentConfig", "Transmission", "BundleEvent", "PRIORITY_BLOCK", "ttl_s_for_priority",
-           "DROP_REASONS", "SEND_ORDERS", "deadline_delays", "priority_of"]
+__all__ = ["BundleAgent", "AgentConfig", "Transmission", "BundleEvent", "ttl_s_for_priority",
+           "DROP_REASONS", "SEND_ORDERS", "deadline_delays", "peek_next_hop"]
 
-PRIORITY_BLOCK = 193  # experimental (RFC 9171 9.1): CBOR uint, 1 (highest) .. 15
 DROP_REASONS = ("ttl", "integrity", "no_route", "hop_limit", "other")
 # Send orders (AgentConfig.for_policy): strict priority (the study's), or earliest expiry first
 SEND_ORDERS = ("priority", "deadline")
 _NS = 1_000_000_000
-# next-hop block of recently heard bytes: a broadcast copy reaches every node in view, and the peek is a
+# next hops of recently heard bytes: a broadcast copy reaches every node in view, and the peek is a
 # pure function of the (immutable) bytes, so each transmission is parsed once per process.
-_PEEK_CACHE: dict[bytes, int | None] = {}
+_PEEK_CACHE: dict[bytes, tuple] = {}
 _NEVER = 1 << 62
 _MISSING = object()
 
@@ -93,13 +93,13 @@ def deadline_delays(ttl_s_by_priority: dict[int, float]) -> tuple[float, ...]:
     return tuple(ttl_s_for_priority(p, ttl_s_by_priority) for p in range(1, 16))
 
 
-def priority_of(data: bytes) -> int:
-    """The priority block's CBOR uint (the 15 one-byte encodings are looked up, not parsed)."""
-    p = _PRIORITY_BYTES.get(data)
-    return p if p is not None else int(cbor2.loads(data))
-
-
-_PRIORITY_BYTES = {cbor2.dumps(p): p for p in range(0, 24)}
+def peek_next_hop(data: bytes) -> int | None:
+    """The one next hop a unicast copy names (None: none; a copy naming several is not unicast and
+    raises BundleError)."""
+    nhs = peek_next_hops(data)
+    if len(nhs) > 1:
+        raise BundleError(f"a unicast copy names {len(nhs)} next hops")
+    return nhs[0] if nhs else None
 
 
 def ttl_s_for_priority(priority: int, ttl_s_by_priority: dict[int, float]) -> float:
@@ -155,6 +155,7 @@ class Transmission(NamedTuple):
     sender: str
     bundle_id: str
     contact: int
+    next_hops: tuple = ()  # every next hop a multicast transmission serves (next_hop is the first)
 
 
 class BundleEvent(NamedTuple):
@@ -169,6 +170,7 @@ class BundleEvent(NamedTuple):
     dest: str
     created_ns: int
     reason: str = ""
+    deadline_ns: int = 0  # the (bundle, recipient) pair's deadline (created: creation + its TTL); 0 unknown
 
 
 @dataclass
@@ -239,7 +241,8 @@ class BundleAgent:
     def _emit(self, t_ns, kind, h: _Held | None, bundle_id, reason="", priority=0, dest="", created_ns=0):
         if h is not None:
             priority, dest, created_ns = h.priority, h.dest, h.created_ns
-        ev = BundleEvent(t_ns, kind, self.node, bundle_id, priority, dest, created_ns, reason)
+        deadline = h.expiry_ns if h is not None else 0
+        ev = BundleEvent(t_ns, kind, self.node, bundle_id, priority, dest, created_ns, reason, deadline)
         self.counters[kind if kind not in ("dropped", "discarded") else f"{kind}.{reason}"] += 1
         if self.events is not None:
             self.events.append(ev)
@@ -277,7 +280,7 @@ class BundleAgent:
         self._seq += 1
         if self.store is not None:
             self.store.set_meta("seq", self._seq)
-        b.set_block(PRIORITY_BLOCK, cbor2.dumps(int(priority)))
+        set_routing(b, [(node_number(dest), int(priority), b.lifetime_ms)], None)
         b.hop_count = (self.config.hop_limit, 0)
         add_bib(b, self.config.key, ipn(self.number, 0))
         h = _Held(b, int(priority), dest, self._created_ns(b) + int(ttl_s * _NS), self._created_ns(b), now_ns)
@@ -333,10 +336,7 @@ class BundleAgent:
         try:
             if self.config.verify_integrity:
                 verify_bib(b, self.config.key)
-            prio_blk = b.block(PRIORITY_BLOCK)
-            priority = priority_of(prio_blk.data) if prio_blk is not None else 15
-            if not 1 <= priority <= 15:
-                raise ValueError(f"priority block holds {priority}, not 1..15")
+            (_node, priority, _life), = recipients_of(b)
             dest = node_name(b.dest[0])
         except (IntegrityError, BundleError, ValueError) as exc:
             self.last_error = str(exc)
@@ -572,7 +572,9 @@ class BundleAgent:
     def _send(self, h: _Held, c: int, s: int) -> Transmission | None:
         bid = h.bundle.bundle_id
         h.bundle.previous_node = ipn(self.number, 0)
-        h.bundle.next_hop = node_number(self.graph.contacts[c].dst)
+        dnum = node_number(h.dest)
+        b = h.bundle
+        set_routing(b, [(dnum, h.priority, b.lifetime_ms)], {node_number(self.graph.contacts[c].dst): (dnum,)})
         data = encode_bundle(h.bundle)
         bits = self._bits(data)
         end = s + int(np.ceil(bits / self.graph.rate_bps[c] * _NS))
@@ -586,7 +588,8 @@ class BundleAgent:
         self._leave_group(h)
         del self._held[bid]
         h.contact = c
-        tx = Transmission(data, self.graph.contacts[c].dst, s, end, bits, self.node, bid, c)
+        tx = Transmission(data, self.graph.contacts[c].dst, s, end, bits, self.node, bid, c,
+                          (self.graph.contacts[c].dst,))
         self._in_flight[bid] = (tx, h)
         if len(self._in_flight) == 1:
             self._reset_settle_at()
@@ -646,12 +649,15 @@ class BundleAgent:
         self._reset_settle_at()
         return True
 
-    def in_flight(self, bundle_id: str) -> Transmission | None:
-        """The transmission of ``bundle_id`` not yet settled (sent, no verdict from the medium)."""
+    def in_flight(self, bundle_id: str, start_ns: int | None = None) -> Transmission | None:
+        """The transmission of ``bundle_id`` not yet settled (sent, no verdict from the medium); with
+        ``start_ns``, only the one started then."""
         item = self._in_flight.get(bundle_id)
-        return None if item is None else item[0]
+        if item is None or (start_ns is not None and item[0].start_ns != start_ns):
+            return None
+        return item[0]
 
-    def transmission_failed(self, tx: Transmission, now_ns: int) -> None:
+    def transmission_failed(self, tx: Transmission, now_ns: int, next_hop: str | None = None) -> None:
         """The medium says ``tx`` did not get through: take the bundle back, re-route without that contact."""
         item = self._in_flight.pop(tx.bundle_id, None)
         if item is None:

@@ -1,13 +1,13 @@
 """Bundle Protocol version 7 (RFC 9171): CBOR encoding and decoding of bundles, with CRCs.
 
 What is here:
-* primary block (RFC 9171 4.3.1) with ipn EIDs (4.2.5.1.2), creation timestamp (DTN time in ms since
+* primary block (RFC 9171 4.3.1) with ipn EIDs (4.2.5.1.2) or a group EID of ION's ``imc`` scheme
+  (code 3, SSP ``[group, service]``: :class:`Imc`), creation timestamp (DTN time in ms since
   2000-01-01T00:00:00Z, and a sequence number), lifetime in ms, CRC-16 (X.25) or CRC-32C;
 * canonical blocks (4.3.2): payload (type 1, block number 1, last), previous node (type 6), bundle
-  age (type 7), hop count (type 10), and one block of an experimental type (:data:`NEXT_HOP_BLOCK`
-  = 192, RFC 9171 9.1 reserves 192..255 for private/experimental use) holding the intended next hop
-  as an EID. Blocks of any other type (BPSec's BIB among them) are kept as :class:`CanonicalBlock`
-  and re-encoded unchanged, as RFC 9171 4.3.2 asks of a node that does not know them.
+  age (type 7), hop count (type 10). Blocks of any other type (BPSec's BIB, the routing blocks of
+  sat_node/dtn/routing_blocks.py) are kept as :class:`CanonicalBlock` and re-encoded unchanged, as
+  RFC 9171 4.3.2 asks of a node that does not know them.
 * :func:`decode_bundle` rejects malformed bytes with a :class:`BundleError` naming the reason
   (never another exception type), so an agent can drop and count them.
 
@@ -25,7 +25,7 @@ every one-byte corruption of the primary block detected, and the RFC 9173 A.1 bu
 primary block is given in the RFC) decoding. Speed paths: :func:`decode_bundle`'s fast
 path for the common shape and the encoding caches give exactly what the plain paths give
 (tests/unit/test_speed_paths.py: fast vs plain decode on random bundles of every shape and on
-random corruptions of them, cached vs fresh encodings, remembered vs parsed next hop).
+random corruptions of them, cached vs fresh encodings).
 """
 
 from __future__ import annotations
@@ -34,12 +34,13 @@ import binascii
 import io
 from dataclasses import dataclass, field, replace
 from datetime import datetime, timezone
+from typing import NamedTuple
 
 import cbor2
 
 __all__ = [
-    "Bundle", "CanonicalBlock", "encode_primary", "peek_next_hop", "BundleError", "decode_bundle", "encode_bundle", "crc16_x25", "crc32c",
-    "PAYLOAD_BLOCK", "PREVIOUS_NODE_BLOCK", "BUNDLE_AGE_BLOCK", "HOP_COUNT_BLOCK", "NEXT_HOP_BLOCK",
+    "Bundle", "CanonicalBlock", "encode_primary", "BundleError", "decode_bundle", "encode_bundle", "crc16_x25", "crc32c",
+    "PAYLOAD_BLOCK", "PREVIOUS_NODE_BLOCK", "BUNDLE_AGE_BLOCK", "HOP_COUNT_BLOCK", "Imc", "IMC_SCHEME",
     "BIB_BLOCK", "CRC_NONE", "CRC_16", "CRC_32C", "dtn_time_ms", "PAPER_EPOCH_DTN_MS", "ipn",
 ]
 
@@ -48,7 +49,7 @@ PREVIOUS_NODE_BLOCK = 6
 BUNDLE_AGE_BLOCK = 7
 HOP_COUNT_BLOCK = 10
 BIB_BLOCK = 11
-NEXT_HOP_BLOCK = 192  # experimental (RFC 9171 9.1): BTSD = CBOR EID of the intended next hop
+IMC_SCHEME = 3  # ION's code for the imc URI scheme (bp.h SchemeCodeNbr)
 CRC_NONE, CRC_16, CRC_32C = 0, 1, 2
 
 _DTN_EPOCH = datetime(2000, 1, 1, tzinfo=timezone.utc)
@@ -145,9 +146,28 @@ def ipn(node: int, service: int = 0) -> tuple[int, int]:
 DTN_NONE = (0, 0)  # encoded as [1, 0]
 
 
+class Imc(NamedTuple):
+    """A group EID of ION's ``imc`` scheme: ``imc:group.service``, encoded [3, [group, service]]
+    (ION libbpP.c serializeEid). Never equal to the ipn EID with the same two numbers."""
+
+    group: int
+    service: int
+
+    def __eq__(self, other) -> bool:
+        return type(other) is Imc and tuple.__eq__(self, other)
+
+    def __ne__(self, other) -> bool:
+        return not self.__eq__(other)
+
+    def __hash__(self) -> int:
+        return hash(("imc", self.group, self.service))
+
+
 def _eid_cbor(eid: tuple[int, int] | None) -> list:
     if eid is None or eid == DTN_NONE:
         return [1, 0]
+    if type(eid) is Imc:
+        return [IMC_SCHEME, [eid[0], eid[1]]]
     return [2, [eid[0], eid[1]]]
 
 
@@ -155,10 +175,10 @@ def _eid_from(obj, what: str) -> tuple[int, int]:
     if isinstance(obj, list) and len(obj) == 2:
         if obj[0] == 1 and obj[1] == 0:
             return DTN_NONE
-        if obj[0] == 2 and isinstance(obj[1], list) and len(obj[1]) == 2 and all(
-                isinstance(x, int) and not isinstance(x, bool) and x >= 0 for x in obj[1]):
-            return (obj[1][0], obj[1][1])
-    raise BundleError(f"{what}: not an ipn EID or dtn:none: {obj!r}")
+        if obj[0] in (2, IMC_SCHEME) and type(obj[0]) is int and isinstance(obj[1], list) and len(obj[1]) == 2 \
+                and all(isinstance(x, int) and not isinstance(x, bool) and x >= 0 for x in obj[1]):
+            return (obj[1][0], obj[1][1]) if obj[0] == 2 else Imc(obj[1][0], obj[1][1])
+    raise BundleError(f"{what}: not an ipn or imc EID or dtn:none: {obj!r}")
 
 
 # --- blocks ----------------------------------------------------------------------------------------
@@ -274,18 +294,6 @@ class Bundle:
         self.set_block(PREVIOUS_NODE_BLOCK, _eid_bytes(eid))
 
     @property
-    def next_hop(self) -> int | None:
-        b = self.block(NEXT_HOP_BLOCK)
-        if b is None:
-            return None
-        eid = _EID_OF.get(b.data)
-        return (eid if eid is not None else _eid_from(_loads(b.data, "next-hop block"), "next-hop block"))[0]
-
-    @next_hop.setter
-    def next_hop(self, node: int) -> None:
-        self.set_block(NEXT_HOP_BLOCK, _eid_bytes((node, 0)))
-
-    @property
     def hop_count(self) -> tuple[int, int] | None:
         """(hop limit, hop count) or None."""
         b = self.block(HOP_COUNT_BLOCK)
@@ -385,7 +393,8 @@ def _encode_primary(b: Bundle) -> bytes:
     if b.fragment is not None:
         prim += [b.fragment[0], b.fragment[1]]
     raw = _encode_with_crc(prim, b.crc_type)
-    if b.fragment is None and b.crc_type in (CRC_16, CRC_32C):
+    if b.fragment is None and b.crc_type in (CRC_16, CRC_32C) and Imc not in (type(b.dest), type(b.src),
+                                                                              type(b.report_to)):
         rpt = b.report_to or b.src
         _remember_primary((b.flags, b.crc_type, _ipn_key(b.dest), _ipn_key(b.src), _ipn_key(rpt), b.creation_ms,
                            b.seq, b.lifetime_ms, raw[-_CRC_LEN[b.crc_type]:]), raw)
@@ -412,19 +421,7 @@ def encode_bundle(b: Bundle) -> bytes:
         b._enc[key] = raw
     parts.append(raw)
     parts.append(b"\xff")
-    data = b"".join(parts)
-    # what peek_next_hop will find in these bytes: the first next-hop block's EID (blocks' fields as
-    # encoded: plain ints and bytes, the EID one this module encoded), or None without one
-    for blk in b.blocks:
-        if blk.type == NEXT_HOP_BLOCK and type(blk.type) is int:
-            eid = _EID_OF.get(blk.data) if type(blk.data) is bytes else None
-            if eid is not None:
-                _remember_peek(data, eid[0])
-            break
-    else:
-        if all(type(blk.type) is int for blk in b.blocks):
-            _remember_peek(data, None)
-    return data
+    return b"".join(parts)
 
 
 def _uint(x, what: str) -> int:
@@ -476,46 +473,6 @@ def _split_blocks(data: bytes) -> list[tuple[object, bytes]]:
     return raws
 
 
-# bundle bytes -> their next-hop node (what peek_next_hop returns): a transmission's bytes are peeked
-# by the medium and by every node that hears the copy, and encode_bundle knows the answer already
-_PEEK: dict[bytes, int | None] = {}
-
-
-def _remember_peek(data: bytes, nh: int | None) -> None:
-    if len(_PEEK) >= 4096:
-        _PEEK.clear()
-    _PEEK[data] = nh
-
-
-def peek_next_hop(data: bytes) -> int | None:
-    """The next-hop block's node number without checking the rest (for copies on a broadcast medium).
-    Raises BundleError if the bytes are not a bundle-shaped CBOR array."""
-    if type(data) is bytes:
-        nh = _PEEK.get(data, _MISSING)
-        if nh is not _MISSING:
-            return nh
-        nh = _peek_plain(data)
-        _remember_peek(data, nh)
-        return nh
-    return _peek_plain(data)
-
-
-_MISSING = object()
-
-
-def _peek_plain(data: bytes) -> int | None:
-    try:
-        items = cbor2.loads(data)
-    except Exception as exc:
-        raise BundleError(f"bad CBOR: {exc}") from None
-    if not isinstance(items, list) or not items:
-        raise BundleError("not a CBOR array of blocks")
-    for blk in items[1:]:
-        if isinstance(blk, list) and len(blk) >= 5 and blk[0] == NEXT_HOP_BLOCK and isinstance(blk[4], bytes):
-            return _eid_from(_loads(blk[4], "next-hop block"), "next-hop block")[0]
-    return None
-
-
 def decode_bundle(data: bytes) -> Bundle:
     """Parse and check bundle bytes; any defect raises :class:`BundleError` with the reason.
 
@@ -532,7 +489,7 @@ def decode_bundle(data: bytes) -> Bundle:
 # (block type, block-type-specific data) of known extension blocks whose data parsed (a handful of
 # distinct values in a run: the 24 previous-node and next-hop EIDs, hop counts 0..limit)
 _EXT_OK: set = set()
-_EXT_KNOWN = frozenset((PREVIOUS_NODE_BLOCK, HOP_COUNT_BLOCK, NEXT_HOP_BLOCK, BUNDLE_AGE_BLOCK))
+_EXT_KNOWN = frozenset((PREVIOUS_NODE_BLOCK, HOP_COUNT_BLOCK, BUNDLE_AGE_BLOCK))
 _new_bundle = object.__new__
 _CHECK = {CRC_16: lambda raw: crc16_x25(raw[:-2] + b"\0\0").to_bytes(2, "big") == raw[-2:],
           CRC_32C: lambda raw: crc32c(raw[:-4] + b"\0\0\0\0").to_bytes(4, "big") == raw[-4:]}
@@ -715,6 +672,6 @@ def _decode_plain(data: bytes) -> Bundle:
     if b.creation_ms == 0 and b.block(BUNDLE_AGE_BLOCK) is None:
         raise BundleError("no creation time and no bundle-age block (RFC 9171 4.2.6)")
     # the known extension blocks must parse
-    b.previous_node, b.hop_count, b.next_hop, b.age_ms  # noqa: B018 (validation by access)
+    b.previous_node, b.hop_count, b.age_ms  # noqa: B018 (validation by access)
     _remember_ext(b)
     return b

@@ -42,8 +42,9 @@ from msgs_json import schemas as S
 from msgs_json import topics as T
 from msgs_json.envelope import Emit, Envelope
 from orbit_clock.contact_plan import node_name
-from sat_node.dtn.agent import PRIORITY_BLOCK, BundleAgent, priority_of, ttl_s_for_priority
+from sat_node.dtn.agent import BundleAgent, ttl_s_for_priority
 from sat_node.dtn.bpv7 import BundleError, decode_bundle
+from sat_node.dtn.routing_blocks import next_hops_of, recipients_of
 
 __all__ = ["DtnPort", "count_rejection"]
 
@@ -92,14 +93,21 @@ class DtnPort:
 
     # ------------------------------------------------------------------ inputs
     def originate(self, payload: bytes, dests, t_ns: int, *, gp: int = 0) -> list[str]:
-        """One bundle per ``(destination, priority)`` of ``dests``, created at ``t_ns``; ``gp`` is
-        what the BundleCreated message names (the observed ground point). Returns the bundle ids."""
-        ids = []
-        for dest, prio in dests:
-            bid = self.agent.originate(payload, dest, prio, t_ns)
+        """The bundles for the ``(destination, priority)`` pairs of ``dests``, created at ``t_ns``: one
+        per destination (unicast agent) or one for all of them (multicast agent, which has
+        ``originate_many``); ``gp`` is what the BundleCreated messages name (the observed ground
+        point). Returns the bundle ids."""
+        dests = list(dests)
+        if not dests:
+            return []
+        many = getattr(self.agent, "originate_many", None)
+        if many is not None:
+            bids = [many(payload, dests, t_ns)]
+        else:
+            bids = [self.agent.originate(payload, dest, prio, t_ns) for dest, prio in dests]
+        for bid in bids:
             self._creations[bid] = (gp, t_ns)
-            ids.append(bid)
-        return ids
+        return bids
 
     def is_mine(self, topic: str) -> bool:
         return topic == self.in_topic or topic == self.status_topic
@@ -143,11 +151,11 @@ class DtnPort:
         """The medium says a transmission failed: give the bundle back to the agent."""
         if st.sat != self.name:
             raise ValueError(f"status for {st.sat} on {self.name}'s topic")
-        tx = self.agent.in_flight(st.bundle_id)
-        if tx is None or tx.start_ns != st.start_ns or tx.next_hop != st.next_hop:
+        tx = self.agent.in_flight(st.bundle_id, st.start_ns)
+        if tx is None or st.next_hop not in (tx.next_hops or (tx.next_hop,)):
             raise ValueError(f"status names no transmission of ours: {st.bundle_id} at {st.start_ns}")
         self.tx_failed[st.reason] = self.tx_failed.get(st.reason, 0) + 1
-        self.agent.transmission_failed(tx, t_ns)
+        self.agent.transmission_failed(tx, t_ns, st.next_hop)
 
     # ------------------------------------------------------------------ outputs
     def radio(self, t_ns: int) -> list[Emit]:
@@ -161,7 +169,7 @@ class DtnPort:
         step = self._steps
         for tx in agent.transmissions_until(t_ns):
             emits.append(Emit(out_topic, tx.bundle_bytes, tx.start_ns))
-            self._next_hop[tx.bundle_id] = tx.next_hop
+            self._next_hop[(tx.bundle_id, tx.start_ns)] = tx.next_hop
             self._sent.append((step, tx))
         self._steps = step + 1
         self._prev_t = t_ns
@@ -228,15 +236,19 @@ class DtnPort:
 
     # ------------------------------------------------------------------ events -> messages
     def _bundle_info(self, b) -> dict:
-        blk = b.block(PRIORITY_BLOCK)
-        info = {"bundle_id": b.bundle_id, "src": node_name(b.src[0]), "dst": node_name(b.dest[0]),
-                "priority": priority_of(blk.data) if blk is not None else 0,
+        try:
+            rs = recipients_of(b)
+        except ValueError:
+            rs = ()
+        info = {"bundle_id": b.bundle_id, "src": node_name(b.src[0]),
+                "dst": node_name(rs[0][0]) if rs else node_name(b.dest[0]),
+                "priority": min((r[1] for r in rs), default=0),
                 "creation_ns": (b.creation_ms - self.agent.config.epoch_dtn_ms) * 1_000_000,
                 "hop_count": (b.hop_count[1] if b.hop_count else 0)}
         try:
-            nh = b.next_hop
-            if nh is not None:
-                info["next_hop"] = node_name(nh)
+            nhs = sorted(next_hops_of(b))
+            if nhs:
+                info["next_hop"] = node_name(nhs[0])
         except ValueError:
             pass
         return info
@@ -249,9 +261,9 @@ class DtnPort:
         if info is _NO_INFO:
             info = None
         base = {"sat": self.name, "t_ns": ev.t_ns}
-        if info is not None:
-            bid, src, dst, prio, created = (info["bundle_id"], info["src"], info["dst"], info["priority"],
-                                            info["creation_ns"])
+        if info is not None:  # what the bundle said; the event's own recipient and priority come first
+            bid, src, dst, prio, created = (info["bundle_id"], info["src"], ev.dest or info["dst"],
+                                            ev.priority or info["priority"], info["creation_ns"])
         else:
             if ev.bundle_id == "?":
                 return S.BundleDropped(**base, bundle_id="?", src=self.name, dst=self.name, priority=0,
@@ -261,13 +273,13 @@ class DtnPort:
             bid, dst, prio, created = ev.bundle_id, ev.dest or self.name, ev.priority, ev.created_ns
         common = dict(base, bundle_id=bid, src=src, dst=dst, priority=prio, creation_ns=min(created, ev.t_ns))
         if ev.kind == "created":
-            gp, obs_ns = self._creations.pop(bid, (0, ev.t_ns))
+            gp, obs_ns = self._creations.get(bid, (0, ev.t_ns))  # a multicast bundle: one event per recipient
             cfg = self.agent.config
-            return S.BundleCreated(**common, gp=gp, obs_t_ns=obs_ns,
-                                   lifetime_ns=int(ttl_s_for_priority(max(1, prio), cfg.ttl_s_by_priority) * _NS),
-                                   size_bits=cfg.bundle_bits)
+            life = ev.deadline_ns - ev.created_ns if ev.deadline_ns > ev.created_ns else \
+                int(ttl_s_for_priority(max(1, prio), cfg.ttl_s_by_priority) * _NS)
+            return S.BundleCreated(**common, gp=gp, obs_t_ns=obs_ns, lifetime_ns=life, size_bits=cfg.bundle_bits)
         if ev.kind == "forwarded":
-            return S.BundleForwarded(**common, next_hop=self._next_hop.pop(bid, dst))
+            return S.BundleForwarded(**common, next_hop=self._next_hop.pop((bid, ev.t_ns), dst))
         if ev.kind == "delivered":
             return S.BundleDelivered(**common, hop_count=(info or {}).get("hop_count", 0))
         if ev.kind == "dropped":

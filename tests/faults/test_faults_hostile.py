@@ -41,22 +41,20 @@ def world():
 def _forged_bundle(target: str, claimed_src: str, gp: int, t_ns: int, seq: int) -> bytes:
     """A well-formed BPv7 bundle for ``target`` (destination and next hop), built as the agent builds
     one, with a BIB made with the wrong key and a forged observation as payload."""
-    import cbor2
-
     from orbit_clock.contact_plan import node_number
-    from sat_node.dtn.agent import PRIORITY_BLOCK, AgentConfig
+    from sat_node.dtn.agent import AgentConfig
     from sat_node.dtn.bpsec import add_bib
     from sat_node.dtn.bpv7 import Bundle, encode_bundle, ipn
+    from sat_node.dtn.routing_blocks import set_routing
     from sat_node.satellite import observation_payload
 
     cfg = AgentConfig()
     b = Bundle(dest=ipn(node_number(target), 1), src=ipn(node_number(claimed_src), 1),
                creation_ms=cfg.epoch_dtn_ms + t_ns // 1_000_000, seq=10_000 + seq, lifetime_ms=900_000,
                payload=observation_payload(claimed_src, gp, FORGED_T_NS, 99.0))
-    b.set_block(PRIORITY_BLOCK, cbor2.dumps(1))
+    set_routing(b, [(node_number(target), 1, 900_000)], {node_number(target): (node_number(target),)})
     b.hop_count = (cfg.hop_limit, 0)
     add_bib(b, b"not-the-constellation-key-000000", ipn(node_number(claimed_src), 0))
-    b.next_hop = node_number(target)
     return encode_bundle(b)
 
 

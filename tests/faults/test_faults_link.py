@@ -83,7 +83,8 @@ def plain(world):
 def cut_case(world, plain):
     """Cut the link of a transmission that succeeded in the plain run, 1 s after it started."""
     from orbit_clock.contact_plan import node_name
-    from sat_node.dtn.bpv7 import decode_bundle, peek_next_hop
+    from sat_node.dtn.agent import peek_next_hop
+    from sat_node.dtn.bpv7 import decode_bundle
 
     _, envs = plain
     outs = [e for e in envs if e.topic.endswith("/dtn/out")]

@@ -5,8 +5,18 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from sat_node.dtn.bpv7 import (CRC_16, CRC_32C, NEXT_HOP_BLOCK, Bundle, BundleError, CanonicalBlock, crc16_x25,
-                               crc32c, decode_bundle, encode_bundle, peek_next_hop)
+from sat_node.dtn.bpv7 import (
+    CRC_16,
+    CRC_32C,
+    Bundle,
+    BundleError,
+    CanonicalBlock,
+    Imc,
+    crc16_x25,
+    crc32c,
+    decode_bundle,
+    encode_bundle,
+)
 
 
 def test_crc_check_values():
@@ -31,13 +41,24 @@ def test_extension_blocks_round_trip_and_unknown_block_kept():
     b = Bundle(dest=(22, 1), src=(11, 1), creation_ms=5, seq=3, lifetime_ms=10, payload=b"x" * 50, crc_type=CRC_32C)
     b.previous_node = (11, 0)
     b.hop_count = (32, 2)
-    b.next_hop = 22
-    b.blocks.append(CanonicalBlock(200, 9, 0, CRC_16, b"\x01\x02"))  # a block we know nothing of
+    b.blocks.append(CanonicalBlock(240, 9, 0, CRC_16, b"\x01\x02"))  # a block we know nothing of
     c = decode_bundle(encode_bundle(b))
-    assert c.previous_node == (11, 0) and c.hop_count == (32, 2) and c.next_hop == 22
-    assert c.block(200) == CanonicalBlock(200, 9, 0, CRC_16, b"\x01\x02")
+    assert c.previous_node == (11, 0) and c.hop_count == (32, 2)
+    assert c.block(240) == CanonicalBlock(240, 9, 0, CRC_16, b"\x01\x02")
     assert encode_bundle(c) == encode_bundle(b)
-    assert peek_next_hop(encode_bundle(b)) == 22
+
+
+def test_imc_group_destination():
+    """ION's imc scheme (code 3, [group, service]) as destination: exact bytes, never equal to ipn."""
+    b = Bundle(dest=Imc(1, 1), src=(11, 1), creation_ms=1000, seq=0, lifetime_ms=900000, payload=b"hi")
+    raw = encode_bundle(b)
+    assert bytes.fromhex("8203820101") in raw  # [3, [1, 1]]
+    c = decode_bundle(raw)
+    assert c.dest == Imc(1, 1) and type(c.dest) is Imc and c.dest != (1, 1) and encode_bundle(c) == raw
+    b.crc_type = 0  # (a CRC would catch the change first)
+    raw = encode_bundle(b)
+    with pytest.raises(BundleError, match="not an ipn or imc EID"):
+        decode_bundle(raw.replace(bytes.fromhex("8203820101"), bytes.fromhex("8204820101")))
 
 
 def test_bundle_age_required_without_creation_time():
@@ -83,15 +104,15 @@ eids = st.tuples(st.integers(1, 2**32), st.integers(0, 2**16))
 
 @settings(max_examples=150, deadline=None)
 @given(dest=eids, src=eids, t=st.integers(1, 2**40), seq=st.integers(0, 2**20), life=st.integers(0, 2**32),
-       payload=st.binary(max_size=300), crc=st.sampled_from([0, 1, 2]), nh=st.one_of(st.none(), st.integers(1, 99)),
+       payload=st.binary(max_size=300), crc=st.sampled_from([0, 1, 2]), imc=st.booleans(),
        hops=st.tuples(st.integers(0, 255), st.integers(0, 255)))
-def test_round_trip(dest, src, t, seq, life, payload, crc, nh, hops):
+def test_round_trip(dest, src, t, seq, life, payload, crc, imc, hops):
+    if imc:
+        dest = Imc(*dest)
     b = Bundle(dest=dest, src=src, creation_ms=t, seq=seq, lifetime_ms=life, payload=payload, crc_type=crc)
     b.hop_count = hops
-    if nh is not None:
-        b.next_hop = nh
     raw = encode_bundle(b)
     c = decode_bundle(raw)
     assert (c.dest, c.src, c.creation_ms, c.seq, c.lifetime_ms, c.payload) == (dest, src, t, seq, life, payload)
-    assert c.hop_count == hops and c.next_hop == nh and c.block(NEXT_HOP_BLOCK) == b.block(NEXT_HOP_BLOCK)
+    assert type(c.dest) is type(dest) and c.hop_count == hops
     assert encode_bundle(c) == raw
