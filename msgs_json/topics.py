@@ -4,7 +4,8 @@ Names are contracts: build them only with these functions. A satellite's topics 
 ``/<sat>/`` (``sat_PS``). Every lockstep data topic carries a wire envelope (msgs_json/wire.py) on
 std_msgs/msg/String; its payload is JSON of the schema ``schema_for(topic)`` names, or raw bytes
 (BPv7 bundles) when ``is_bytes_topic(topic)``. Visualisation topics (``fix_topic(sat)``,
-``VIZ_MARKERS``) and ``/clock`` are recorded as their own ROS types, not envelopes.
+``VIZ_MARKERS``, the plotted series ``VIZ_VALUE`` and ``VIZ_IN_FLIGHT``) and ``/clock`` are recorded
+as their own ROS types, not envelopes.
 
 Oracle: tests/unit/test_msgs_json.py checks every builder's name maps back to the right schema and
 that unknown names map to nothing.
@@ -25,7 +26,9 @@ __all__ = [
     "SCHEMA_VERSION",
     "SIM_ACK",
     "SIM_STEP",
+    "VIZ_IN_FLIGHT",
     "VIZ_MARKERS",
+    "VIZ_VALUE",
     "acs_command_topic",
     "acs_state_topic",
     "dtn_events_topic",
@@ -49,6 +52,8 @@ CONTACTS = "/orbit/contacts"
 GROUND_UPLINK = "/ground/uplink"
 GROUND_DOWNLINK = "/ground/downlink"
 VIZ_MARKERS = "/viz/constellation"
+VIZ_VALUE = "/viz/value"  # std_msgs/msg/Float64: the run's cumulative true value (Eq. 1) so far
+VIZ_IN_FLIGHT = "/viz/bundles_in_flight"  # std_msgs/msg/UInt32: bundle copies the ISL medium holds
 
 _SAT_RE = re.compile(r"^sat_[1-9][0-9]$")
 

@@ -29,7 +29,9 @@ random histories; the 15-min zero at the boundary (899.999 s -> 0, 900 s -> absv
 reproducible across calls and processes, different across satellites, and its sample standard
 deviation of (belief/absval - 1) within 3 standard errors of sigma_s; :func:`prior_state` (runs found by
 binary search) equal to the pairwise definition on random histories with observations exactly on the
-grid times and on grid times +- revisit_zero_s, on unsorted and repeated times.
+grid times and on grid times +- revisit_zero_s, on unsorted and repeated times; :class:`ValueLedger`
+(the true value of executed observations, one at a time) equal to :func:`true_value` evaluated on
+each observation's history.
 
 Not done: a spatial-diversity term (value for observing GPs far from recent observations).
 """
@@ -45,6 +47,7 @@ import numpy as np
 __all__ = [
     "Belief",
     "KnownObservation",
+    "ValueLedger",
     "belief_sigma",
     "name_key",
     "prior_state",
@@ -69,6 +72,31 @@ def true_value(absval, t_s, last_seen_t_s, times_seen, revisit_zero_s: float) ->
         raise ValueError("true_value: times_seen must be >= 0")
     recent = np.isfinite(last) & ((np.asarray(t_s, np.float64) - last) < revisit_zero_s)
     return np.where(recent, 0.0, absval / (n + 1.0))
+
+
+class ValueLedger:
+    """Eq. 1 of executed observations, added one at a time in time order (ties: satellite, GP):
+    what each one is truly worth given the ones before it, and the running total. The report's
+    value (bringup/analysis/report.py true_values) and the recorded value series
+    (bringup/recording/metrics_feed.py) both add observations here."""
+
+    def __init__(self, revisit_zero_s: float):
+        self.zero_ns = round(revisit_zero_s * 1e9)
+        self.last_ns: dict[int, int] = {}
+        self.seen: dict[int, int] = {}
+        self.total = 0.0
+
+    def add(self, gp: int, t_ns: int, recorded_value: float) -> tuple[float, bool]:
+        """(true value of observing ``gp`` at ``t_ns`` with OSSE value ``recorded_value``, whether it
+        repeats one within ``revisit_zero_s``); the observation then counts as seen."""
+        last = self.last_ns.get(gp)
+        recent = last is not None and (t_ns - last) < self.zero_ns
+        n = self.seen.get(gp, 0)
+        v = 0.0 if recent else recorded_value / (n + 1)
+        self.seen[gp] = n + 1
+        self.last_ns[gp] = t_ns
+        self.total += v
+        return v, recent
 
 
 def belief_sigma(seed: int, sat_name: str, sigma_min: float, sigma_max: float) -> float:

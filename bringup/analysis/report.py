@@ -44,6 +44,7 @@ from msgs_json import schemas as S
 from msgs_json.envelope import Envelope
 from sat_node.dtn.agent import BundleEvent
 from sat_node.dtn.stats import dtn_report
+from sat_node.value import ValueLedger
 
 __all__ = ["REPORT_TOPIC_SUFFIXES", "ReportBuilder", "RunMeta", "build_report", "consensus_figures", "flatten", "report_from_bag", "true_values"]
 
@@ -287,17 +288,10 @@ def consensus_figures(obs: list, created: dict, delivered: dict, planned: dict, 
 
 def true_values(obs: list, revisit_zero_s: float) -> list[tuple]:
     """[(observation, true Eq. 1 value, was_duplicate)] in time order (ties by satellite, GP)."""
-    obs = sorted(obs, key=lambda o: (o.t_ns, o.sat, o.gp))
-    last: dict[int, int] = {}
-    seen: dict[int, int] = defaultdict(int)
-    zero_ns = int(round(revisit_zero_s * _NS))
+    ledger = ValueLedger(revisit_zero_s)
     out = []
-    for o in obs:
-        lt = last.get(o.gp)
-        recent = lt is not None and (o.t_ns - lt) < zero_ns
-        v = 0.0 if recent else o.recorded_value / (seen[o.gp] + 1)
-        seen[o.gp] += 1
-        last[o.gp] = o.t_ns
+    for o in sorted(obs, key=lambda o: (o.t_ns, o.sat, o.gp)):
+        v, recent = ledger.add(o.gp, o.t_ns, o.recorded_value)
         out.append((o, v, recent))
     return out
 

@@ -1,7 +1,8 @@
 """`constellation bag-info BAG`: topics, types, message counts and time span of a recorded bag.
 
 Reads the bag with bringup/recording/bag.py (rosbags; no rclpy). Times are sim time: ns since the
-scenario epoch, also shown in seconds. ``--json`` prints the same as one JSON object.
+scenario epoch, also shown in seconds; the epoch (the bag's clock: its log times and /clock are
+epoch + t, UTC) is shown with them. ``--json`` prints the same as one JSON object.
 
 Checked by tests/unit/test_recording.py (test_bag_info_command).
 """
@@ -11,7 +12,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from bringup.recording.bag import BagReader
+from bringup.recording.bag import BagReader, epoch_custom_data
 
 
 def add_arguments(p) -> None:
@@ -20,12 +21,14 @@ def add_arguments(p) -> None:
 
 
 def bag_summary(path: Path) -> dict:
-    """{path, messages, start_ns, end_ns, duration_s, topics: [{topic, type, count}]}."""
+    """{path, messages, epoch_ns, epoch_utc, start_ns, end_ns, duration_s, topics: [{topic, type, count}]}."""
     with BagReader(path) as r:
         topics = [{"topic": t.topic, "type": t.msgtype, "count": t.count} for t in r.topics()]
         return {
             "path": str(r.path),
             "messages": r.count,
+            "epoch_ns": r.epoch_ns,
+            "epoch_utc": epoch_custom_data(r.epoch_ns).get("epoch_utc", "1970-01-01T00:00:00Z"),
             "start_ns": r.start_ns,
             "end_ns": r.end_ns,
             "duration_s": (r.end_ns - r.start_ns) / 1e9,
@@ -40,6 +43,7 @@ def run(args) -> int:
         return 0
     print(f"bag:       {s['path']}")
     print(f"messages:  {s['messages']}")
+    print(f"epoch:     {s['epoch_utc']} (log times and /clock: epoch + t, UTC)")
     print(f"start:     {s['start_ns'] / 1e9:.3f} s ({s['start_ns']} ns since epoch)")
     print(f"end:       {s['end_ns'] / 1e9:.3f} s ({s['end_ns']} ns since epoch)")
     print(f"duration:  {s['duration_s']:.3f} s")

@@ -120,8 +120,8 @@ def run(args) -> int:
                 delay = due - time.monotonic()
                 if delay > 0:
                     time.sleep(delay)
-            if synth_clock and m.log_time_ns != last_clock:
-                clock_pub.publish(clock_cdr(m.log_time_ns))
+            if synth_clock and m.log_time_ns != last_clock:  # the bag's instant: its epoch + t_ns
+                clock_pub.publish(clock_cdr(reader.epoch_ns + m.log_time_ns))
                 last_clock = m.log_time_ns
             pubs[m.topic].publish(m.cdr)
             n += 1

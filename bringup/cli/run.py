@@ -34,6 +34,7 @@ from bringup.errors import UserError
 from bringup.recording.recorder_process import Recorder
 from bringup.scenario.participants import all_participants, create_stores, roles_for
 from bringup.scenario.world import World
+from dtn_router.router import ROUTER_NAME
 from msgs_json.envelope import Envelope
 
 # every file a run writes is closed before run() returns (bag by its writer or recorder process,
@@ -154,8 +155,11 @@ def _run_local(world, args, meta, bag_dir: Path, out: Path, router_kw, *, show: 
         batches = StoreBatches(s for s in (getattr(getattr(p, "agent", None), "store", None) for p in parts)
                                if s is not None)
 
+        # the ISL medium's copies in flight after the previous step, plotted from the bag (metrics_feed.py)
+        router = next((q for q in parts if q.name == ROUTER_NAME), None)
+
         def on_step(t_ns: int) -> None:
-            rec.step(t_ns)
+            rec.step(t_ns, in_flight=None if router is None else len(router.pending))
             batches.step()
 
         if prog is not None:

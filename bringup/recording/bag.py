@@ -16,6 +16,21 @@ Writer API (used by both engines)::
     # .counts -> {topic: n}; close() is idempotent; an exception inside ``with`` still closes the
     # bag so it stays readable (Ctrl-C).
 
+Time: ``t_ns`` (ns since the scenario epoch) is the project's time base and the envelopes' payload
+field; the writer and the reader speak it. In the file, the bag is on the scenario's real clock:
+every message's MCAP log and publish time is ``epoch_ns + t_ns`` (Unix ns, UTC) and ``/clock``
+(``write_clock``; the ROS clock node writes its own) carries that instant, so Foxglove's timeline
+and ``ros2 bag play --clock`` show the scenario's date (2000-01-01T11:59:28Z for the paper case).
+``BagWriter(epoch_ns=...)`` adds the epoch; metadata.yaml's ``custom_data`` keeps it (``epoch_ns``,
+``epoch_utc``; the MCAP file's ``rosbag2`` metadata record holds the same text) and
+:class:`BagReader` subtracts it again, so its ``log_time_ns``, ``start_ns`` and ``end_ns`` are
+``t_ns``; ``reader.epoch_ns`` gives it back. A bag without the key (written before, or with epoch 0:
+toy runs) has epoch 0 and reads as before.
+
+CRCs: every chunk's ``uncompressed_crc``, the DataEnd ``data_section_crc`` and the Footer's
+``summary_crc`` are written (CRC-32, https://mcap.dev/spec; rosbags writes 0, "not computed"): the
+chunk CRC as each chunk closes, the other two when the file is complete (:func:`_write_file_crcs`).
+
 Envelopes are recorded as their wire text (msgs_json/wire.py) in std_msgs/msg/String, so
 ``BagReader.envelopes()`` gives back the exact envelopes. ``write_msg`` takes a message built
 with rosbags' typestore (``TYPESTORE.types[msgtype](...)``; bringup/recording/viz_messages.py builds them).
@@ -32,7 +47,9 @@ Reader API::
         bag.typed(topics=None) -> iter of (topic, log_time_ns, rosbags message object)
 
 Oracle: tests/unit/test_recording.py writes a bag in tmp_path and reads it back with BOTH the
-``mcap`` reader (+ mcap-ros2-support decoding, an independent implementation) and ``rosbags``;
+``mcap`` reader (+ mcap-ros2-support decoding, an independent implementation, CRCs validated) and
+``rosbags``, with and without an epoch; tests/system/test_foxglove_decode.py decodes a run's bag
+with Foxglove's own JavaScript readers and checks its timeline starts at the scenario epoch;
 the hand-written std_msgs/String CDR is checked byte for byte against rosbags' serializer.
 The speed paths (one-call envelope writes, ``write_envelopes`` batches, and rosbags' own steps
 made faster in rosbags_speedups.py) give byte-identical bags and the same messages as rosbags' own
@@ -41,13 +58,14 @@ paths (tests/unit/test_speed_paths.py).
 
 from __future__ import annotations
 
-import shutil
-import sqlite3
 import struct
+import zlib
 from collections import defaultdict
 from collections.abc import Iterable, Iterator
 from contextlib import nullcontext
+from datetime import UTC, datetime, timedelta
 from pathlib import Path
+from types import MethodType
 from typing import Any, NamedTuple, Self
 
 from rosbags.interfaces import Qos, QosDurability, QosHistory, QosLiveliness, QosReliability, QosTime
@@ -65,12 +83,12 @@ __all__ = [
     "CLOCK_TYPE",
     "STRING",
     "TYPESTORE",
-    "BagJournal",
     "BagReader",
     "BagWriter",
     "RawMessage",
     "TopicStats",
     "clock_cdr",
+    "epoch_custom_data",
     "make_qos",
     "string_cdr",
     "string_from_cdr",
@@ -169,6 +187,71 @@ def clock_cdr(t_ns: int) -> bytes:
     return _CLOCK.pack(_CDR_LE, sec, nsec)
 
 
+def epoch_custom_data(epoch_ns: int) -> dict[str, str]:
+    """metadata.yaml custom_data entries that name a bag's epoch (empty for epoch 0)."""
+    if not epoch_ns:
+        return {}
+    when = datetime(1970, 1, 1, tzinfo=UTC) + timedelta(microseconds=epoch_ns // 1000)
+    stamp = when.strftime("%Y-%m-%dT%H:%M:%S") + (f".{epoch_ns % 1_000_000_000:09d}" if epoch_ns % 1_000_000_000 else "")
+    return {"epoch_ns": str(epoch_ns), "epoch_utc": stamp + "Z",
+            "time_base": "log/publish times and /clock: Unix ns (UTC) = epoch_ns + t_ns; envelope t_ns since epoch_ns"}
+
+
+_CRC_AT = 1 + 8 + 8 + 8 + 8  # Chunk record: opcode, length, start time, end time, uncompressed size
+
+
+def _with_chunk_crc(storage: McapWriter) -> None:
+    """Make this McapWriter's chunk close (rosbags' own or the fast one) write the chunk's
+    ``uncompressed_crc`` (CRC-32 of the uncompressed records) in place of rosbags' 0."""
+    close = storage.close_chunk
+
+    def close_chunk(self: McapWriter) -> None:
+        crc = zlib.crc32(self.chunk.bio.getbuffer())
+        start = self.bio.tell()
+        close()
+        end = self.bio.tell()
+        self.bio.seek(start + _CRC_AT)
+        self.bio.write(_U32.pack(crc))
+        self.bio.seek(end)
+
+    storage.close_chunk = MethodType(close_chunk, storage)
+
+
+_FOOTER = struct.Struct("<BQQQI")  # opcode 0x02, length 20, summary_start, summary_offset_start, summary_crc
+
+
+def _write_file_crcs(path: Path) -> None:
+    """Write DataEnd's ``data_section_crc`` (CRC-32 of every byte before the DataEnd record) and the
+    Footer's ``summary_crc`` (the summary section and the Footer up to its summary_offset_start)
+    into a complete MCAP file."""
+    with open(path, "r+b") as fh:
+        size = fh.seek(0, 2)
+        foot = size - 8 - _FOOTER.size
+        fh.seek(foot)
+        op, length, summary_start, _offsets, _crc = _FOOTER.unpack(fh.read(_FOOTER.size))
+        if op != 0x02 or length != 20 or summary_start == 0:
+            raise ValueError(f"{path}: no MCAP footer with a summary where expected")
+        data_end = summary_start - 13  # DataEnd: opcode 0x0F, length 4, crc
+        fh.seek(data_end)
+        if fh.read(9) != b"\x0f" + struct.pack("<Q", 4):
+            raise ValueError(f"{path}: no DataEnd record before the summary")
+
+        def crc_of(lo: int, hi: int) -> int:
+            crc, fh_pos = 0, fh.seek(lo)
+            while fh_pos < hi:
+                block = fh.read(min(1 << 20, hi - fh_pos))
+                crc = zlib.crc32(block, crc)
+                fh_pos += len(block)
+            return crc
+
+        data_crc = crc_of(0, data_end)
+        summary_crc = crc_of(summary_start, foot + 25)  # through the Footer's summary_offset_start
+        fh.seek(data_end + 9)
+        fh.write(_U32.pack(data_crc))
+        fh.seek(foot + 25)
+        fh.write(_U32.pack(summary_crc))
+
+
 class RawMessage(NamedTuple):
     topic: str
     msgtype: str
@@ -186,15 +269,20 @@ class BagWriter:
     """Write a rosbag2 MCAP bag (see the module docstring)."""
 
     def __init__(self, path: str | Path, *, compress: bool = True, custom: dict[str, str] | None = None,
-                 fast_off: bool = False):
-        """``fast_off``: write through rosbags' own code paths only (the speed paths' oracle)."""
+                 fast_off: bool = False, epoch_ns: int = 0):
+        """``epoch_ns``: the scenario epoch in Unix ns, added to every log time (module docstring);
+        ``fast_off``: write through rosbags' own code paths only (the speed paths' oracle)."""
         self.path = Path(path)
+        if type(epoch_ns) is not int or epoch_ns < 0:
+            raise ValueError(f"bag {self.path}: epoch_ns must be an int >= 0 (MCAP times are unsigned ns "
+                             f"since 1970), got {epoch_ns!r}")
         if self.path.exists():
             raise UserError(f"bag {self.path}: already exists, not overwriting")
+        self.epoch_ns = epoch_ns
         self._w = Writer(self.path, version=9, storage_plugin=StoragePlugin.MCAP)
         if compress:
             self._w.set_compression(CompressionMode.STORAGE, CompressionFormat.ZSTD)
-        for k, v in (custom or {}).items():
+        for k, v in {**(custom or {}), **epoch_custom_data(epoch_ns)}.items():
             self._w.set_custom_data(str(k), str(v))
         self._w.open()
         st = self._w.storage
@@ -205,6 +293,9 @@ class BagWriter:
             rosbags_speedups.install()
             rosbags_speedups.speed_up_writer(st)
             self._speedups = rosbags_speedups.active
+        self._mcap_path = st.path if isinstance(st, McapWriter) else None
+        if self._mcap_path is not None:
+            _with_chunk_crc(st)
         self._tmin, self._tmax = 2**63 - 1, 0  # the Writer's own bounds (metadata.yaml), kept here
         self._conns: dict[tuple[str, str], Any] = {}
         self._env_conns: dict[str, Any] = {}  # topic -> its std_msgs/String connection (write_envelope)
@@ -237,7 +328,7 @@ class BagWriter:
             raise ValueError(f"bag {self.path}: {topic}: log time must be >= 0, got {log_time_ns}")
         c = self._conn(topic, msgtype, qos)
         if self._fast is not None:  # byte-identical to self._w.write (see _fast_write)
-            t = int(log_time_ns)
+            t = self.epoch_ns + int(log_time_ns)
             _fast_write(self._fast, c.id, t, cdr)
             self._w.counts[c.id] += 1
             if t < self._tmin:
@@ -245,7 +336,7 @@ class BagWriter:
             if t > self._tmax:
                 self._tmax = t
         else:
-            self._w.write(c, int(log_time_ns), cdr)
+            self._w.write(c, self.epoch_ns + int(log_time_ns), cdr)
         self.counts[topic] += 1
 
     def write_msg(self, topic: str, msgtype: str, msg: Any, log_time_ns: int, *, qos: Qos | None = None) -> None:
@@ -263,6 +354,7 @@ class BagWriter:
             return
         # what write_raw(topic, STRING, string_cdr(encode_envelope(env)), t) does, in one call
         j = encode_envelope_bytes(env)
+        t += self.epoch_ns
         _fast_write(self._fast, c.id, t, b"".join((_CDR_LE, _U32.pack(len(j) + 1), j, b"\x00")))
         self._w.counts[c.id] += 1
         if t < self._tmin:
@@ -292,6 +384,7 @@ class BagWriter:
         lo, hi = ch.message_start_time, ch.message_end_time
         parts: list[bytes] = []
         add = parts.append
+        off = self.epoch_ns
         for e in envs:
             t = e.t_ns
             topic = e.topic
@@ -308,6 +401,7 @@ class BagWriter:
             j = wire(e)
             n = len(j)
             cid = c.id
+            t += off
             index[cid].append((t, pos))
             add(pack(0x05, 31 + n, cid, 0, t, t, _CDR_LE, n + 1))
             add(j)
@@ -345,7 +439,8 @@ class BagWriter:
             self._tmax = hi
 
     def write_clock(self, t_ns: int) -> None:
-        self.write_raw("/clock", CLOCK_TYPE, clock_cdr(t_ns), t_ns)
+        """/clock at ``t_ns``: the instant epoch + t_ns (UTC), logged then."""
+        self.write_raw("/clock", CLOCK_TYPE, clock_cdr(self.epoch_ns + t_ns), t_ns)
 
     def close(self) -> None:
         if not self._closed:
@@ -360,6 +455,8 @@ class BagWriter:
             # rosbags' own QoS dump here: metadata.yaml (version 9) lists each topic's offered
             # profiles as a YAML sequence; the memo gives the string form a channel's user data uses
             self._w.close()
+            if self._mcap_path is not None:
+                _write_file_crcs(self._mcap_path)
 
     def __enter__(self) -> Self:
         return self
@@ -396,6 +493,12 @@ class BagReader:
                 rosbags_speedups.speed_up_reader(self._r)
         except Exception as exc:  # noqa: BLE001 - rosbags raises ReaderError, YAML, struct errors...
             raise UserError(f"bag {self.path}: cannot open: {_line(exc)}") from None
+        custom = getattr(getattr(self._r.storage, "metadata", None), "custom", None) or {}
+        try:
+            self.epoch_ns = int(custom.get("epoch_ns", 0))
+        except (TypeError, ValueError):
+            raise UserError(f"bag {self.path}: metadata.yaml custom_data epoch_ns "
+                            f"{custom.get('epoch_ns')!r} is not an integer") from None
 
     def close(self) -> None:
         self._r.close()
@@ -408,11 +511,13 @@ class BagReader:
 
     @property
     def start_ns(self) -> int:
-        return int(self._r.start_time) if self.count else 0
+        """The first message's t_ns (its log time less the epoch)."""
+        return int(self._r.start_time) - self.epoch_ns if self.count else 0
 
     @property
     def end_ns(self) -> int:
-        return max(int(self._r.end_time) - 1, self.start_ns) if self.count else 0  # rosbags end is +1
+        # rosbags' end time is the last log time + 1
+        return max(int(self._r.end_time) - 1 - self.epoch_ns, self.start_ns) if self.count else 0
 
     @property
     def count(self) -> int:
@@ -425,16 +530,17 @@ class BagReader:
         return [TopicStats(t, m, n) for (t, m), n in sorted(out.items())]
 
     def messages(self, topics: Iterable[str] | None = None) -> Iterator[RawMessage]:
-        """Raw CDR in log-time order."""
+        """Raw CDR in log-time order; ``log_time_ns`` is t_ns (the log time less the epoch)."""
         conns = self._r.connections
         if topics is not None:
             want = set(topics)
             conns = [c for c in conns if c.topic in want]
             if not conns:
                 return
+        off = self.epoch_ns
         try:
             for c, t, raw in self._r.messages(connections=conns):
-                yield RawMessage(c.topic, c.msgtype, int(t), bytes(raw))
+                yield RawMessage(c.topic, c.msgtype, int(t) - off, bytes(raw))
         except UserError:
             raise
         except Exception as exc:  # noqa: BLE001 - a damaged file fails in many ways: one line for all
@@ -462,110 +568,3 @@ class BagReader:
 def _line(exc: BaseException) -> str:
     s = " ".join(str(exc).split()) or type(exc).__name__
     return s[:300]
-
-
-class BagJournal:
-    """The recorder of a restartable clock: messages go into SQLite, the bag is exported at the end.
-
-    rosbags' Writer cannot reopen a bag, and an MCAP file cut by SIGKILL has no summary and loses
-    its unflushed chunk. So a clock that may be restarted records into ``path`` (SQLite, WAL mode,
-    https://sqlite.org/wal.html) with the :class:`BagWriter` write API, inside one open transaction
-    per lockstep step; :meth:`commit` writes the clock's checkpoint row and commits that step's
-    messages with it, so a kill at any instant leaves the journal exactly at the end of one step.
-    :meth:`load` gives the restarted clock its checkpoint back; :meth:`keyed_rows` the envelopes it
-    recorded (dedupe keys, re-send buffer). :meth:`export` writes everything committed (plus the open
-    transaction) in arrival order into a normal bag (:class:`BagWriter`), which every reader opens.
-
-    ``k`` is the wire step the clock is in; each row carries it. Envelope rows written with
-    :meth:`write_keyed` carry their (source, seq), so the recorder counts unique envelopes.
-
-    Oracle: tests/faults/test_restart_unit.py (a child killed between writes finds the last commit,
-    export reads back identical through :class:`BagReader`) and the clock-kill system test
-    (tests/faults/test_restart_ros.py: bag of a run whose clock was killed == uninterrupted run).
-    """
-
-    def __init__(self, path: str | Path):
-        self.path = Path(path)
-        self.path.parent.mkdir(parents=True, exist_ok=True)
-        self.db = sqlite3.connect(str(self.path), isolation_level=None)
-        mode = self.db.execute("PRAGMA journal_mode=WAL").fetchone()[0]
-        if mode.lower() != "wal":
-            raise RuntimeError(f"{self.path}: SQLite refused WAL mode (got {mode})")
-        self.db.execute("PRAGMA synchronous=NORMAL")
-        self.db.execute("CREATE TABLE IF NOT EXISTS clock_checkpoint (id INTEGER PRIMARY KEY CHECK (id = 0), "
-                        "k INTEGER NOT NULL, state BLOB NOT NULL)")
-        self.db.execute("CREATE TABLE IF NOT EXISTS recorded (k INTEGER NOT NULL, topic TEXT NOT NULL, "
-                        "msgtype TEXT NOT NULL, t_ns INTEGER NOT NULL, cdr BLOB NOT NULL, source TEXT, seq INTEGER)")
-        self.k = -1
-        self.counts: dict[str, int] = {}
-        for topic, n in self.db.execute("SELECT topic, COUNT(*) FROM recorded GROUP BY topic"):
-            self.counts[topic] = int(n)
-        self._closed = False
-        self.db.execute("BEGIN IMMEDIATE")
-
-    # -- the BagWriter write API -------------------------------------------------------------------
-    def write_raw(self, topic: str, msgtype: str, cdr: bytes | memoryview, log_time_ns: int,
-                  *, qos: Qos | None = None) -> None:
-        self.write_keyed(topic, msgtype, cdr, log_time_ns, None, None)
-
-    def write_keyed(self, topic: str, msgtype: str, cdr: bytes | memoryview, log_time_ns: int,
-                    source: str | None, seq: int | None) -> None:
-        if self._closed:
-            raise ValueError(f"journal {self.path}: closed")
-        if log_time_ns < 0:
-            raise ValueError(f"journal {self.path}: {topic}: log time must be >= 0, got {log_time_ns}")
-        self.db.execute("INSERT INTO recorded VALUES (?, ?, ?, ?, ?, ?, ?)",
-                        (self.k, topic, msgtype, int(log_time_ns), bytes(cdr), source, seq))
-        self.counts[topic] = self.counts.get(topic, 0) + 1
-
-    def write_msg(self, topic: str, msgtype: str, msg: Any, log_time_ns: int, *, qos: Qos | None = None) -> None:
-        self.write_raw(topic, msgtype, TYPESTORE.serialize_cdr(msg, msgtype), log_time_ns, qos=qos)
-
-    def write_envelope(self, env: Envelope) -> None:
-        self.write_raw(env.topic, STRING, string_cdr(encode_envelope(env)), env.t_ns)
-
-    def write_clock(self, t_ns: int) -> None:
-        self.write_raw("/clock", CLOCK_TYPE, clock_cdr(t_ns), t_ns)
-
-    # -- checkpoint --------------------------------------------------------------------------------
-    def commit(self, k: int, state: bytes) -> None:
-        """Write the checkpoint row for wire step ``k`` and commit it with every message since the last."""
-        self.db.execute("INSERT OR REPLACE INTO clock_checkpoint VALUES (0, ?, ?)", (int(k), bytes(state)))
-        self.db.execute("COMMIT")
-        self.db.execute("BEGIN IMMEDIATE")
-
-    def load(self) -> tuple[int, bytes] | None:
-        row = self.db.execute("SELECT k, state FROM clock_checkpoint WHERE id = 0").fetchone()
-        return None if row is None else (int(row[0]), bytes(row[1]))
-
-    def keyed_rows(self, min_k: int | None = None) -> Iterator[tuple[int, str, str, int, bytes | None]]:
-        """(k, topic, source, seq, cdr) of the envelopes recorded with a key; ``cdr`` only for ``k >= min_k``."""
-        lo = -(1 << 62) if min_k is None else int(min_k)
-        for k, topic, source, seq, cdr in self.db.execute(
-                "SELECT k, topic, source, seq, CASE WHEN k >= ? THEN cdr END FROM recorded "
-                "WHERE source IS NOT NULL ORDER BY rowid", (lo,)):
-            yield int(k), topic, source, int(seq), cdr
-
-    # -- the bag -----------------------------------------------------------------------------------
-    def export(self, bag_dir: str | Path, *, custom: dict[str, str] | None = None) -> int:
-        """Write every recorded message (arrival order) into a new bag at ``bag_dir`` (replaced if a
-        previous export was cut short); returns the number written."""
-        bag_dir = Path(bag_dir)
-        if bag_dir.exists():
-            shutil.rmtree(bag_dir)
-        n = 0
-        with BagWriter(bag_dir, custom=custom) as bag:
-            for topic, msgtype, t_ns, cdr in self.db.execute(
-                    "SELECT topic, msgtype, t_ns, cdr FROM recorded ORDER BY rowid"):
-                bag.write_raw(topic, msgtype, cdr, t_ns)
-                n += 1
-        return n
-
-    def close(self, *, commit: bool = False) -> None:
-        """Close the file; the open transaction (the unfinished step) is rolled back unless ``commit``:
-        a restarted clock re-runs that step and records it again."""
-        if not self._closed:
-            self._closed = True
-            if self.db.in_transaction:
-                self.db.execute("COMMIT" if commit else "ROLLBACK")
-            self.db.close()

@@ -7,7 +7,8 @@ does not change what any node does, so it runs beside the nodes in a forked chil
 other core.
 
 How it works: the parent buffers the calls it would make on a bag - a step's envelopes (as plain
-tuples), then ``write_clock(t)`` and the visualisation of instant ``t`` - and sends them through a
+tuples), then ``write_clock(t)``, the visualisation of instant ``t`` and the plotted series
+(bringup/recording/metrics_feed.py, with the bundles in flight the parent hands over) - and sends them through a
 pipe in batches of a few thousand envelopes (marshal: tuples of ints, str and bytes, about twice as
 fast as pickle for them). The child makes exactly those calls, in that order, on
 a BagWriter of its own, so the file is the one the parent would have written itself
@@ -38,6 +39,7 @@ from pathlib import Path
 
 from bringup.errors import UserError
 from bringup.recording.bag import BagWriter
+from bringup.recording.metrics_feed import MetricsFeed
 from bringup.recording.viz_feed import VizFeed
 from msgs_json.envelope import Envelope
 
@@ -90,9 +92,10 @@ class Recorder:
         if self._n >= _BATCH:
             self._flush()
 
-    def step(self, t_ns: int) -> None:
-        """The /clock record and the visualisation of instant ``t_ns`` (VizFeed decides if due)."""
-        self._ops.append(int(t_ns))
+    def step(self, t_ns: int, in_flight: int | None = None) -> None:
+        """The /clock record and the visualisation of instant ``t_ns`` (VizFeed and MetricsFeed decide
+        if due); ``in_flight``: the ISL medium's bundle copies after the previous step, if any."""
+        self._ops.append(int(t_ns) if in_flight is None else (int(t_ns), int(in_flight)))
 
     # -- end -----------------------------------------------------------------------------------------
     def finish(self, meta=None, runtime: dict | None = None, *, meanwhile=None) -> dict | None:
@@ -190,13 +193,15 @@ def _child_main(conn, parent_conn, bag_dir: str, world, report) -> None:
     gc.set_threshold(50_000, 50, 1000)
     builder = report() if report is not None else None
     suffixes = tuple(report.TOPIC_SUFFIXES) if report is not None else ()
-    wanted: dict[str, bool] = {}
+    wanted: dict[str, tuple[bool, bool]] = {}
     reply = None
     try:
-        viz = None
+        viz = metrics = None
         if world is not None:
             viz = VizFeed(world)
-        with BagWriter(bag_dir) as bag:
+            metrics = MetricsFeed(world.scenario.value.revisit_zero_s)
+        last = None  # (t_ns, in_flight) of the last step
+        with BagWriter(bag_dir, epoch_ns=world.scenario.epoch_ns if world is not None else 0) as bag:
             while True:
                 try:
                     msg = conn.recv_bytes()
@@ -204,25 +209,32 @@ def _child_main(conn, parent_conn, bag_dir: str, world, report) -> None:
                     break
                 if msg[:1] == b"F":
                     meta, runtime = pickle.loads(msg[1:])
+                    if metrics is not None and last is not None:  # the series' last points
+                        metrics.write(bag, last[0], in_flight=last[1], final=True)
                     bag.close()
                     rep = builder.build(meta, runtime) if (builder is not None and meta is not None) else None
                     reply = ("ok", rep, dict(bag.counts))
                     break
                 for op in marshal.loads(memoryview(msg)[1:]):
-                    if type(op) is int:
-                        bag.write_clock(op)
+                    if type(op) is int or type(op) is tuple:  # a step: t_ns, or (t_ns, in_flight)
+                        last = (op, None) if type(op) is int else op
+                        bag.write_clock(last[0])
                         if viz is not None:
-                            viz.write(bag, op)
+                            viz.write(bag, last[0])
+                            metrics.write(bag, last[0], in_flight=last[1])
                         continue
                     envs = [Envelope(*x) for x in op]
                     bag.write_envelopes(envs)
-                    if builder is not None:
+                    if builder is not None or metrics is not None:
                         for env in envs:
                             w = wanted.get(env.topic)
-                            if w is None:
-                                w = wanted[env.topic] = env.topic.endswith(suffixes)
-                            if w:
+                            if w is None:  # (to the report, to the value series)
+                                w = wanted[env.topic] = (builder is not None and env.topic.endswith(suffixes),
+                                                         metrics is not None and env.topic.endswith("/observations"))
+                            if w[0]:
                                 builder.add(env)
+                            if w[1]:
+                                metrics.observe(env)
     except BaseException as exc:  # noqa: BLE001 - reported to the parent, which raises it
         reply = ("error", f"{type(exc).__name__}: {exc}")
     try:

@@ -18,7 +18,8 @@ Pure functions returning rosbags typestore messages (``bringup.recording.bag.TYP
   for ``viz_messages``, without building message objects; ``write_viz(bag, ...)`` records them with
   ``bag.write_raw``.
 
-Header stamps are sim time (``t_ns`` since the scenario epoch, as /clock).
+Header stamps are the ``t_ns`` the builders are given; :func:`write_viz` gives them the bag's UTC
+instant (its epoch + t_ns, the same as /clock and the log time, bringup/recording/bag.py).
 
 The sub-satellite point is the WGS-84 geodetic conversion of the orbit core
 (:func:`orbit_clock.frames.ecef_to_geodetic`, checked in tests/unit/test_orbit_frames.py).
@@ -413,9 +414,9 @@ def viz_cdr(sat_names: Sequence[str], r_ecef_km, t_ns: int, **markers_kw) -> lis
 
 
 def write_viz(bag, sat_names: Sequence[str], r_ecef_km, t_ns: int, **markers_kw) -> int:
-    """Write :func:`viz_messages` (as :func:`viz_cdr` bytes) to a BagWriter at log time ``t_ns``;
-    returns how many."""
-    msgs = viz_cdr(sat_names, r_ecef_km, t_ns, **markers_kw)
+    """Write :func:`viz_messages` (as :func:`viz_cdr` bytes) to a BagWriter at log time ``t_ns``,
+    stamped with the bag's instant ``bag.epoch_ns + t_ns``; returns how many."""
+    msgs = viz_cdr(sat_names, r_ecef_km, getattr(bag, "epoch_ns", 0) + t_ns, **markers_kw)
     for topic, msgtype, cdr in msgs:
         bag.write_raw(topic, msgtype, cdr, t_ns)
     return len(msgs)

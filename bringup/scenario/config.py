@@ -159,6 +159,12 @@ class Scenario(_S, kw_only=True):
         return _parse_epoch(self.scenario.epoch_utc)
 
     @property
+    def epoch_ns(self) -> int:
+        """The epoch in Unix nanoseconds (UTC), exactly: what a bag's clock adds to every t_ns."""
+        d = self.epoch - _dt.datetime(1970, 1, 1, tzinfo=_dt.timezone.utc)
+        return (d.days * 86_400 + d.seconds) * 1_000_000_000 + d.microseconds * 1_000
+
+    @property
     def horizon_ns(self) -> int:
         return int(round(self.scenario.horizon_s * 1e9))
 

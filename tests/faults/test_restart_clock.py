@@ -35,7 +35,8 @@ def test_journal_keeps_the_last_commit_under_sigkill_and_exports_a_bag(tmp_path)
     code = f"""
 import os, signal, sys
 sys.path.insert(0, {str(REPO)!r})
-from bringup.recording.bag import BagJournal, string_cdr
+from bringup.recording.bag import string_cdr
+from bringup.recording.journal import BagJournal
 j = BagJournal({str(db)!r})
 j.k = 0
 j.write_clock(5)
@@ -49,7 +50,8 @@ os.kill(os.getpid(), signal.SIGKILL)
 """
     r = subprocess.run([sys.executable, "-c", code], check=False, capture_output=True, timeout=60)
     assert r.returncode == -signal.SIGKILL, r.stderr
-    from bringup.recording.bag import BagJournal, BagReader, string_cdr
+    from bringup.recording.bag import BagReader, string_cdr
+    from bringup.recording.journal import BagJournal
 
     j = BagJournal(db)
     assert j.load() == (1, b"state-1")

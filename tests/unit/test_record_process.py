@@ -20,12 +20,13 @@ import pytest
 from bringup.recording.recorder_process import Recorder, RecorderError
 from bringup.recording.bag import BagReader, BagWriter
 from bringup.analysis.report import ReportBuilder, RunMeta, build_report
+from bringup.recording.metrics_feed import MetricsFeed
 from bringup.recording.viz_feed import VizFeed
 from bringup.scenario.world import World
 from msgs_json import codec
 from msgs_json import schemas as S
 from msgs_json.envelope import Envelope
-from msgs_json.topics import VIZ_MARKERS, fix_topic
+from msgs_json.topics import VIZ_MARKERS, VIZ_VALUE, fix_topic
 
 S_NS = 1_000_000_000
 
@@ -66,13 +67,18 @@ def test_same_bag_and_report_as_in_process(world, tmp_path):
     kept = []
     (tmp_path / "a").mkdir()
     (tmp_path / "b").mkdir()
-    with BagWriter(tmp_path / "a" / "bag") as bag:
+    with BagWriter(tmp_path / "a" / "bag", epoch_ns=world.scenario.epoch_ns) as bag:  # the recorder's clock
         viz = VizFeed(world)
+        metrics = MetricsFeed(world.scenario.value.revisit_zero_s)
         for t, envs in _steps(world):
             bag.write_envelopes(envs)
+            for e in envs:
+                metrics.observe(e)
             bag.write_clock(t)
             viz.write(bag, t)
+            metrics.write(bag, t)
             kept += envs
+        metrics.write(bag, t, final=True)
     with Recorder(tmp_path / "b" / "bag", world, report=ReportBuilder) as rec:
         for t, envs in _steps(world):
             rec.write_envelopes(envs)
@@ -83,7 +89,9 @@ def test_same_bag_and_report_as_in_process(world, tmp_path):
     assert rep == build_report(kept, meta, {"wall_s": 1.0})
     assert rep["observations"]["count"] > 100
     with BagReader(tmp_path / "b" / "bag") as r:
-        assert {t.topic for t in r.topics()} >= {"/clock", VIZ_MARKERS, fix_topic(world.sat_names[0])}
+        assert {t.topic for t in r.topics()} >= {"/clock", VIZ_MARKERS, VIZ_VALUE, fix_topic(world.sat_names[0])}
+        *_, (_, _, last) = r.typed([VIZ_VALUE])
+    assert last.data == rep["value"]["cumulative"] and last.data > 0  # the plotted series ends at the report's value
 
 
 def test_child_failure_is_named(world, tmp_path):

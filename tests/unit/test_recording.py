@@ -1,4 +1,5 @@
-"""MCAP bags: write in tmp_path, read back with BOTH `mcap` (+ mcap-ros2-support) and `rosbags`."""
+"""MCAP bags: write in tmp_path, read back with BOTH `mcap` (+ mcap-ros2-support) and `rosbags`;
+on the scenario's clock (log times and /clock = epoch + t_ns, UTC) with CRCs `mcap` validates."""
 
 from __future__ import annotations
 
@@ -34,9 +35,12 @@ def _envelopes():
     ]
 
 
-def _write(path, envs):
+EPOCH_NS = 946_727_968 * S  # 2000-01-01T11:59:28Z, the paper scenario's epoch
+
+
+def _write(path, envs, epoch_ns=0, **kw):
     fix = TYPESTORE.types["sensor_msgs/msg/NavSatFix"]
-    with BagWriter(path, custom={"scenario": "paper", "seed": "1"}) as bag:
+    with BagWriter(path, custom={"scenario": "paper", "seed": "1"}, epoch_ns=epoch_ns, **kw) as bag:
         for t in (0, 3 * S, 6 * S, 9 * S):
             bag.write_clock(t)
         for e in envs:
@@ -57,35 +61,39 @@ def _fix(fix):
                altitude=710000.0, position_covariance=np.zeros(9), position_covariance_type=0)
 
 
-def test_round_trip_with_rosbags(tmp_path):
+@pytest.mark.parametrize("epoch_ns", [0, EPOCH_NS])
+def test_round_trip_with_rosbags(tmp_path, epoch_ns):
     envs = _envelopes()
-    bag = _write(tmp_path / "bag", envs)
+    bag = _write(tmp_path / "bag", envs, epoch_ns)
     assert bag.counts["/clock"] == 4 and bag.counts["/sat_11/dtn/out"] == 1
     with BagReader(tmp_path / "bag") as r:
+        assert r.epoch_ns == epoch_ns
         assert list(r.envelopes()) == envs  # exact, bytes and text, in log-time order
-        assert r.start_ns == 0 and r.end_ns == 9 * S and r.count == 10
+        assert r.start_ns == 0 and r.end_ns == 9 * S and r.count == 10  # t_ns: the epoch taken off
         stats = {t.topic: (t.msgtype, t.count) for t in r.topics()}
         assert stats["/clock"] == (CLOCK_TYPE, 4) and stats["/sat_11/observations"] == (STRING, 1)
         times = [m.log_time_ns for m in r.messages()]
         assert times == sorted(times)
         typed = {topic: msg for topic, _, msg in r.typed(["/clock", "/sat_11/fix"])}
         assert typed["/sat_11/fix"].latitude == 12.5
-        assert (typed["/clock"].clock.sec, typed["/clock"].clock.nanosec) == (9, 0)
+        assert (typed["/clock"].clock.sec, typed["/clock"].clock.nanosec) == (epoch_ns // S + 9, 0)  # UTC
     # the metadata.yaml a rosbag2 user expects
     meta = (tmp_path / "bag" / "metadata.yaml").read_text()
     for key in ("storage_identifier: mcap", "version: 9", "offered_qos_profiles", "scenario: paper"):
         assert key in meta
+    assert ("epoch_utc: '2000-01-01T11:59:28Z'" in meta or "epoch_utc: 2000-01-01T11:59:28Z" in meta) == bool(epoch_ns)
 
 
-def test_round_trip_with_mcap_reader(tmp_path):
+@pytest.mark.parametrize("epoch_ns", [0, EPOCH_NS])
+def test_round_trip_with_mcap_reader(tmp_path, epoch_ns):
     from mcap.reader import make_reader
     from mcap_ros2.decoder import DecoderFactory
 
     envs = _envelopes()
-    _write(tmp_path / "bag", envs)
+    _write(tmp_path / "bag", envs, epoch_ns)
     path = next((tmp_path / "bag").glob("*.mcap"))
     with open(path, "rb") as f:
-        reader = make_reader(f, decoder_factories=[DecoderFactory()])
+        reader = make_reader(f, decoder_factories=[DecoderFactory()], validate_crcs=True)
         header = reader.get_header()
         summary = reader.get_summary()
         assert header.profile == "ros2"
@@ -93,15 +101,55 @@ def test_round_trip_with_mcap_reader(tmp_path):
         assert {s.encoding for s in summary.schemas.values()} == {"ros2msg"}
         assert all("offered_qos_profiles" in ch.metadata for ch in summary.channels.values())
         assert {ci.compression for ci in summary.chunk_indexes} == {"zstd"}
-        got = [(ch.topic, m.log_time, dec) for _, ch, m, dec in reader.iter_decoded_messages(log_time_order=True)]
+        assert summary.statistics.message_start_time == epoch_ns  # where a viewer's timeline starts
+        assert summary.statistics.message_end_time == epoch_ns + 9 * S
+        got = [(ch.topic, m.log_time, m.publish_time, dec)
+               for _, ch, m, dec in reader.iter_decoded_messages(log_time_order=True)]
+        (meta,) = [m for m in reader.iter_metadata() if m.name == "rosbag2"]
+        assert (f"epoch_ns: '{epoch_ns}'" in meta.metadata["serialized_metadata"]) == bool(epoch_ns)
     from msgs_json.wire import decode_envelope
 
-    strings = [(t, lt, decode_envelope(d.data, t)) for t, lt, d in got if t not in ("/clock", "/sat_11/fix")]
+    assert all(pt == lt for _, lt, pt, _ in got)
+    strings = [(t, lt, decode_envelope(d.data, t)) for t, lt, _, d in got if t not in ("/clock", "/sat_11/fix")]
     assert [e for _, _, e in strings] == envs
-    assert all(lt == e.t_ns for _, lt, e in strings)
-    clocks = [(d.clock.sec, d.clock.nanosec) for t, _, d in got if t == "/clock"]
-    assert clocks == [(0, 0), (3, 0), (6, 0), (9, 0)]
-    assert [d.altitude for t, _, d in got if t == "/sat_11/fix"] == [710000.0]
+    assert all(lt == epoch_ns + e.t_ns for _, lt, e in strings)  # log time: the UTC instant
+    clocks = [(d.clock.sec, d.clock.nanosec) for t, _, _, d in got if t == "/clock"]
+    assert clocks == [(epoch_ns // S + k, 0) for k in (0, 3, 6, 9)]
+    assert [d.altitude for t, _, _, d in got if t == "/sat_11/fix"] == [710000.0]
+
+
+def test_crcs_are_written_and_validated(tmp_path):
+    """Every chunk's uncompressed CRC, the data section's and the summary's are written (rosbags
+    writes 0, "not computed"); mcap validates the first two, and a flipped byte is caught."""
+    import struct
+    import zlib
+
+    from mcap.reader import make_reader
+    from mcap.records import Chunk, DataEnd, Footer
+    from mcap.stream_reader import CRCValidationError, StreamReader
+
+    for compress in (True, False):
+        d = tmp_path / f"bag{int(compress)}"
+        _write(d, _envelopes() * 40, EPOCH_NS, compress=compress)
+        path = next(d.glob("*.mcap"))
+        records = list(StreamReader(str(path), validate_crcs=True).records)  # chunk + data section CRCs
+        chunks = [r for r in StreamReader(str(path), emit_chunks=True).records if isinstance(r, Chunk)]
+        (data_end,) = [r for r in records if isinstance(r, DataEnd)]
+        (footer,) = [r for r in records if isinstance(r, Footer)]
+        assert chunks and all(c.uncompressed_crc != 0 for c in chunks) and data_end.data_section_crc != 0
+        raw = path.read_bytes()
+        assert footer.summary_crc == zlib.crc32(raw[footer.summary_start:len(raw) - 8 - 4])
+        with open(path, "rb") as f:
+            assert sum(1 for _ in make_reader(f, validate_crcs=True).iter_messages()) == 205
+    # a flipped byte in a message of the uncompressed bag: the chunk CRC no longer matches
+    raw = bytearray(path.read_bytes())
+    i = raw.index(b"orbit_clock")  # an envelope source: message data only
+    raw[i] ^= 0x20
+    bad = tmp_path / "bad.mcap"
+    bad.write_bytes(bytes(raw))
+    with open(bad, "rb") as f, pytest.raises(CRCValidationError, match="in Chunk"):
+        list(make_reader(f, validate_crcs=True).iter_messages())
+    assert struct.unpack_from("<I", raw, len(raw) - 12)[0] == footer.summary_crc
 
 
 @settings(max_examples=100, deadline=None)

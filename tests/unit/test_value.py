@@ -6,7 +6,7 @@ import sys
 import numpy as np
 import pytest
 
-from sat_node.value import Belief, KnownObservation, belief_sigma, prior_state, true_value
+from sat_node.value import Belief, KnownObservation, ValueLedger, belief_sigma, prior_state, true_value
 
 
 def _scalar_eq1(absval, t, last, n, rz):
@@ -146,3 +146,24 @@ def test_prior_state_equals_pairwise_definition():
         assert np.array_equal(c, c0) and np.array_equal(r, r0), trial
     c, r = prior_state([], np.array([1, 2]), np.array([0.0, 1.0]), "sat_11", 900.0)
     assert c.shape == r.shape == (2, 2) and not c.any() and not r.any()
+
+
+def test_value_ledger_equals_eq1_on_each_history():
+    """One observation at a time, in time order: each one's value is Eq. 1 (true_value) on the
+    history of its GP before it; the total is their sum."""
+    rng = np.random.default_rng(7)
+    for _ in range(20):
+        n = 200
+        gps = rng.integers(0, 6, n)
+        t_ns = np.sort(rng.integers(0, 4 * 3600, n)) * 1_000_000_000  # whole seconds: exact boundaries too
+        vals = rng.integers(1, 257, n).astype(float)
+        ledger = ValueLedger(900.0)
+        total = 0.0
+        for i in range(n):
+            before = [j for j in range(i) if gps[j] == gps[i]]
+            last = t_ns[before[-1]] / 1e9 if before else -np.inf
+            want = float(true_value(vals[i], t_ns[i] / 1e9, last, len(before), 900.0))
+            got, recent = ledger.add(int(gps[i]), int(t_ns[i]), float(vals[i]))
+            assert got == want and recent == (want == 0.0)
+            total += want
+        assert ledger.total == total

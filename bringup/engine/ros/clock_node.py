@@ -1,6 +1,6 @@
 """The lockstep coordinator of the ROS engine: owns simulated time (DESIGN.md section 3).
 
-Publishes /clock (rosgraph_msgs/Clock) and /sim/step, collects one /sim/ack per host process and
+Publishes /clock (rosgraph_msgs/Clock, the scenario's UTC instant: epoch + t_ns) and /sim/step, collects one /sim/ack per host process and
 picks the next step with rule 3 of msgs_json/envelope.py (bringup/engine/lockstep.py has the
 protocol). A step ends when every registered host acked it; what was sent in it is counted in the
 acks and the next step message carries the counts, so receivers run the next step only once they
@@ -22,7 +22,9 @@ The same process records every topic into a rosbag2 MCAP bag (bringup/recording/
 /clock and /sim/step as written, /sim/ack and every data topic from raw (CDR) subscriptions, log
 time = the step's / the envelope's t_ns. Data topics are those the hosts subscribe to plus any
 String topic that appears on the graph (polled while waiting); hosts publish on a topic only once
-the recorder's subscription has matched, so the bag holds every envelope. SIGINT/SIGTERM: the
+the recorder's subscription has matched, so the bag holds every envelope. With a scenario the bag
+also gets the visualisation frames and the plotted series (value so far, bundles in flight:
+bringup/recording/metrics_feed.py). SIGINT/SIGTERM: the
 clock tells the hosts to stop and closes the bag (readable).
 
 Crash and restart: with ``restart_wait_s > 0`` a host that misses the ack deadline is
@@ -34,7 +36,7 @@ any step but the current one are ignored (a restarted host repeats its last one)
 keeps one copy per (topic, source, seq), so a re-run step is recorded once.
 
 Clock restart: with ``restart_wait_s > 0`` and a ``state_dir`` the clock itself survives
-SIGKILL. It records into a journal (bringup/recording/bag.py BagJournal, ``state_dir/clock.sqlite``)
+SIGKILL. It records into a journal (bringup/recording/journal.py BagJournal, ``state_dir/clock.sqlite``)
 instead of straight into the bag, and before publishing wire step k it commits, in one SQLite
 transaction, everything recorded through step k-1 plus its checkpoint: k, t_ns, the step message
 (which carries the per-source seq_end and per-topic sent counts of step k-1), the running totals,
@@ -88,7 +90,9 @@ from bringup.engine.lockstep import (
 )
 from bringup.engine.ros.host import QOS_DATA, QOS_SYNC_PUB, QOS_SYNC_SUB, exit_now
 from bringup.engine.ros.run_spec import RunSpec
-from bringup.recording.bag import BagJournal, BagWriter, string_from_cdr
+from bringup.recording.bag import BagWriter, string_from_cdr
+from bringup.recording.journal import BagJournal
+from bringup.recording.metrics_feed import MetricsFeed
 from bringup.recording.viz_feed import VizFeed
 from bringup.scenario.world import World
 from msgs_json.envelope import Envelope
@@ -129,27 +133,32 @@ class LockstepClock:
         self.node.create_subscription(String, ACK_TOPIC, self._on_ack, QOS_SYNC_SUB, raw=True)
         self.bag = None
         self.bag_custom = {"engine": "ros", "roles": ",".join(self.roles)}
+        # /clock and the bag's times are UTC: the scenario epoch + t_ns (bringup/recording/bag.py)
+        self.epoch_ns = spec.epoch_ns()
         # clock restart: the journal (bag rows + checkpoint) and the checkpoint found at start, if any
         self.journal = None
         self.resumed: tuple[int, dict] | None = None
         self.reannounces = 0
         self._incarnation = 0
         if spec.restart_wait_s > 0 and spec.state_dir:
-            self.journal = self.bag = BagJournal(Path(spec.state_dir) / "clock.sqlite")
+            self.journal = self.bag = BagJournal(Path(spec.state_dir) / "clock.sqlite", epoch_ns=self.epoch_ns)
             row = self.journal.load()
             if row is not None:
                 self.resumed = (row[0], pickle.loads(row[1]))
         elif spec.bag_dir:
-            self.bag = BagWriter(spec.bag_dir, custom=self.bag_custom)
+            self.bag = BagWriter(spec.bag_dir, custom=self.bag_custom, epoch_ns=self.epoch_ns)
         # A `constellation run`: its metadata record and the visualisation topics (bringup/recording/viz_feed.py).
         self.meta = spec.extra.get("meta")
         self.viz = None
+        self.metrics = None  # the plotted series (bringup/recording/metrics_feed.py), with viz
         if self.bag is not None and self.meta is not None:
             if self.resumed is None:
                 self.bag.write_envelope(Envelope(self.t0_ns, "run", 0, "/run/meta",
                                                  json.dumps({"meta": self.meta})))
             if spec.extra.get("world"):
-                self.viz = VizFeed(World.load(spec.extra["world"], spec.extra.get("world_key")))
+                world = World.load(spec.extra["world"], spec.extra.get("world_key"))
+                self.viz = VizFeed(world)
+                self.metrics = MetricsFeed(world.scenario.value.revisit_zero_s)
         self.rec_topics: dict[str, object] = {}
         self.rec_counts: dict[str, int] = {}
         self.bad_recorded = 0
@@ -210,6 +219,8 @@ class LockstepClock:
             if self.restart:
                 self.recent.setdefault(topic, []).append((self.cur_k, text))
             self.rec_counts[topic] = self.rec_counts.get(topic, 0) + 1
+            if self.metrics is not None:
+                self.metrics.observe(env)
             if self.journal is not None:
                 self.journal.write_keyed(topic, _STRING, raw, env.t_ns, env.source, env.seq)
             elif self.bag is not None:
@@ -307,12 +318,14 @@ class LockstepClock:
     def _publish_step(self, msg: StepMsg) -> None:
         if not msg.start and not msg.stop:
             c = Clock()
-            c.clock.sec, c.clock.nanosec = divmod(msg.t_ns, 1_000_000_000)
+            c.clock.sec, c.clock.nanosec = divmod(self.epoch_ns + msg.t_ns, 1_000_000_000)
             self.clock_pub.publish(c)
             if self.bag is not None:
                 self.bag.write_raw("/clock", _CLOCK, serialize_message(c), msg.t_ns)
                 if self.viz is not None:
                     self.viz.write(self.bag, msg.t_ns)
+                    self.metrics.write(self.bag, msg.t_ns, in_flight=self.in_flight,
+                                       complete=self._observations_recorded())
         s = String(data=encode_msg(msg))
         self.step_pub.publish(s)
         if self.bag is not None:
@@ -331,6 +344,8 @@ class LockstepClock:
             "hellos": {r: encode_msg(h) for r, h in self.hellos.items()}, "rec_topics": list(self.rec_topics),
             "wall_s": wall_s, "incarnation": self._incarnation, "rejoined": dict(self.rejoined), "reannounces": self.reannounces,
             "viz": (self.viz.next_ns, self.viz.written) if self.viz is not None else None,
+            "metrics": ((self.metrics.next_value_ns, self.metrics.next_flight_ns, self.metrics.written)
+                        if self.metrics is not None else None),
         }, protocol=pickle.HIGHEST_PROTOCOL)
 
     def _restore(self) -> tuple[int, int, StepMsg, float] | None:
@@ -348,6 +363,12 @@ class LockstepClock:
         self._incarnation = int(st.get("incarnation", 0)) + 1
         if self.viz is not None and st["viz"] is not None:
             self.viz.next_ns, self.viz.written = st["viz"]
+        if self.metrics is not None and st.get("metrics") is not None:
+            # every observation the journal committed goes to the value series again (folded whole
+            # at the next point: the ledger only depends on the set, taken in time order)
+            self.metrics.next_value_ns, self.metrics.next_flight_ns, self.metrics.written = st["metrics"]
+            for topic, cdr in self.journal.rows_on("/observations"):
+                self.metrics.observe(decode_envelope(string_from_cdr(cdr), topic))
         for topic in st["rec_topics"]:
             self._record(topic)
         lo = k - _RESEND_STEPS
@@ -362,6 +383,10 @@ class LockstepClock:
 
     def _recorded_all(self) -> bool:
         return all(self.rec_counts.get(tp, 0) >= n for tp, n in self.totals.items())
+
+    def _observations_recorded(self) -> bool:
+        """The recorder holds every observation envelope the acks counted (the value series' points)."""
+        return all(self.rec_counts.get(tp, 0) >= n for tp, n in self.totals.items() if tp.endswith("/observations"))
 
     def _missing(self) -> dict[str, int]:
         return {tp: n - self.rec_counts.get(tp, 0) for tp, n in self.totals.items() if self.rec_counts.get(tp, 0) < n}
@@ -458,6 +483,8 @@ class LockstepClock:
             self._spin_until(self._recorded_all, spec.ack_timeout_s,
                              lambda: "recorder is missing envelopes: " + str(self._missing()))
         wall = time.monotonic() - wall0
+        if self.metrics is not None:  # the series' last points (everything is recorded now)
+            self.metrics.write(self.bag, t, in_flight=self.in_flight, final=True)
         if self.bag is not None and self.meta is not None:
             runtime = {"wall_s": wall, "steps": self.steps,
                        "real_time_factor": ((t - self.t0_ns) / 1e9 / wall) if wall > 0 else None}

@@ -75,7 +75,7 @@ from pathlib import Path
 from bringup.engine.ros.run_spec import CLOCK_ROLE, RunSpec
 from bringup.engine.ros.shm_cleanup import remove_unheld
 from bringup.errors import UserError
-from bringup.recording.bag import BagJournal
+from bringup.recording.journal import BagJournal
 
 __all__ = [
     "FASTDDS_PROFILE",
@@ -239,14 +239,14 @@ _CLOCK_DECIDED = (0, 2, 3, 130)
 
 def _partial_bag(spec: RunSpec) -> str:
     """The clock crashed for good: export what its journal committed (every step before the one it
-    died in; bringup/recording/bag.py BagJournal, the same export a restarted clock ends with) into
+    died in; bringup/recording/journal.py BagJournal, the same export a restarted clock ends with) into
     ``spec.bag_dir``. Returns the clause for the run's one-line error."""
 
     path = Path(spec.state_dir) / "clock.sqlite"  # type: ignore[arg-type]
     if not path.exists():
         return "no bag: the clock recorded nothing"
     try:
-        j = BagJournal(path)
+        j = BagJournal(path, epoch_ns=spec.epoch_ns())
         try:
             row = j.load()
             state = pickle.loads(row[1]) if row is not None else {}

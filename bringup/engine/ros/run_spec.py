@@ -105,6 +105,12 @@ class RunSpec(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
             sc = sc.with_overrides(**ov)
         return sc
 
+    def epoch_ns(self) -> int:
+        """The scenario epoch in Unix ns: the clock of the run's bag and /clock (bringup/recording/bag.py);
+        0 when the spec names no scenario (toy runs)."""
+        sc = self.load_scenario()
+        return 0 if sc is None else sc.epoch_ns
+
     def bounds_ns(self) -> tuple[int, int]:
         """(horizon_ns, max_step_ns): explicit values, else the scenario's."""
         horizon, max_step = self.horizon_ns, self.max_step_ns
