@@ -14,7 +14,11 @@ Rules, identical in both engines, which is what makes their runs equal:
 1. At step k every participant's ``step(t_k, inbox)`` is called once. ``inbox`` holds every
    envelope on the participant's subscribed topics that was emitted during step k-1, sorted by
    ``(t_ns, source, seq)``. (Order between participants inside one step does not matter: nothing
-   emitted in step k is seen before step k+1.)
+   emitted in step k is seen before step k+1.) A participant whose ``event_driven`` attribute is
+   True is called only at the steps where its inbox is not empty or its last wakeup is due
+   (``next_wakeup_ns <= t_k``); at the others its last wakeup and ``in_flight`` stand. It declares
+   so when a step with nothing for it could change nothing (a DTN-alone traffic node: thousands of
+   steps, each for one or two of its 25 participants).
 2. ``step`` returns a :class:`StepResult`: envelopes to emit (their ``t_ns`` is the exact event time
    and must be ``<= t_k``: a satellite that executed an observation at 12.3 s emits it at the step
    covering 12.3 s stamped 12.3 s), and the next time it needs to be woken (``None``: no need).
@@ -80,7 +84,7 @@ class StepResult:
 
 @runtime_checkable
 class Participant(Protocol):
-    """What an engine needs from one node's logic."""
+    """What an engine needs from one node's logic (optionally also ``event_driven = True``: rule 1)."""
 
     name: str
 

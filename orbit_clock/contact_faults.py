@@ -7,9 +7,9 @@ directions; a contact may split in two) and ``extra_delay_s`` added to every con
 light time. Both participants take the truth from :func:`truth_plan`, so what is announced is what
 the medium carries.
 
-How we know it is right: tests/faults/test_faults_link.py (a cut ends a contact mid-transmission:
-the medium reports the failure, the window announcements show the cut) and
-tests/unit/test_contact_announcer.py (cut pieces by hand).
+How we know it is right: tests/unit/test_contact_announcer.py (cut pieces and extra light time by
+hand, and the windows announced for them) and tests/faults/test_faults_link.py (a cut ends a contact
+mid-transmission: the medium reports the failure).
 """
 
 from __future__ import annotations

@@ -24,6 +24,10 @@ The rules checked here:
   changes nothing in the run.
 * the step rule: ``t_{k+1} = max(t_k + 1, min(next wakeups of step k, t_k + max_step, horizon))``;
   the last step is at the horizon.
+* who is called: every participant at every step, except an event-driven one (``event_driven``
+  attribute True), called only when its inbox is not empty or its standing wakeup is due
+  (:func:`is_event_driven`, :func:`must_step`); a participant not called keeps its last wakeup and
+  ``in_flight``.
 
 ``bool`` is not accepted where an ``int`` is (it is one in Python, never meant as a time).
 Exceptions raised by a participant become an :class:`EngineError` naming it (:func:`failed`).
@@ -41,7 +45,7 @@ from collections.abc import Iterable, Sequence
 from msgs_json.envelope import Emit, StepResult
 
 __all__ = ["ContractError", "EngineError", "check_emits", "check_names", "check_result", "check_subscriptions",
-           "failed", "next_step_ns"]
+           "failed", "is_event_driven", "must_step", "next_step_ns"]
 
 
 class EngineError(ValueError):
@@ -73,7 +77,12 @@ def check_subscriptions(name: str, topics) -> list[str]:
 
 def check_result(name: str, r, where: str) -> StepResult:
     """What ``start``/``step`` returned, checked (``where``: ``start at T`` / ``step at T``)."""
-    if type(r) is not StepResult and not isinstance(r, StepResult):
+    if type(r) is StepResult:  # the common case, checked in a few attribute reads (every step of every participant)
+        w = r.next_wakeup_ns
+        n = r.in_flight
+        if (w is None or (type(w) is int and w >= 0)) and (n is None or (type(n) is int and n >= 0)):
+            return r
+    elif not isinstance(r, StepResult):
         raise ContractError(f"{name} {where}: returned {type(r).__name__}, expected StepResult")
     w = r.next_wakeup_ns
     if w is not None and (type(w) is not int or w < 0):
@@ -108,6 +117,16 @@ def check_emits(name: str, emits, t_max_ns: int, where: str) -> list:
         if type(topic) is not str or not topic.startswith("/"):
             raise ContractError(f"{name} {where}: emit topic {topic!r} is not a name starting with '/'")
     return emits
+
+
+def is_event_driven(p) -> bool:
+    """True when ``p`` is called only for an inbox or a due wakeup (``p.event_driven is True``)."""
+    return getattr(p, "event_driven", False) is True
+
+
+def must_step(event_driven: bool, has_inbox: bool, wakeup_ns: int | None, t_ns: int) -> bool:
+    """Whether a participant is called at the step at ``t_ns`` (``wakeup_ns``: its standing wakeup)."""
+    return not event_driven or has_inbox or (wakeup_ns is not None and wakeup_ns <= t_ns)
 
 
 def failed(name: str, where: str, exc: BaseException) -> EngineError:

@@ -6,7 +6,9 @@ ROS run must match:
 1. ``start(t0)`` of every participant; its emits form the inbox of step 0.
 2. At step k every participant's ``step(t_k, inbox)`` is called once, in list order; ``inbox`` holds
    the envelopes emitted during step k-1 (or by ``start`` for k = 0) on the topics it subscribes
-   to, sorted by ``(t_ns, source, seq)``. Nothing emitted in step k is seen before step k+1.
+   to, sorted by ``(t_ns, source, seq)``. Nothing emitted in step k is seen before step k+1. An
+   event-driven participant is called only when its inbox is not empty or its wakeup is due
+   (contract ``must_step``).
 3. The next step comes from the contract's step rule (bringup/engine/contract.py ``next_step_ns``):
    the earliest wakeup, at most ``max_step_ns`` ahead, never past the horizon, at least 1 ns on;
    the last step is at ``horizon_ns``, then ``finish(horizon_ns)`` is called once and its emits are
@@ -54,6 +56,8 @@ from bringup.engine.contract import (
     check_result,
     check_subscriptions,
     failed,
+    is_event_driven,
+    must_step,
     next_step_ns,
 )
 from msgs_json.envelope import Envelope, Participant
@@ -198,6 +202,7 @@ class LocalEngine:
 
         names = [p.name for p in ps]
         steps_fn = [p.step for p in ps]
+        driven = [is_event_driven(p) for p in ps]
         # start
         t = self.t0_ns
         pending: list[Envelope] = []
@@ -234,7 +239,10 @@ class LocalEngine:
             where = f"step at {t}"
             try:
                 for i in range(n):
-                    r = steps_fn[i](t, inboxes[i] if inboxes else [])
+                    box = inboxes[i] if inboxes else []
+                    if driven[i] and not must_step(True, bool(box), wake[i], t):
+                        continue  # an event-driven participant with nothing this step (contract rule 1)
+                    r = steps_fn[i](t, box)
                     check_result(names[i], r, where)
                     if r.emits:
                         pending.extend(self._stamp(names[i], r.emits, t, where))

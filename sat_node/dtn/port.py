@@ -23,8 +23,10 @@ medium sees a transmission emitted at step j at step j+1, and reports a failure 
 steps at or after both j+1 and the attempt's end; the report reaches the sender one step later. So
 at step m every report about a transmission emitted at step <= m-2 that ended by t_{m-1} has
 arrived: those are settled (the bundle leaves the agent and its persistent store). No step length,
-no engine and no time-out enters (the same rule holds under the local and the ROS engine). At
-``finish`` the port settles by the same rule, as if finish were one more step.
+no engine and no time-out enters (the same rule holds under the local and the ROS engine). The
+port counts the steps it is called at: a node not called at every step (an event-driven one,
+msgs_json/envelope.py rule 1) settles later, never earlier. At ``finish`` the port settles by the
+same rule, as if finish were one more step.
 
 How we know it is right: tests/unit/test_dtn_port.py (a failure report always finds its
 transmission in flight, settling after two steps and the end, overheard copies counted, events
@@ -189,24 +191,17 @@ class DtnPort:
         return emits
 
     def next_event_ns(self, t_ns: int) -> int | None:
-        """When the node next has something to do after ``t_ns``: the agent's next radio decision or
-        expiry, or the end of a transmission in flight (by then the medium must have heard of it, so
-        that a failure is reported at that end). None: nothing."""
+        """When a node that is not called at every step (msgs_json/envelope.py rule 1, event-driven)
+        must next be called after ``t_ns``: the agent's next radio decision or expiry, or - while a
+        transmission is not settled - its end (by then the medium must have heard of it, so that a
+        failure is reported at that end), then the next steps until it is settled. None: nothing."""
         nxt = self.agent.next_event_ns()
-        for _step, tx in self._sent:  # in send order: ends increase
-            if tx.end_ns > t_ns:
-                if nxt is None or tx.end_ns < nxt:
-                    nxt = tx.end_ns
-                break
+        if self._sent:
+            end = self._sent[0][1].end_ns  # the oldest unsettled transmission (the first to end)
+            cand = end if end > t_ns else t_ns + 1
+            if nxt is None or cand < nxt:
+                nxt = cand
         return nxt
-
-    def tick(self, t_ns: int) -> None:
-        """A step in which the node knows nothing happens to its agent (empty inbox, no creation, no
-        radio decision or expiry due by ``t_ns``): :meth:`radio` would emit nothing; only settling
-        and the step count move on."""
-        self._settle()
-        self._steps += 1
-        self._prev_t = t_ns
 
     def _settle(self) -> None:
         """Settle the transmissions whose failure report would have arrived by now (module docstring):

@@ -14,8 +14,8 @@ events - is the satellite's own code path (sat_node/dtn/port.py). It asks to be 
 its next creation time and its port's next event (the radio's next decision, an expiry, the end of
 a transmission in flight), so every decision is taken at its own instant after every arrival and
 creation up to it, and the medium hears of every transmission by its end: the run is the DTN in
-continuous time. A step with an empty inbox before that wakeup changes nothing, and is answered at
-once.
+continuous time. A step with an empty inbox before that wakeup would change nothing: the node is
+event-driven (contract rule 1), the engine calls it only for an inbox or at its wakeup.
 
 How we know it is right: the study's README counts (traffic_case4: 7430 bundles; case1: 52413),
 and DTN-alone runs on drawn plans with hand-worked delivery times, checked in
@@ -36,7 +36,6 @@ from sat_node.dtn.port import DtnPort, count_rejection
 __all__ = ["TrafficError", "TrafficItem", "TrafficNode", "read_traffic", "traffic_payload"]
 
 _NS = 1_000_000_000
-_NEVER = 1 << 62
 
 
 class TrafficError(ValueError):
@@ -100,6 +99,10 @@ class TrafficNode:
     ``on_created(index, bundle_id)`` is called right after each bundle is created (before it is sent).
     """
 
+    # Called only for an inbox or at its wakeup (msgs_json/envelope.py rule 1): a step with neither
+    # changes nothing for it - nothing arrives and nothing is due before the wakeup it asked for.
+    event_driven = True
+
     def __init__(self, agent: BundleAgent, items, *, payload_bytes: int = 160, on_created=None):
         self.name = agent.node
         self.agent = agent
@@ -111,8 +114,6 @@ class TrafficNode:
         self.created_ids: dict[int, str] = {}  # traffic index -> bundle id
         self.rejected = 0
         self.rejected_by_reason: dict[str, int] = {}
-        self._wake: int | None = None  # the wakeup asked for at the last full step
-        self._quiet_until = -1  # before this, with an empty inbox, a step changes nothing but settling
 
     def subscriptions(self) -> list[str]:
         return self.port.subscriptions()
@@ -122,11 +123,6 @@ class TrafficNode:
 
     def step(self, t_ns: int, inbox: list[Envelope]) -> StepResult:
         port = self.port
-        if not inbox and t_ns < self._quiet_until:
-            # nothing arrives, nothing is due (creation, radio decision or expiry all lie after t_ns,
-            # as the last full step found): only the port's step bookkeeping moves on
-            port.tick(t_ns)
-            return StepResult([], self._wake)
         for env in inbox:
             try:
                 port.receive(env, t_ns)
@@ -151,10 +147,7 @@ class TrafficNode:
         nxt = port.next_event_ns(upto)  # the radio's next decision, an expiry, a transmission's end
         if nxt is not None and (due is None or nxt < due):
             due = nxt
-        wake = None if due is None else due + 1
-        self._wake = wake
-        self._quiet_until = _NEVER if wake is None else wake
-        return StepResult(emits, wake)
+        return StepResult(emits, None if due is None else due + 1)
 
     def finish(self, t_ns: int) -> list[Emit]:
         emits = self.port.radio(t_ns)

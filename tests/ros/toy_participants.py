@@ -10,6 +10,9 @@ split steps by stamp alone.
 * :class:`Counter` ``c<i>``: wakes at its own irregular period, emits on /toy/count/c<i> (text)
   and every third time a blob on /toy/blob (bytes); reads its ring neighbour's count topic and the
   blobs; greets on /toy/hello in start() and reports in finish().
+* :class:`Listener` (event-driven, msgs_json/envelope.py rule 1): reads /toy/ping and wakes itself
+  every 13 s; it is called only for an inbox or at its wakeup, and reports in finish how often and
+  when it was called (role ``pingpong`` hosts it beside ping and pong).
 * :class:`Staller`: a counter that stops answering (sleeps) once sim time passes ``stall_at_ns``.
 * :class:`Breaker`: a counter that breaks the engine contract one way (:data:`BREAKS`) once sim
   time reaches ``at_ns`` (``spec.extra["break"] = {"role": ..., "kind": ..., "at_ns": ...}``).
@@ -81,6 +84,31 @@ class Pong:
 
     def finish(self, t_ns: int) -> list[Emit]:
         return []
+
+
+class Listener:
+    name = "listener"
+    event_driven = True
+
+    def __init__(self, period_ns: int = 13 * S):
+        self.period_ns = period_ns
+        self.calls: list[int] = []
+        self.heard = 0
+
+    def subscriptions(self) -> list[str]:
+        return ["/toy/ping"]
+
+    def start(self, t0_ns: int) -> StepResult:
+        return StepResult([], t0_ns + self.period_ns)
+
+    def step(self, t_ns: int, inbox: list[Envelope]) -> StepResult:
+        self.calls.append(t_ns)
+        self.heard += len(inbox)
+        return StepResult([], (t_ns // self.period_ns + 1) * self.period_ns, len(self.calls))
+
+    def finish(self, t_ns: int) -> list[Emit]:
+        body = {"listener_calls": len(self.calls), "at": zlib.crc32(repr(self.calls).encode()), "heard": self.heard}
+        return [Emit("/toy/summary", json.dumps(body), t_ns)]
 
 
 class Counter:
@@ -180,7 +208,7 @@ def make(spec, role: str, host: bool = True) -> list:
     if host and spec.extra.get("linger") == role:
         _linger_at_exit()
     if role == "pingpong":
-        return [Ping(), Pong()]
+        return [Ping(), Pong(), Listener()]
     if role.startswith("c") and role[1:].isdigit():
         i = int(role[1:])
         stall = spec.extra.get("stall")

@@ -106,3 +106,17 @@ def test_step_rule():
     assert next_step_ns(55 * S, [70 * S], 10 * S, 60 * S) == 60 * S  # never past the horizon
     assert next_step_ns(7, [7, 2], 10 * S, 60 * S) == 8  # always at least 1 ns forward
     assert next_step_ns(7, [0], 10 * S, 60 * S) == 8
+
+
+def test_event_driven_participant_is_called_only_for_an_inbox_or_a_due_wakeup():
+    """Ping emits at 0, 7.3, 14.6, ... s; the event-driven listener wakes every 13 s: it is called at
+    13, 26, ... and at the step after each ping (its inbox), nowhere else, although the engine steps
+    every 7.3 s, every 13 s and every 5 s (the timer beside it, and the max step)."""
+    listener, ping, timer = toy.Listener(), toy.Ping(), toy.Counter(0, 1, blob_every=0, period_s=5.0)
+    res = run_local([ping, listener, timer], horizon_ns=60 * S, max_step_ns=5 * S)
+    steps = sorted({*range(0, 61 * S, 5 * S), *range(0, 61 * S, 13 * S), *range(0, 61 * S, 7_300_000_000)})
+    assert res.steps == len(steps)
+    pings = list(range(0, 60 * S, 7_300_000_000))
+    after_ping = {steps[steps.index(t) + 1] for t in pings}
+    assert listener.calls == sorted(after_ping | set(range(13 * S, 60 * S, 13 * S)))
+    assert listener.heard == len(pings) == 9 and len(listener.calls) == 11 < res.steps == 25

@@ -69,6 +69,8 @@ from bringup.engine.contract import (
     check_result,
     check_subscriptions,
     failed,
+    is_event_driven,
+    must_step,
 )
 from bringup.engine.lockstep import (
     ACK_TOPIC,
@@ -114,6 +116,9 @@ class _Slot:
         self.inboxes: list[TopicInbox] = []
         self.pubs: dict[str, object] = {}
         self.seq = 0
+        self.driven = is_event_driven(p)
+        self.wake: int | None = None  # the last StepResult's wakeup and in_flight (they stand on a skipped step)
+        self.flight: int | None = None
 
 
 class ParticipantHost:
@@ -194,6 +199,7 @@ class ParticipantHost:
         for slot, blob in zip(self.slots, parts, strict=True):
             restore_participant(slot.p, blob)
             slot.seq = hs["seq"][slot.name]
+            slot.wake, slot.flight = hs["standing"][slot.name]
             for box in slot.inboxes:
                 box.expected, box.delivered, consumed = hs["boxes"][f"{slot.name} {box.topic}"]
                 box.consumed = dict(consumed)
@@ -208,7 +214,8 @@ class ParticipantHost:
               "boxes": {f"{s.name} {b.topic}": (b.expected, b.delivered, dict(b.consumed))
                         for s in self.slots for b in s.inboxes},
               "seq_end": dict(self.seq_end), "subs": dict(self.subs), "subs_default": self.subs_default,
-              "ack": ack, "wires": list(self._step_wires)}
+              "ack": ack, "wires": list(self._step_wires),
+              "standing": {s.name: (s.wake, s.flight) for s in self.slots}}
         try:
             parts = [snapshot_participant(s.p) for s in self.slots]
         except Exception as exc:
@@ -323,8 +330,6 @@ class ParticipantHost:
                 box.expected += n
         self.seq_end.update(m.seq_end)
         sent: dict[str, int] = {}
-        wakes: list[int] = []
-        flight: list[int] = []
         t = m.t_ns
         if m.start:
             self.subs, self.subs_default = dict(m.subs), m.subs_default
@@ -332,10 +337,7 @@ class ParticipantHost:
                 where = f"start at {t}"
                 r = self._call(slot, slot.p.start, where, t)
                 self._emit(slot, r.emits, t, where, sent)
-                if r.next_wakeup_ns is not None:
-                    wakes.append(r.next_wakeup_ns)
-                if r.in_flight is not None:
-                    flight.append(r.in_flight)
+                slot.wake, slot.flight = r.next_wakeup_ns, r.in_flight
         else:
             boxes = [b for s in self.slots for b in s.inboxes]
             seq_end = self.seq_end
@@ -358,13 +360,12 @@ class ParticipantHost:
                 else:
                     inbox = [e for b in slot.inboxes for e in b.take(seq_end)]
                     inbox.sort(key=Envelope.sort_key)
+                if slot.driven and not must_step(True, bool(inbox), slot.wake, t):
+                    continue  # an event-driven participant with nothing this step (contract rule 1)
                 where = f"step at {t}"
                 r = self._call(slot, slot.p.step, where, t, inbox)
                 self._emit(slot, r.emits, t, where, sent)
-                if r.next_wakeup_ns is not None:
-                    wakes.append(r.next_wakeup_ns)
-                if r.in_flight is not None:
-                    flight.append(r.in_flight)
+                slot.wake, slot.flight = r.next_wakeup_ns, r.in_flight
             if m.final:
                 for slot in self.slots:
                     # what the host rejected for this participant, so the participant can report it:
@@ -385,6 +386,8 @@ class ParticipantHost:
                     except Exception as exc:
                         raise HostError(str(failed(slot.name, where, exc))) from exc
                     self._emit(slot, emits, t, where, sent)
+        wakes = [s.wake for s in self.slots if s.wake is not None]
+        flight = [s.flight for s in self.slots if s.flight is not None]
         ack = dict(k=m.k, t_ns=t, next_wakeup_ns=min(wakes) if wakes else None, sent=sent,
                    seq_end={s.name: s.seq for s in self.slots if s.seq})
         if flight:
