@@ -86,7 +86,8 @@ def down(project: str | None, *, volumes: bool = True) -> dict[str, list[str]]:
     """Remove every container, network (and volume) labelled with ``project``; returns what was removed."""
     found = leftovers(project)
     if found["containers"]:
-        podman("rm", "--force", "--time", "5", *found["containers"], check=False, timeout=300)
+        # --volumes: also the anonymous volumes of the image's VOLUME (a container without a /runs mount)
+        podman("rm", "--force", "--volumes", "--time", "5", *found["containers"], check=False, timeout=300)
     for net in found["networks"]:
         podman("network", "rm", "--force", net, check=False)
     if volumes:

@@ -5,7 +5,7 @@
   test failed); the build's wall times are printed in one ``CONTAINERS build`` line.
 * ``lab`` (function): run-unique compose projects (name, subnet, ROS domain) in a temporary folder;
   at the end every container, network and volume labelled with its projects is removed and the
-  test fails if anything labelled is left.
+  test fails if anything labelled is left, or a new anonymous volume or podman network namespace.
 * ``local_ref`` (session): the 12-satellite, 1-h local-engine run the container runs must equal.
 
 Nothing here reaches a registry: the base comes from the Debian mirror apt uses, the wheels from the
@@ -119,11 +119,18 @@ def _netns() -> set[str]:
     return {ln.split()[0] for ln in r.stdout.splitlines() if ln.startswith("netns-")}
 
 
+def _dangling_volumes() -> set[str]:
+    from bringup.deploy.podman import podman
+
+    return set(podman("volume", "ls", "--quiet", "--filter", "dangling=true").stdout.decode().split())
+
+
 @pytest.fixture
 def lab(images, tmp_path):
     from bringup.deploy.containers import down
 
     before = _netns()
+    volumes_before = _dangling_volumes()
     lb = Lab(tmp_path, images["image"])
     try:
         yield lb
@@ -131,6 +138,7 @@ def lab(images, tmp_path):
         for p in lb.projects:
             down(p)
     assert not lb.leftovers(), f"left behind: {lb.leftovers()}"
+    assert not (_dangling_volumes() - volumes_before), f"anonymous volumes left: {_dangling_volumes() - volumes_before}"
     deadline = time.monotonic() + 10
     while _netns() - before and time.monotonic() < deadline:
         time.sleep(0.5)
