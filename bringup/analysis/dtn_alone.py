@@ -110,7 +110,8 @@ def run_dtn(plan: ContactPlan, traffic: list[TrafficItem], *, config: AgentConfi
                 if raw is not None:
                     (Path(dump_dir) / f"{bid}.bpv7").write_bytes(raw)
     nodes = [TrafficNode(BundleAgent(n, graph, config, on_event=events.append), by_src[n],
-                         payload_bytes=payload_bytes, on_created=on_created) for n in names]
+                         payload_bytes=payload_bytes, on_created=on_created, publish_events=sink is not None)
+             for n in names]
     if dump_dir is not None:
         agents_by_name.update({n.name: n.agent for n in nodes})
     router = RouterLogic(names, truth or plan, config.bundle_bits)

@@ -14,7 +14,8 @@ satellite (sat_node/satellite.py) and the DTN-alone study's traffic nodes
 * :meth:`radio`: the transmissions the agent's one radio starts up to the step time, emitted on
   ``/<node>/dtn/out`` stamped with their start times (computed in continuous time, so no figure
   depends on the step length), and the agent's events as msgs_json bundle events on
-  ``/<node>/dtn/events`` (what a run's report is built from).
+  ``/<node>/dtn/events`` (what a run's report is built from; ``events=False``: not published, for
+  a caller that reads the agent's event records itself).
 
 When a sent bundle is gone: the agent holds each transmission until the port settles it
 (``AgentConfig.settle_delay_s=None``), and the port settles it when no failure report can still
@@ -65,7 +66,7 @@ def count_rejection(counts: dict[str, int], env: Envelope, exc: BaseException) -
 class DtnPort:
     """The lockstep side of ``agent`` for node ``name`` (see the module docstring)."""
 
-    def __init__(self, name: str, agent: BundleAgent):
+    def __init__(self, name: str, agent: BundleAgent, *, events: bool = True):
         if agent.config.settle_delay_s is not None:
             raise ValueError(f"{name}: the port settles transmissions itself; "
                              "build the agent with AgentConfig(settle_delay_s=None)")
@@ -75,6 +76,7 @@ class DtnPort:
             raise ValueError(f"{name}: the port needs a fixed bundle size (AgentConfig.bundle_bits)")
         self.name = name
         self.agent = agent
+        self.events = events  # publish the agent's events on /<node>/dtn/events (False: the caller reads them)
         self.in_topic = T.dtn_in_topic(name)
         self.status_topic = T.dtn_status_topic(name)
         self.out_topic = T.dtn_out_topic(name)
@@ -176,6 +178,12 @@ class DtnPort:
         self._steps = step + 1
         self._prev_t = t_ns
         evs = agent.events
+        if not self.events:  # nobody reads them here: forget what would turn them into messages
+            del evs[:]
+            self._ev_info.clear()
+            self._creations.clear()
+            self._next_hop.clear()
+            return emits
         if len(evs) > self._ev_done:
             encode = codec.encode
             topic = self.events_topic

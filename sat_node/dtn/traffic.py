@@ -96,17 +96,19 @@ def traffic_payload(item: TrafficItem, size: int) -> bytes:
 class TrafficNode:
     """Node ``agent.node`` of a DTN-alone run, sending ``items`` [(index, item)] (module docstring).
 
-    ``on_created(index, bundle_id)`` is called right after each bundle is created (before it is sent).
+    ``on_created(index, bundle_id)`` is called right after each bundle is created (before it is sent);
+    ``publish_events=False``: the bundle events are not published (the caller reads the agent's).
     """
 
     # Called only for an inbox or at its wakeup (msgs_json/envelope.py rule 1): a step with neither
     # changes nothing for it - nothing arrives and nothing is due before the wakeup it asked for.
     event_driven = True
 
-    def __init__(self, agent: BundleAgent, items, *, payload_bytes: int = 160, on_created=None):
+    def __init__(self, agent: BundleAgent, items, *, payload_bytes: int = 160, on_created=None,
+                 publish_events: bool = True):
         self.name = agent.node
         self.agent = agent
-        self.port = DtnPort(self.name, agent)
+        self.port = DtnPort(self.name, agent, events=publish_events)
         self._items = sorted(((int(round(it.t_s * _NS)), i, it) for i, it in items), key=lambda x: (x[0], x[1]))
         self._next = 0
         self.payload_bytes = payload_bytes
