@@ -128,11 +128,17 @@ def _for_mask_all(sat_pos_km: np.ndarray, gp_ecef_km: np.ndarray, max_off_nadir_
 _FOR_ROWS_MARGIN_DEG = 1.0
 
 
-def _for_rows(sat: np.ndarray, gp: np.ndarray, max_off_nadir_deg: float) -> np.ndarray | None:
+def _for_rows(sat: np.ndarray, gp: np.ndarray, max_off_nadir_deg: float, chunk: int = 64) -> np.ndarray | None:
     """Time rows where some GP may be in the FOR (a superset), or None to test every row.
 
     A row is kept when some GP is within :func:`for_central_angle_rad` (largest satellite radius,
-    smallest GP radius) plus ``_FOR_ROWS_MARGIN_DEG`` of the sub-satellite point.
+    smallest GP radius) plus ``_FOR_ROWS_MARGIN_DEG`` of the sub-satellite point. The GPs are taken
+    in chunks of ``chunk`` consecutive ids (a region's GPs are consecutive): a chunk is a spherical
+    cap (the mean of its unit vectors and the largest angle from it to one of them), and by the
+    triangle inequality no GP of it is within the bound of a sub-satellite point farther than the
+    bound plus the cap's radius from the cap's centre - one cosine per time and chunk instead of one
+    per time and GP. A chunk also ends where consecutive GPs are more than 0.5 deg apart (the next
+    region), so caps stay small.
     """
     if sat.ndim != 2 or gp.ndim != 2 or sat.shape[1] != 3 or gp.shape[1] != 3 or len(sat) < 2 or len(gp) == 0:
         return None
@@ -144,8 +150,19 @@ def _for_rows(sat: np.ndarray, gp: np.ndarray, max_off_nadir_deg: float) -> np.n
     if r <= rho:
         return None  # a satellite at or below a GP's radius: no simple bound, test every row
     lam = min(math.pi, for_central_angle_rad(r, rho, max_off_nadir_deg) + math.radians(_FOR_ROWS_MARGIN_DEG))
-    cos_ang = (sat / r_s[:, None]) @ (gp / r_g[:, None]).T  # (T, G) cosines of the central angles
-    return np.flatnonzero((cos_ang >= math.cos(lam)).any(axis=1))
+    ug = gp / r_g[:, None]
+    n = len(ug)
+    jump = np.flatnonzero(np.einsum("ij,ij->i", ug[1:], ug[:-1]) < math.cos(math.radians(0.5))) + 1
+    starts = np.union1d(np.arange(0, n, chunk), jump)
+    centre = np.add.reduceat(ug, starts, axis=0)
+    centre /= np.linalg.norm(centre, axis=1)[:, None]
+    which = np.repeat(np.arange(len(starts)), np.diff(np.append(starts, n)))
+    cos_to_centre = np.clip(np.einsum("ij,ij->i", ug, centre[which]), -1.0, 1.0)
+    radius = np.zeros(len(starts))
+    np.maximum.at(radius, which, np.arccos(cos_to_centre))
+    reach = np.minimum(math.pi, lam + radius + 1e-9)
+    cos_ang = (sat / r_s[:, None]) @ centre.T  # (T, chunks)
+    return np.flatnonzero((cos_ang >= np.cos(reach)[None, :]).any(axis=1))
 
 
 def _eta_grid(sat_ecef_km: np.ndarray, gp_ecef_km: np.ndarray):

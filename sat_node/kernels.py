@@ -32,7 +32,7 @@ __all__ = ["KERNELS", "dispatchers", "warm_up"]
 
 # name -> the kernels it warms (module, function names), for the stats and the tests
 KERNELS = {
-    "dp": (dp_kernels, ("dp_forward", "path_gain", "table_gain")),
+    "dp": (dp_kernels, ("dp_forward", "path_gain", "table_gain", "bit_gain")),
     "cgr": (cgr, ("_dijkstra", "_first_open")),
 }
 
@@ -53,8 +53,9 @@ def _dp() -> None:
     gp = np.array([[6378.137, 0.0, 0.0], [6378.137, 0.0, 30.0]])
     p = build_problem(t0_s=0.0, step_s=10.0, sat_pos_km=sat, gp_ecef_km=gp, in_for=np.ones((2, 2), bool),
                       absval=np.array([1.0, 2.0]), slew=SlewModel((0.0, 0.0, 0.1, 1.0), 0.0), revisit_zero_s=900.0)
-    solve_dp(p, check=True)
-    solve_dp(p, check=True, table_cells=0)  # the branch that walks back-pointers (same signature)
+    solve_dp(p, check=True)  # path bitsets (the window is within the revisit window)
+    solve_dp(p, check=True, bit_words=0)  # path tables (same signature)
+    solve_dp(p, check=True, table_cells=0, bit_words=0)  # the branch that walks back-pointers
 
 
 def _cgr() -> None:

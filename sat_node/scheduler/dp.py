@@ -28,8 +28,9 @@ off-nadir angle plus the nadir's own rotation over the gap, by the triangle ineq
 reachable, so they are folded into one running best; within the window each step's nodes are scanned
 in decreasing value and the scan stops when no remaining node can win. A candidate's gain is read
 from per-state path tables (times each GP was seen on the path, and when last) instead of walking
-its path, when states x GPs fit in ``TABLE_CELLS``; the plans are the same (tests/unit/
-test_speed_paths.py compares both on instances with and without repeats).
+its path, when states x GPs fit in ``TABLE_CELLS`` - or, for windows within the revisit window, from
+one bit per GP and state (``BIT_WORDS``); the plans are the same (tests/unit/test_speed_paths.py
+compares the three on instances with and without repeats).
 """
 
 from __future__ import annotations
@@ -49,6 +50,8 @@ __all__ = ["Plan", "ScheduleInvariantError", "slew_window_steps", "solve_dp"]
 
 # path tables up to 8M cells (two int32 arrays: 64 MB); the paper run's largest instance needs 1.8M
 TABLE_CELLS = 8_000_000
+# path bitsets (windows within the revisit window) up to 8M uint64 words (64 MB)
+BIT_WORDS = 8_000_000
 
 
 class ScheduleInvariantError(RuntimeError):
@@ -127,11 +130,12 @@ def _states(p: SchedulingProblem):
 
 
 def solve_dp(p: SchedulingProblem, *, budget_s: float | None = None, chunk_steps: int = 64,
-             check: bool = True, table_cells: int = TABLE_CELLS) -> Plan:
+             check: bool = True, table_cells: int = TABLE_CELLS, bit_words: int = BIT_WORDS) -> Plan:
     """Best plan the DP finds; anytime with budget_s [s of wall time]; check: verify invariants.
 
-    table_cells: largest states x GPs for the kernel's path tables (beyond: it walks the paths;
-    the same plan either way)."""
+    table_cells: largest states x GPs for the kernel's path tables; bit_words: largest states x
+    words for its path bitsets, used when the window lies within the revisit window (beyond both: it
+    walks the paths; the same plan every way)."""
     t_start = time.perf_counter()
     st_k, st_g, st_u, st_vf, t_off = _states(p)
     S = len(st_k)
@@ -153,15 +157,19 @@ def solve_dp(p: SchedulingProblem, *, budget_s: float | None = None, chunk_steps
     order = np.arange(S, dtype=np.int64)
     pref = np.array([-1, 0], dtype=np.int64)
     # path tables (dp_kernels): one row of G counts and G latest steps per state, when they fit
-    shape = (S, p.n_gp) if S * p.n_gp <= table_cells else (0, 0)
+    words = (p.n_gp + 63) // 64
+    within = (p.n_steps - 1) * p.step_s < p.revisit_zero_s
+    bshape = (S, words) if within and S * words <= bit_words else (0, 0)
+    shape = (S, p.n_gp) if bshape[0] == 0 and S * p.n_gp <= table_cells else (0, 0)
     seen_n = np.zeros(shape, dtype=np.int32)
     seen_k = np.zeros(shape, dtype=np.int32)
+    seen_b = np.zeros(bshape, dtype=np.uint64)
     T = p.n_steps
     k = 0
     while k < T:
         k_hi = min(T, k + chunk_steps)
         dp_kernels.dp_forward(k, k_hi, t_off, st_k, st_g, st_u, st_vf, st_n1, root_ok, cos_thr,
-                              w_steps, revisit_steps, V, bp, order, pref, seen_n, seen_k)
+                              w_steps, revisit_steps, V, bp, order, pref, seen_n, seen_k, seen_b)
         k = k_hi
         if budget_s is not None and time.perf_counter() - t_start > budget_s:
             break

@@ -17,7 +17,10 @@ when ``seen_n`` has one row per state the kernel keeps, for each state, those tw
 GP column of its best path (copied from the predecessor's row, then its own GP added) and the gain
 is a table look-up (:func:`table_gain`). The same numbers as walking the back-pointers
 (:func:`path_gain`), which is what the kernel does when the caller gives no table (too many states
-times GPs for memory).
+times GPs for memory). When every step of the window lies within the revisit window of every other
+(a window no longer than ``revisit_zero_s``, as onboard), a GP already on the path is worth 0
+whatever the count, so one bit per GP and state is enough: ``seen_b`` (``ceil(G / 64)`` uint64 words
+per state, :func:`bit_gain`), 64 times smaller than the two int32 tables - the dense grids' case.
 
 Checked by tests/unit/test_dp.py (against brute force on small instances),
 tests/unit/test_dp_numba_modes.py (compiled and plain Python give the same plans) and
@@ -29,7 +32,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-__all__ = ["dp_forward", "path_gain", "table_gain"]
+__all__ = ["bit_gain", "dp_forward", "path_gain", "table_gain"]
 
 
 @njit(cache=True)
@@ -65,16 +68,28 @@ def table_gain(q, g, k, vf, n1, seen_n, seen_k, revisit_steps):
 
 
 @njit(cache=True)
+def bit_gain(q, g, vf, seen_b):
+    """:func:`path_gain` when every earlier step is within the revisit window: 0 if GP column g is on
+    the path ending in q (bit g of seen_b[q]), else the first-visit value."""
+    if (seen_b[q, g >> 6] >> np.uint64(g & 63)) & np.uint64(1):
+        return 0.0
+    return vf
+
+
+@njit(cache=True)
 def dp_forward(k_lo, k_hi, t_off, st_k, st_g, st_u, st_vf, st_n1, root_ok, cos_thr, w_steps,
-               revisit_steps, V, bp, order, pref, seen_n, seen_k):
-    """Process steps k_lo..k_hi-1 in place (V, bp, order, pref, seen_n, seen_k); earlier steps must be done.
+               revisit_steps, V, bp, order, pref, seen_n, seen_k, seen_b):
+    """Process steps k_lo..k_hi-1 in place (V, bp, order, pref, seen_n, seen_k, seen_b); earlier steps
+    must be done.
 
     pref[0] = best state among steps folded so far (-1 none), pref[1] = next step to fold.
     V = -inf and bp = -2 for unreachable states; bp = -1 for paths starting at the root.
-    seen_n, seen_k: (S, G) int32 path tables, zeros on entry (see the module docstring), or (0, 0)
-    arrays to walk the back-pointers instead.
+    seen_b: (S, ceil(G / 64)) uint64 path bitsets, zeros on entry, when the window lies within the
+    revisit window (module docstring); else (0, 0) and seen_n, seen_k: (S, G) int32 path tables,
+    zeros on entry, or (0, 0) arrays to walk the back-pointers instead.
     """
-    table = seen_n.shape[0] > 0
+    bits = seen_b.shape[0] > 0
+    table = (not bits) and seen_n.shape[0] > 0
     ninf = -np.inf
     for k in range(k_lo, k_hi):
         while pref[1] <= k - w_steps:
@@ -98,7 +113,9 @@ def dp_forward(k_lo, k_hi, t_off, st_k, st_g, st_u, st_vf, st_n1, root_ok, cos_t
                 b = -1
             p = pref[0]
             if p >= 0:
-                if table:
+                if bits:
+                    gain = bit_gain(p, g, vf, seen_b)
+                elif table:
                     gain = table_gain(p, g, k, vf, n1, seen_n, seen_k, revisit_steps)
                 else:
                     gain = path_gain(p, g, k, vf, n1, st_k, st_g, bp, revisit_steps)
@@ -120,7 +137,9 @@ def dp_forward(k_lo, k_hi, t_off, st_k, st_g, st_u, st_vf, st_n1, root_ok, cos_t
                     dot = ux * st_u[q, 0] + uy * st_u[q, 1] + uz * st_u[q, 2]
                     if dot < thr:
                         continue
-                    if table:
+                    if bits:
+                        gain = bit_gain(q, g, vf, seen_b)
+                    elif table:
                         gain = table_gain(q, g, k, vf, n1, seen_n, seen_k, revisit_steps)
                     else:
                         gain = path_gain(q, g, k, vf, n1, st_k, st_g, bp, revisit_steps)
@@ -131,7 +150,11 @@ def dp_forward(k_lo, k_hi, t_off, st_k, st_g, st_u, st_vf, st_n1, root_ok, cos_t
                         break
             V[s] = best
             bp[s] = b
-            if table and b > -2:
+            if bits and b > -2:
+                if b >= 0:
+                    seen_b[s, :] = seen_b[b, :]
+                seen_b[s, g >> 6] |= np.uint64(1) << np.uint64(g & 63)
+            elif table and b > -2:
                 if b >= 0:
                     seen_n[s, :] = seen_n[b, :]
                     seen_k[s, :] = seen_k[b, :]

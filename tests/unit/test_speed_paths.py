@@ -306,24 +306,28 @@ def test_speedups_stay_inside_the_projects_bags(tmp_path):
     assert (len(su._QOS_DUMPS), len(su._QOS_PARSED)) == (n_dumps, n_parsed)
 
 def test_dp_path_tables_equal_path_walks():
-    """The DP kernel's per-state path tables give the same plans, values and back-pointer choices as
-    walking each candidate's path (table_cells=0), on instances where paths repeat GPs (short revisit
-    time, long windows) and where they cannot."""
+    """The DP kernel's per-state path tables - and, for windows within the revisit window, its path
+    bitsets - give the same plans, values and back-pointer choices as walking each candidate's path
+    (table_cells=0, bit_words=0), on instances where paths repeat GPs (short revisit time, long
+    windows) and where they cannot; GP counts past 64 put the bitsets over several words."""
     import numpy as np
     from dp_instances import random_instance
 
     from sat_node.scheduler import solve_dp
 
-    repeats = 0
-    for seed in range(30):
-        p = random_instance(seed, n_gp=3 + seed % 25, n_steps=60 + 7 * seed, max_window=10 + 4 * seed,
+    repeats = bitsets = 0
+    for seed in range(40):
+        p = random_instance(seed, n_gp=3 + (seed * 7) % 150, n_steps=60 + 7 * seed, max_window=10 + 4 * seed,
                             revisit_zero_s=[5.0, 12.0, 30.0, 900.0][seed % 4], spread_deg=6.0, prior=seed % 2 == 0)
-        a = solve_dp(p)
-        b = solve_dp(p, table_cells=0)
-        assert np.array_equal(a.steps, b.steps) and np.array_equal(a.cols, b.cols), seed
-        assert np.array_equal(a.values, b.values) and a.value == b.value, seed
-        repeats += len(set(a.cols.tolist())) < len(a.cols)
+        walk = solve_dp(p, table_cells=0, bit_words=0)
+        for kw in ({}, {"bit_words": 0}):
+            a = solve_dp(p, **kw)
+            assert np.array_equal(a.steps, walk.steps) and np.array_equal(a.cols, walk.cols), (seed, kw)
+            assert np.array_equal(a.values, walk.values) and a.value == walk.value, (seed, kw)
+        repeats += len(set(walk.cols.tolist())) < len(walk.cols)
+        bitsets += (p.n_steps - 1) * p.step_s < p.revisit_zero_s and p.n_gp > 64
     assert repeats >= 3  # the path-dependent case is exercised
+    assert bitsets >= 3  # and the multi-word bitsets
 
 
 def test_viz_feed_links_equal_contact_scan():
