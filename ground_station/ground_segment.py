@@ -9,10 +9,18 @@ being planned (so two satellites are not sent to the same GP within 15 min, what
 the onboard rank rule, where a lower-ranked satellite yields, does not hold here because that
 satellite cannot be told until its own next pass), and uplinks the plan covering the time until
 that satellite's next pass (plus one replan period of overlap). At the start it uplinks a first
-plan to every satellite (as commanded before the run).
+plan to every satellite (as commanded before the run). With joint planning
+(``scheduler.joint_planning``) the satellite is planned together with the others whose fields of
+regard reach its GPs after their uplinked plans end (sat_node/scheduler/planner.py): the ground
+cannot change what it already uplinked, but it does not give this satellite a GP another one will
+be better placed to take.
 
-Value knowledge: the OSSE field as the ground knows it at planning time (persistence), through the
-ground's own seeded belief noise - the same model as onboard, with a much older cut-off.
+Value knowledge: what was downlinked only. The ground processes each downlinked observation itself
+(the recorded value through its own seeded inference noise) and keeps it in its
+:class:`~sat_node.knowledge.KnowledgeState`; the scenario's knowledge model (``value.knowledge``,
+sat_node/knowledge.py) turns that into the value it plans with - the same models as onboard, with
+information as old as the satellites' passes make it. Each uplinked item carries the time of the
+information it was planned with (``info_ns``).
 
 Oracle (tests/unit/test_ground_segment.py, a local-engine centralized run): every executed
 observation of a satellite is an item of the last plan uplinked to it; no GP is observed by two
@@ -25,9 +33,11 @@ from __future__ import annotations
 
 import time
 
-from msgs_json import codec, schemas as S, topics as T
+from msgs_json import codec
+from msgs_json import schemas as S
+from msgs_json import topics as T
 from msgs_json.envelope import Emit, Envelope, StepResult
-from sat_node.scheduler.planner import Knowledge, PersistenceView
+from sat_node.knowledge import KnowledgeParams, KnowledgeState
 from sat_node.value import Belief, KnownObservation
 
 __all__ = ["GroundLogic", "GROUND_NAME"]
@@ -48,8 +58,10 @@ class GroundLogic:
         self.sc = sc
         self.sats = list(world.sat_names)
         self.belief = Belief.from_scenario(sc, GROUND_NAME, world.n_gp, world.osse.n_slots)
+        self.kstate = KnowledgeState(KnowledgeParams.from_scenario(sc), GROUND_NAME)
         self.downlinked: list[KnownObservation] = []
         self.planned: dict[str, list[KnownObservation]] = {s: [] for s in self.sats}
+        self.plan_end_ns: dict[str, int] = {s: 0 for s in self.sats}  # end of each uplinked plan's window
         self.version = 0
         self.scheduler_cpu_s = 0.0
         self.rejected = 0
@@ -81,8 +93,11 @@ class GroundLogic:
             if dl.sat not in self.planned:
                 self.rejected += 1
                 continue
+            osse, region = self.world.osse, self.world.gps.region_index
             for o in dl.observations:
                 self.downlinked.append(KnownObservation(o.t_ns / _NS, o.gp, o.sat))
+                inferred = o.recorded_value * float(self.belief.factor(o.gp, osse.slot_of(o.t_ns / _NS)))
+                self.kstate.observe(osse, o.gp, o.t_ns, inferred, int(region[o.gp]), src=o.sat)
             # what it planned for that satellite up to the pass is now known as executed (or not)
             self.planned[dl.sat] = [k for k in self.planned[dl.sat] if k.t_s * _NS > dl.t_ns]
             emits.append(self._plan_and_uplink(dl.sat, t_ns, dl.station))
@@ -114,12 +129,19 @@ class GroundLogic:
                     # satellite name), sat_node.value.prior_state makes the GP worth 0 within 15 min
                     # before or after them for every satellite planned later.
                     known += [KnownObservation(k.t_s, k.gp, COMMITTED, planned=True) for k in ks]
-            # the ground knows the OSSE forecast as of now (persistence), through its own belief noise
-            knowledge = Knowledge(PersistenceView(self.world.osse, t_ns / _NS), known, self.belief)
-            plan = self.world.planner.plan(sat, t_ns / _NS, window_s, knowledge)
+            # what the downlinks told the ground, through its knowledge model and belief noise
+            gps = self.world.gps
+            knowledge = self.kstate.knowledge(self.world.osse, gps.region_index, gps.ecef_km, t_ns / _NS, known,
+                                              self.belief)
+            # joint planning: the others are free from the end of their uplinked plans on
+            partners = [(o, self.plan_end_ns[o] / _NS) for o in self.sats if o != sat]
+            plan = self.world.planner.plan(sat, t_ns / _NS, window_s, knowledge, partners=partners)
+            self.plan_end_ns[sat] = end_ns
         if plan is not None:
             self.planned[sat] = [KnownObservation(t_s, int(gp), sat, planned=True) for gp, t_s in plan.as_list()]
-            items = [S.ScheduleItem(gp=int(gp), t_ns=int(round(t_s * _NS)), value=max(0.0, float(v)))
+            region = self.world.gps.region_index
+            items = [S.ScheduleItem(gp=int(gp), t_ns=int(round(t_s * _NS)), value=max(0.0, float(v)),
+                                    info_ns=int(round(self.kstate.info_time_s(int(region[gp]), t_ns / _NS) * _NS)))
                      for (gp, t_s), v in zip(plan.as_list(), plan.values)]
         cpu = time.process_time() - c0
         self.scheduler_cpu_s += cpu

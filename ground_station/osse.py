@@ -142,8 +142,11 @@ def local_km(lat_deg: np.ndarray, lon_deg: np.ndarray, lat0_deg: float, lon0_deg
 class OsseField:
     """Value per GP per slot.
 
-    values: int16 [n_slots, n_gp], each in 1..256; slot k covers [k*slot_s, (k+1)*slot_s) seconds
-    since the scenario epoch. lat_deg, lon_deg, region_index: the GPs (index = GP id).
+    values: int16 [n_slots, n_gp], each in 1..256 - the truth, what an instrument records; slot k
+    covers [k*slot_s, (k+1)*slot_s) seconds since the scenario epoch. lat_deg, lon_deg,
+    region_index: the GPs (index = GP id). forecast: the a-priori forecast issued at the epoch, same
+    shape (what a planner may know without observing; None: the truth of the first slot held over
+    the horizon - persistence of the state at the epoch).
     """
 
     values: np.ndarray
@@ -154,6 +157,7 @@ class OsseField:
     region_names: list[str]
     source: str = "synthetic"
     meta: dict = field(default_factory=dict)
+    forecast: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         v = np.asarray(self.values)
@@ -164,6 +168,15 @@ class OsseField:
         self.values = v.astype(np.int16, copy=False)
         if not self.slot_s > 0:
             raise OsseError(f"OSSE slot_s must be > 0, got {self.slot_s}")
+        if self.forecast is None:
+            self.forecast = np.repeat(self.values[:1], self.values.shape[0], axis=0)
+            self.meta.setdefault("forecast", "persistence of the first slot")
+        f = np.asarray(self.forecast)
+        if f.shape != v.shape:
+            raise OsseError(f"OSSE forecast shape {f.shape}: expected the values' shape {v.shape}")
+        if f.size and (f.min() < VALUE_MIN or f.max() > VALUE_MAX):
+            raise OsseError(f"OSSE forecast outside {VALUE_MIN}..{VALUE_MAX}: min {f.min()}, max {f.max()}")
+        self.forecast = f.astype(np.int16, copy=False)
 
     @property
     def n_slots(self) -> int:
@@ -192,6 +205,15 @@ class OsseField:
         if np.any(gi < 0) or np.any(gi >= self.n_gp):
             raise OsseError(f"OSSE query: gp_idx outside 0..{self.n_gp - 1}")
         return self.values[self.slot_of(t_s), gi]
+
+    def forecast_at(self, gp_idx, t_s) -> np.ndarray:
+        """The a-priori forecast (int16) of GP(s) ``gp_idx`` at time(s) ``t_s`` [s], as :meth:`value_at`."""
+        gi = np.asarray(gp_idx)
+        if not np.issubdtype(gi.dtype, np.integer):
+            raise OsseError("OSSE query: gp_idx must be integers")
+        if np.any(gi < 0) or np.any(gi >= self.n_gp):
+            raise OsseError(f"OSSE query: gp_idx outside 0..{self.n_gp - 1}")
+        return self.forecast[self.slot_of(t_s), gi]
 
     def value_at_ns(self, gp_idx, t_ns) -> np.ndarray:
         """As :meth:`value_at` with integer nanoseconds since the epoch."""
@@ -254,8 +276,9 @@ def _susceptibility(rng: np.random.Generator, x_km: np.ndarray, y_km: np.ndarray
 
 
 def _region_values(rng: np.random.Generator, x_km: np.ndarray, y_km: np.ndarray, half_km: float,
-                   n_slots: int, slot_s: float, p: SyntheticParams) -> tuple[np.ndarray, list[dict]]:
-    """int16 [n_slots, n_pts] values for one region, and the storm cells drawn (for plots/tests)."""
+                   n_slots: int, slot_s: float, p: SyntheticParams) -> tuple[np.ndarray, np.ndarray, list[dict]]:
+    """int16 (truth, forecast) [n_slots, n_pts] for one region, and the storm cells drawn (for
+    plots/tests). The forecast is the same model with only the cells born at or before the epoch."""
     s = _susceptibility(rng, x_km, y_km, half_km, p)
     horizon_h = n_slots * slot_s / 3600.0
     n_cells = max(p.cells_min, int(rng.poisson(p.cells_mean_per_6h * horizon_h / 6.0)))
@@ -276,11 +299,14 @@ def _region_values(rng: np.random.Generator, x_km: np.ndarray, y_km: np.ndarray,
     dt_h = slot_s / 3600.0 / p.substeps_per_slot
     decay = math.exp(-dt_h / p.drain_tau_h)
     flood = np.zeros_like(x_km)
+    flood_f = np.zeros_like(x_km)
     out = np.empty((n_slots, x_km.size), dtype=np.int16)
+    fc = np.empty_like(out)
     for k in range(n_slots):
         for j in range(p.substeps_per_slot):
             t_h = (k * p.substeps_per_slot + j + 0.5) * dt_h
             rain = np.zeros_like(x_km)
+            rain_f = np.zeros_like(x_km)
             for c in cells:
                 ph = (t_h - c["t0_h"]) / c["life_h"]
                 if not 0.0 < ph < 1.0:
@@ -288,11 +314,20 @@ def _region_values(rng: np.random.Generator, x_km: np.ndarray, y_km: np.ndarray,
                 life = math.sin(math.pi * ph)
                 r = c["radius_km"] * (0.4 + 0.6 * life)
                 cx, cy = c["x0_km"] + c["vx_km_h"] * t_h, c["y0_km"] + c["vy_km_h"] * t_h
-                rain += c["rain_mm_h"] * life * np.exp(-0.5 * ((x_km - cx) ** 2 + (y_km - cy) ** 2) / r ** 2)
+                cell = c["rain_mm_h"] * life * np.exp(-0.5 * ((x_km - cx) ** 2 + (y_km - cy) ** 2) / r ** 2)
+                rain += cell
+                if c["t0_h"] <= 0.0:
+                    rain_f += cell
             flood = flood * decay + rain * dt_h
-        v = 1.0 + np.rint(255.0 * (1.0 - np.exp(-s * (p.background + flood / p.flood_scale_mm))))
-        out[k] = np.clip(v, VALUE_MIN, VALUE_MAX).astype(np.int16)
-    return out, cells
+            flood_f = flood_f * decay + rain_f * dt_h
+        out[k] = _flood_value(s, flood, p)
+        fc[k] = _flood_value(s, flood_f, p)
+    return out, fc, cells
+
+
+def _flood_value(s: np.ndarray, flood_mm: np.ndarray, p: SyntheticParams) -> np.ndarray:
+    v = 1.0 + np.rint(255.0 * (1.0 - np.exp(-s * (p.background + flood_mm / p.flood_scale_mm))))
+    return np.clip(v, VALUE_MIN, VALUE_MAX).astype(np.int16)
 
 
 def synthetic_field(gps: Any, *, region_names: Sequence[str], region_centers_deg: Sequence[tuple[float, float]],
@@ -313,15 +348,19 @@ def synthetic_field(gps: Any, *, region_names: Sequence[str], region_centers_deg
         raise OsseError(f"synthetic OSSE: horizon_s ({horizon_s}) and slot_s ({slot_s}) must be > 0")
     n_slots = math.ceil(horizon_s / slot_s - 1e-9)
     values = np.empty((n_slots, len(g)), dtype=np.int16)
+    forecast = np.empty_like(values)
     cells_by_region = {}
     for r, name in enumerate(region_names):
         idx = np.flatnonzero(g.region_index == r)
         rng = _region_rng(seed, name)
         lat0, lon0 = region_centers_deg[r]
         x, y = local_km(g.lat_deg[idx], g.lon_deg[idx], lat0, lon0)
-        vals, cells = _region_values(rng, x, y, 0.5 * float(region_sizes_km[r]), n_slots, slot_s, params)
+        vals, fc, cells = _region_values(rng, x, y, 0.5 * float(region_sizes_km[r]), n_slots, slot_s, params)
         values[:, idx] = vals
+        forecast[:, idx] = fc
         cells_by_region[name] = cells
     return OsseField(values=values, slot_s=float(slot_s), lat_deg=g.lat_deg, lon_deg=g.lon_deg,
                      region_index=g.region_index, region_names=list(region_names), source="synthetic",
-                     meta={"seed": int(seed), "cells": cells_by_region})
+                     meta={"seed": int(seed), "cells": cells_by_region,
+                           "forecast": "the cells active at the epoch (cells born later are not foreseen)"},
+                     forecast=forecast)

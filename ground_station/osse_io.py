@@ -18,7 +18,9 @@ Formats (by file suffix):
 
 Axes may be ascending or descending (flipped on load); longitudes in -180..180; regions crossing the
 dateline are not supported. The grid must cover every GP and every slot start of the horizon; a
-single time step is held constant over the horizon.
+single time step is held constant over the horizon. A second file of the same kind may hold the
+a-priori forecast (``value.osse_forecast_file``): what a planner knows before it observes anything
+(sat_node/knowledge.py); without one, the truth's first slot held over the horizon.
 
 How we know it is right: ``tests/unit/test_osse_io.py`` writes a synthetic field with
 :func:`write_value_grid` in each format and loads it back onto the same GPs bit for bit (GPs sit on
@@ -204,19 +206,36 @@ def _bilinear_weights(axis: np.ndarray, x: np.ndarray):
 
 
 def load_value_grid(path: str | Path, gps: Any, *, horizon_s: float, slot_s: float = 900.0,
-                    region_names: Sequence[str] | None = None) -> OsseField:
-    """Load a gridded value file and interpolate it onto the GPs at every slot start.
+                    region_names: Sequence[str] | None = None,
+                    forecast_path: str | Path | None = None) -> OsseField:
+    """Load a gridded truth value file and interpolate it onto the GPs at every slot start; with
+    ``forecast_path``, the a-priori forecast from a second grid file the same way (else the field's
+    default forecast: the first slot held over the horizon).
 
-    Returns an :class:`OsseField` with n_slots = ceil(horizon_s / slot_s). Raises OsseError if the
-    file is missing or malformed, or the grid does not cover every GP and slot start.
+    Returns an :class:`OsseField` with n_slots = ceil(horizon_s / slot_s). Raises OsseError if a
+    file is missing or malformed, or a grid does not cover every GP and slot start.
     """
     g = as_ground_point_arrays(gps)
+    names = list(region_names) if region_names is not None else [f"region_{i}" for i in
+                                                                 range(int(g.region_index.max()) + 1)]
     grid = read_grid(path)
+    vals = _onto_gps(grid, g, names, horizon_s, slot_s)
+    meta = {"path": str(grid.path), "grid_shape": grid.value.shape}
+    forecast = None
+    if forecast_path:
+        fgrid = read_grid(forecast_path)
+        forecast = _onto_gps(fgrid, g, names, horizon_s, slot_s)
+        meta.update(forecast_path=str(fgrid.path), forecast="from the forecast file")
+    return OsseField(values=vals, slot_s=float(slot_s), lat_deg=g.lat_deg, lon_deg=g.lon_deg,
+                     region_index=g.region_index, region_names=names, source="file", meta=meta,
+                     forecast=forecast)
+
+
+def _onto_gps(grid: ValueGrid, g, names: list[str], horizon_s: float, slot_s: float) -> np.ndarray:
+    """int16 [n_slots, n_gp]: the grid interpolated onto the GPs at every slot start."""
     p = grid.path
     n_slots = math.ceil(horizon_s / slot_s - 1e-9)
     t_slot = np.arange(n_slots) * float(slot_s)
-    names = list(region_names) if region_names is not None else [f"region_{i}" for i in
-                                                                 range(int(g.region_index.max()) + 1)]
 
     outside = ((g.lat_deg < grid.lat_deg[0]) | (g.lat_deg > grid.lat_deg[-1])
                | (g.lon_deg < grid.lon_deg[0]) | (g.lon_deg > grid.lon_deg[-1]))
@@ -244,21 +263,22 @@ def load_value_grid(path: str | Path, gps: Any, *, horizon_s: float, slot_s: flo
     else:
         k, wk = _bilinear_weights(grid.t_s, t_slot)
         vals = (1 - wk)[:, None] * at_nodes[k] + wk[:, None] * at_nodes[k + 1]
-    vals = np.clip(np.rint(vals), VALUE_MIN, VALUE_MAX).astype(np.int16)
-    return OsseField(values=vals, slot_s=float(slot_s), lat_deg=g.lat_deg, lon_deg=g.lon_deg,
-                     region_index=g.region_index, region_names=names, source="file",
-                     meta={"path": str(p), "grid_shape": grid.value.shape})
+    return np.clip(np.rint(vals), VALUE_MIN, VALUE_MAX).astype(np.int16)
 
 
 # --------------------------------------------------------------------------------------------
 # Writer
 # --------------------------------------------------------------------------------------------
-def write_value_grid(field: OsseField, path: str | Path) -> Path:
-    """Write a field as a rectilinear (t_s, lat_deg, lon_deg) grid whose nodes include every GP.
+def write_value_grid(field: OsseField, path: str | Path, *, which: str = "truth") -> Path:
+    """Write a field's truth (``which="truth"``) or its forecast (``"forecast"``) as a rectilinear
+    (t_s, lat_deg, lon_deg) grid whose nodes include every GP.
 
     Axes are the distinct GP latitudes and longitudes; cells that are not a GP hold 1 (the minimum).
     Format by suffix (.npz, .csv, .nc). Loading it back onto the same GPs gives the same values.
     """
+    if which not in ("truth", "forecast"):
+        raise OsseError(f"write_value_grid: which must be 'truth' or 'forecast', got {which!r}")
+    values = field.values if which == "truth" else field.forecast
     p = Path(path)
     suffix = p.suffix.lower()
     if suffix not in _READERS:
@@ -269,7 +289,7 @@ def write_value_grid(field: OsseField, path: str | Path) -> Path:
     lon_ax, jj = np.unique(field.lon_deg, return_inverse=True)
     t_s = np.arange(field.n_slots) * field.slot_s
     value = np.full((field.n_slots, lat_ax.size, lon_ax.size), VALUE_MIN, dtype=np.float64)
-    value[:, ii, jj] = field.values
+    value[:, ii, jj] = values
     p.parent.mkdir(parents=True, exist_ok=True)
     if suffix == ".npz":
         np.savez_compressed(p, value=value, t_s=t_s, lat_deg=lat_ax, lon_deg=lon_ax)

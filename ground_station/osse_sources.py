@@ -1,10 +1,13 @@
 """The OSSE sources a scenario can name (``value.osse_source``), and the field it gets from them.
 
 A registry of named strategies (one line of help each, which drives scenario validation and the CLI
-help): ``synthetic`` is the seeded storm-cell model of :mod:`ground_station.osse` (Nag et al., ICAPS
-SPARK 2019, section 5, stand-in for their WRF-Hydro OSSE), ``file`` a gridded (time, lat, lon) value
-field loaded by :mod:`ground_station.osse_io`. Both modules stay below this one, so neither imports
-the other.
+help): ``synthetic`` is a seeded stand-in for the study's WRF-Hydro OSSE (Nag et al., ICAPS SPARK
+2019, section 5): the transient field of :mod:`ground_station.osse_transient` with the scenario's
+``value.transiency_min``, or (0) the slow storm-cell model of :mod:`ground_station.osse`; ``file`` a
+gridded (time, lat, lon) truth field, and optionally a forecast, loaded by
+:mod:`ground_station.osse_io`. Those modules stay below this one, so none imports another sideways.
+Every field leaves here with its measured rank figures in ``meta["rank"]``
+(:func:`ground_station.osse_stats.field_rank_figures`), which every run reports.
 
 How we know it is right (tests/unit/test_osse.py): the registry holds exactly these two names, the
 scenario's synthetic field is reproducible from its seed, a field written to a file and named by a
@@ -18,8 +21,10 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from ground_station.osse import OsseError, OsseField, synthetic_field
+from ground_station.osse import OsseError, OsseField, as_ground_point_arrays, synthetic_field
 from ground_station.osse_io import load_value_grid
+from ground_station.osse_stats import field_rank_figures
+from ground_station.osse_transient import TransientParams, transient_field_arrays
 
 __all__ = ["OSSE_SOURCES", "osse_from_scenario"]
 
@@ -31,24 +36,43 @@ def _regions(scenario) -> tuple[list[str], list[tuple[float, float]], list[float
 
 def _synthetic_from_scenario(scenario, gps) -> OsseField:
     names, centers, sizes = _regions(scenario)
-    return synthetic_field(gps, region_names=names, region_centers_deg=centers, region_sizes_km=sizes,
-                           horizon_s=scenario.scenario.horizon_s, slot_s=scenario.value.slot_s,
-                           seed=scenario.scenario.seed)
+    v = scenario.value
+    if v.transiency_min == 0:  # the slow storm-cell field
+        return synthetic_field(gps, region_names=names, region_centers_deg=centers, region_sizes_km=sizes,
+                               horizon_s=scenario.scenario.horizon_s, slot_s=v.slot_s, seed=scenario.scenario.seed)
+    g = as_ground_point_arrays(gps)
+    truth, forecast, drawn = transient_field_arrays(
+        g, region_names=names, region_centers_deg=centers, region_sizes_km=sizes,
+        horizon_s=scenario.scenario.horizon_s, slot_s=v.slot_s, seed=scenario.scenario.seed,
+        params=TransientParams(transiency_min=v.transiency_min))
+    return OsseField(values=truth, slot_s=float(v.slot_s), lat_deg=g.lat_deg, lon_deg=g.lon_deg,
+                     region_index=g.region_index, region_names=names, source="synthetic",
+                     meta={"seed": int(scenario.scenario.seed), "model": "transient", **drawn,
+                           "forecast": "conditional median of the epoch state, no event born later"},
+                     forecast=forecast)
+
+
+def _resolve(scenario, name: str) -> Path:
+    p = Path(name)
+    if not p.is_absolute() and scenario.source_path and not scenario.source_path.startswith("<"):
+        p = Path(scenario.source_path).parent / p
+    return p
 
 
 def _file_from_scenario(scenario, gps) -> OsseField:
-    p = Path(scenario.value.osse_file)
-    if not p.is_absolute() and scenario.source_path and not scenario.source_path.startswith("<"):
-        p = Path(scenario.source_path).parent / p
     names, _, _ = _regions(scenario)
-    return load_value_grid(p, gps, horizon_s=scenario.scenario.horizon_s, slot_s=scenario.value.slot_s,
-                           region_names=names)
+    v = scenario.value
+    return load_value_grid(_resolve(scenario, v.osse_file), gps, horizon_s=scenario.scenario.horizon_s,
+                           slot_s=v.slot_s, region_names=names,
+                           forecast_path=_resolve(scenario, v.osse_forecast_file) if v.osse_forecast_file else None)
 
 
 #: name -> (builder(scenario, gps) -> OsseField, one-line help). Drives scenario validation/CLI help.
 OSSE_SOURCES: dict[str, tuple[Callable[[Any, Any], OsseField], str]] = {
-    "synthetic": (_synthetic_from_scenario, "seeded storm cells moving over watersheds (seed = scenario.seed)"),
-    "file": (_file_from_scenario, "gridded (time, lat, lon) values from value.osse_file (.npz, .csv, .nc)"),
+    "synthetic": (_synthetic_from_scenario, ("seeded synthetic flood field with value.transiency_min (0: the slow "
+                                            "storm cells), its own forecast (seed = scenario.seed)")),
+    "file": (_file_from_scenario, ("gridded (time, lat, lon) values from value.osse_file (.npz, .csv, .nc), "
+                                  "forecast from value.osse_forecast_file")),
 }
 
 
@@ -57,4 +81,6 @@ def osse_from_scenario(scenario, gps) -> OsseField:
     src = scenario.value.osse_source
     if src not in OSSE_SOURCES:
         raise OsseError(f"value.osse_source '{src}': unknown (known: {', '.join(sorted(OSSE_SOURCES))})")
-    return OSSE_SOURCES[src][0](scenario, gps)
+    field = OSSE_SOURCES[src][0](scenario, gps)
+    field.meta["rank"] = field_rank_figures(field.values, field.slot_s)
+    return field

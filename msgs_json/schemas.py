@@ -172,11 +172,13 @@ class AcsState(_Msg, kw_only=True, frozen=True):
 
 # --- scheduling and observations ----------------------------------------------------------------------
 class ScheduleItem(msgspec.Struct, kw_only=True, frozen=True, forbid_unknown_fields=True):
-    """One planned observation: ground point, time, the value the planner assumed."""
+    """One planned observation: ground point, time, the value the planner assumed, and the time of
+    the newest information about the GP's region the planner had (None: not recorded)."""
 
     gp: GpIndex
     t_ns: NsTime
     value: NonNeg
+    info_ns: NsTime | None = None
 
 
 class Schedule(_Msg, kw_only=True, frozen=True):
@@ -200,7 +202,8 @@ class Schedule(_Msg, kw_only=True, frozen=True):
 
 
 class Observation(_Msg, kw_only=True, frozen=True):
-    """An executed observation: what the satellite assumed it was worth and what it recorded."""
+    """An executed observation: what the satellite assumed it was worth, what it recorded, and the
+    time of the information it was planned with (None: not recorded; never after ``t_ns``)."""
 
     sat: SatName
     gp: GpIndex
@@ -208,6 +211,11 @@ class Observation(_Msg, kw_only=True, frozen=True):
     assumed_value: NonNeg
     recorded_value: NonNeg
     schedule_version: Count = 0
+    info_ns: NsTime | None = None
+
+    def _check(self) -> None:
+        if self.info_ns is not None and self.info_ns > self.t_ns:
+            raise ValueError("info_ns must not be after t_ns")
 
 
 class GroundDownlink(_Msg, kw_only=True, frozen=True):

@@ -1,8 +1,8 @@
 """Ground points (GPs): each scenario region (a city centre and a square side) cut into a grid.
 
 A region of side ``size_km`` at spacing ``spacing_km`` holds n x n points, n = round(size/spacing)
-(paper: 80 km / 8 km footprint = 10 x 10 = 100 GPs per region, 500 for the 5 cities; Nag et al.
-2019, section 5). Point centres sit at (k + 0.5) * spacing - size/2 km north/east of the region
+(paper: the GPs Nyquist-sample the 8 km footprint, Nag et al. 2019, section 5: 80 km / 4 km =
+20 x 20 = 400 GPs per region, 2000 for the 5 cities). Point centres sit at (k + 0.5) * spacing - size/2 km north/east of the region
 centre, converted to geodetic lat/lon with the WGS-84 meridian radius of curvature at the centre (rows) and
 the prime-vertical radius at each row's latitude (columns), so neighbours are spacing_km apart to
 0.1 % (rows are parallels: columns converge by cos(lat) only across rows, < 1 % over 80 km). GPs lie on the
@@ -11,8 +11,8 @@ ellipsoid (height 0).
 Global GP id 0..n-1: region order of the scenario, then row (north to south), then column (west to
 east). ``GroundPoints.region_names[region_index[g]]`` is the region of GP g.
 
-How we know it is right: tests/unit/test_orbit_propagation.py checks the paper's counts (100 per
-region, 500 in all), that neighbours are ``spacing_km`` apart (chord on the ellipsoid, to 0.1 %),
+How we know it is right: tests/unit/test_orbit_propagation.py checks the paper's counts (400 per
+region, 2000 in all), that neighbours are ``spacing_km`` apart (chord on the ellipsoid, to 0.1 %),
 the region's extent and the id order.
 """
 

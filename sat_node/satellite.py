@@ -15,11 +15,13 @@ local engine in one process. It owns the satellite's three functions of DESIGN.m
   (sat_node/dtn/agent.py) and put on the bus by its port (sat_node/dtn/port.py: transmissions,
   the medium's failure reports, bundle events); bundles delivered here update what it knows.
 
-Value knowledge (the :class:`~sat_node.scheduler.planner.Knowledge` it hands the planner): the OSSE
-field as it was at planning time (persistence forecast: it cannot know the future flood state)
-through its seeded belief noise, and every observation it knows of; the instrument records the
-true OSSE value at the observation time. Onboard that lag is at most one replan period; for the
-centralized ground it is up to an orbit, which is what the study's assumed-vs-recorded error shows.
+Value knowledge (the :class:`~sat_node.scheduler.planner.Knowledge` it hands the planner): what
+reached it only - its own looks and the inferences delivered bundles carry (sat_node/inference.py) -
+turned into a value field by the scenario's knowledge model (``value.knowledge``,
+sat_node/knowledge.py), plus every observation it knows of for Eq. 1. The instrument records the
+true OSSE value at the observation time; the satellite infers it through its own noise and shares
+that inference, with its insight about the region, in the observation's bundle. Every plan item and
+executed look carries the time of the information it was planned with (``info_ns``).
 
 Timing: an observation planned at t is emitted at the step covering t, stamped t (rule 2 of the
 contract); the DTN radio's transmissions are computed in continuous time up to the step time and
@@ -40,7 +42,6 @@ created = delivered + dropped by reason + held).
 
 from __future__ import annotations
 
-import json
 import time
 from dataclasses import dataclass
 
@@ -55,26 +56,13 @@ from sat_node.acs import angle_between_deg, nadir_unit, unit_vectors
 from sat_node.dtn.agent import AgentConfig, BundleAgent
 from sat_node.dtn.port import DtnPort, count_rejection
 from sat_node.dtn.store import BundleStore
-from sat_node.scheduler.planner import Knowledge, PersistenceView
+from sat_node.inference import Inference, decode_inference, encode_inference
+from sat_node.knowledge import KnowledgeParams, KnowledgeState
 from sat_node.value import Belief, KnownObservation
 
-__all__ = ["SatelliteLogic", "observation_payload", "parse_observation_payload"]
+__all__ = ["SatelliteLogic"]
 
 _NS = 1_000_000_000
-
-
-def observation_payload(sat: str, gp: int, t_ns: int, value: float) -> bytes:
-    """Bundle payload for one observation (the 'inference' of the study: who saw which GP when)."""
-    return json.dumps({"src": sat, "gp": int(gp), "t_ns": int(t_ns), "v": round(float(value), 3)},
-                      separators=(",", ":")).encode()
-
-
-def parse_observation_payload(data: bytes) -> tuple[str, int, int]:
-    d = json.loads(data)
-    src, gp, t_ns = d["src"], d["gp"], d["t_ns"]
-    if not isinstance(src, str) or not isinstance(gp, int) or not isinstance(t_ns, int) or gp < 0 or t_ns < 0:
-        raise ValueError("observation payload: bad src/gp/t_ns")
-    return src, gp, t_ns
 
 
 @dataclass
@@ -83,6 +71,7 @@ class _Item:
     t_ns: int
     value: float
     version: int
+    info_ns: int | None = None  # time of the information the look was planned with
 
 
 class SatelliteLogic:
@@ -98,6 +87,7 @@ class SatelliteLogic:
         sc = world.scenario
         self.sc = sc
         self.belief = Belief.from_scenario(sc, name, world.n_gp, world.osse.n_slots)
+        self.kstate = KnowledgeState(KnowledgeParams.from_scenario(sc), name)
         self.known: list[KnownObservation] = []
         self._known_keys: set[tuple[int, int, str]] = set()
         self.plan: list[_Item] = []
@@ -226,16 +216,19 @@ class SatelliteLogic:
         if port is not None and port.is_mine(env.topic):
             b = port.receive(env, t_ns)
             if b is not None:  # delivered here: what another satellite observed
-                src, gp, obs_ns = parse_observation_payload(b.payload)
-                self._learn(gp, obs_ns, src)
-                self._check_news(gp, obs_ns)
+                inf = decode_inference(b.payload)
+                if not 0 <= inf.gp < self.world.n_gp or inf.region != self.world.region_of_gp(inf.gp):
+                    raise ValueError(f"inference payload: GP {inf.gp} / region {inf.region} not of this world")
+                self._learn(inf.gp, inf.t_ns, inf.src)
+                self.kstate.learn(inf)
+                self._check_news(inf.gp, inf.t_ns)
         elif env.topic == T.GROUND_UPLINK:
             up = codec.decode(env.topic, env.data)
             if up.sat != self.name:
                 return
             start = max(t_ns, self.last_obs_ns + 1)
             self.plan_version = up.schedule.version
-            self.plan = [_Item(it.gp, it.t_ns, it.value, up.schedule.version)
+            self.plan = [_Item(it.gp, it.t_ns, it.value, up.schedule.version, it.info_ns)
                          for it in up.schedule.items if it.t_ns >= start]
 
     def _check_news(self, gp: int, obs_ns: int) -> None:
@@ -257,12 +250,30 @@ class SatelliteLogic:
 
     # ------------------------------------------------------------------ planning
     def _plan(self, t0_ns: int, window_s: float, solver: str = "dp"):
-        """The world's planner on what this satellite knows now: the OSSE forecast as of now
-        (persistence), its belief noise, every observation it knows of; it points at ``target_km``."""
+        """The world's planner on what this satellite knows now (its knowledge model over its own
+        looks and the delivered inferences, its belief noise, every observation it knows of); it
+        points at ``target_km``."""
         t0_s = t0_ns / _NS
-        knowledge = Knowledge(PersistenceView(self.world.osse, t0_s), self.known, self.belief)
+        gps = self.world.gps
+        knowledge = self.kstate.knowledge(self.world.osse, gps.region_index, gps.ecef_km, t0_s, self.known,
+                                          self.belief)
         return self.world.planner.plan(self.name, t0_s, window_s, knowledge, init_target_km=self.target_km,
                                        solver=solver)
+
+    def _items(self, plan, t0_ns: int, version: int) -> list[_Item]:
+        """A plan's looks as items, each with the information time of its GP's region."""
+        if plan is None:
+            return []
+        t0_s = t0_ns / _NS
+        region = self.world.gps.region_index
+        info = {}
+        out = []
+        for (gp, t_s), v in zip(plan.as_list(), plan.values):
+            r = int(region[gp])
+            if r not in info:
+                info[r] = int(round(self.kstate.info_time_s(r, t0_s) * _NS))
+            out.append(_Item(int(gp), int(round(t_s * _NS)), float(v), version, info[r]))
+        return out
 
     def _replan(self, t_ns: int, *, periodic: bool = True) -> list[Emit]:
         """Plan [t_ns, t_ns + lookahead) with what is known now. A periodic replan sets the next
@@ -282,9 +293,7 @@ class SatelliteLogic:
         self._last_cpu_s = time.process_time() - c0
         self.scheduler_cpu_s += self._last_cpu_s
         self.plan_version += 1
-        items = []
-        for (gp, t_s), v in (zip(plan.as_list(), plan.values) if plan is not None else ()):
-            items.append(_Item(int(gp), int(round(t_s * _NS)), float(v), self.plan_version))
+        items = self._items(plan, t_ns, self.plan_version)
         self.plan = [it for it in items if it.t_ns > self.last_obs_ns]
         return [self._schedule_emit(t_ns, t_ns)]
 
@@ -295,14 +304,14 @@ class SatelliteLogic:
         self._last_cpu_s = time.process_time() - c0
         self.scheduler_cpu_s += self._last_cpu_s
         self.plan_version = 1
-        self.plan = [_Item(int(gp), int(round(t_s * _NS)), float(v), 1)
-                     for (gp, t_s), v in (zip(plan.as_list(), plan.values) if plan is not None else ())]
+        self.plan = self._items(plan, t0_ns, 1)
         return [self._schedule_emit(t0_ns, t0_ns)]
 
     def _schedule_emit(self, t_ns: int, cutoff_ns: int) -> Emit:
         msg = S.Schedule(sat=self.name, version=self.plan_version, mode=self.mode, planned_ns=t_ns,
                          cutoff_ns=cutoff_ns, solve_cpu_s=self._last_cpu_s,
-                         items=[S.ScheduleItem(gp=it.gp, t_ns=it.t_ns, value=max(0.0, it.value)) for it in self.plan])
+                         items=[S.ScheduleItem(gp=it.gp, t_ns=it.t_ns, value=max(0.0, it.value), info_ns=it.info_ns)
+                                for it in self.plan])
         return Emit(T.schedule_topic(self.name), codec.encode(msg), t_ns)
 
     # ------------------------------------------------------------------ execution
@@ -315,21 +324,25 @@ class SatelliteLogic:
             if it.t_ns <= self.last_obs_ns:
                 continue
             recorded = float(osse.value_at(np.array([it.gp]), np.array([it.t_ns / _NS]))[0])
+            # what the satellite infers from its image: the recorded value through its own noise
+            inferred = recorded * float(self.belief.factor(it.gp, osse.slot_of(it.t_ns / _NS)))
             target = gps.ecef_km[it.gp]
             angle = self._slew_angle(it.t_ns, target)
             self.target_km = target
             self.last_obs_ns = it.t_ns
             obs = S.Observation(sat=self.name, gp=it.gp, t_ns=it.t_ns, assumed_value=max(0.0, it.value),
-                                recorded_value=recorded, schedule_version=it.version)
+                                recorded_value=recorded, schedule_version=it.version,
+                                info_ns=None if it.info_ns is None else min(it.info_ns, it.t_ns))
             emits.append(Emit(T.observations_topic(self.name), codec.encode(obs), it.t_ns))
             state = S.AcsState(sat=self.name, t_ns=it.t_ns, mode="settled", target_gp=it.gp,
                                slew_angle_deg=float(min(180.0, angle)))
             emits.append(Emit(T.acs_state_topic(self.name), codec.encode(state), it.t_ns))
             self._learn(it.gp, it.t_ns, self.name)
+            inf = self.kstate.observe(osse, it.gp, it.t_ns, inferred, self.world.region_of_gp(it.gp))
             if self.mode == "centralized":
                 self.pending_downlink.append(obs)
             if self.agent is not None:
-                emits += self._originate(it.gp, it.t_ns, recorded)
+                emits += self._originate(inf)
         return emits
 
     def _slew_angle(self, t_ns: int, target: np.ndarray) -> float:
@@ -339,9 +352,10 @@ class SatelliteLogic:
         return float(angle_between_deg(old[None, :], new[None, :])[0])
 
     # ------------------------------------------------------------------ DTN
-    def _originate(self, gp: int, t_ns: int, value: float) -> list[Emit]:
-        payload = observation_payload(self.name, gp, t_ns, value)
-        self.port.originate(payload, self.world.destinations(gp, t_ns / _NS, self.name), t_ns, gp=gp)
+    def _originate(self, inf: Inference) -> list[Emit]:
+        payload = encode_inference(inf)
+        self.port.originate(payload, self.world.destinations(inf.gp, inf.t_ns / _NS, self.name), inf.t_ns,
+                            gp=inf.gp)
         return []
 
     def _radio(self, t_ns: int) -> list[Emit]:

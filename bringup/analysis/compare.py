@@ -244,9 +244,7 @@ def run_in_process(sc, mode: str, *, store_dir: Path | None = None) -> dict:
     """One local-engine run of scenario ``sc`` in this process (no bag): its report dict."""
 
     world = World.build(sc)
-    meta = RunMeta(scenario=sc.name, mode=mode, engine="local", seed=sc.scenario.seed,
-                   horizon_s=sc.scenario.horizon_s, n_sats=len(world.sat_names), n_gp=world.n_gp,
-                   revisit_zero_s=sc.value.revisit_zero_s)
+    meta = RunMeta.for_world(world, mode, "local")
     envs: list = []
 
     def sink(env) -> None:

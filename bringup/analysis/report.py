@@ -14,7 +14,15 @@ Definitions:
   before.
 * value.assumed_error_mean - mean over observations with a true Eq. 1 value > 0 of
   |assumed - true| / true, where assumed is what the planner expected (Observation.assumed_value).
-* coverage.gp_observed_fraction - distinct GPs observed / GPs of the scenario.
+* value.first_look_share - the share of value.cumulative that came from the first look at each GP.
+* coverage.gp_observed_fraction - distinct GPs observed / GPs of the scenario;
+  coverage.looks_per_gp - observations / GPs of the scenario.
+* knowledge.info_age_s.{mean,median,p90} - over executed looks that carry it
+  (``Observation.info_ns``), the look's time minus the time of the newest information about its
+  region the planner had when it planned the look (sat_node/knowledge.py); ``knowledge.model`` the
+  run's knowledge model and ``knowledge.info_age_s.hist`` counts per ``hist_edges_s`` bin.
+* osse.rank_corr_15min, osse.rank_corr_60min, osse.transiency_min - the truth field's rank
+  statistics (ground_station/osse_stats.py), from the run's metadata.
 * dtn.* - sat_node/dtn/stats.py over the bundle events (first delivery per bundle counts).
 * consensus.* - ISL-delayed implicit consensus (Nag et al. section 4), see
   :func:`consensus_figures`: for each pair of successive passes of different satellites over a
@@ -62,6 +70,16 @@ class RunMeta:
     n_sats: int
     n_gp: int
     revisit_zero_s: float = 900.0
+    knowledge: str = ""
+    osse: dict | None = None  # the truth field's rank figures (ground_station/osse_stats.py)
+
+    @classmethod
+    def for_world(cls, world, mode: str, engine: str) -> RunMeta:
+        """The metadata of a run of ``world`` (bringup.scenario.world.World)."""
+        sc = world.scenario
+        return cls(scenario=sc.name, mode=mode, engine=engine, seed=sc.scenario.seed, horizon_s=sc.scenario.horizon_s,
+                   n_sats=len(world.sat_names), n_gp=world.n_gp, revisit_zero_s=sc.value.revisit_zero_s,
+                   knowledge=sc.value.knowledge, osse=dict(world.osse.meta.get("rank") or {}))
 
     def to_json(self) -> str:
         return json.dumps(self.__dict__, sort_keys=True)
@@ -144,6 +162,8 @@ class ReportBuilder:
             "horizon_s": meta.horizon_s, "n_sats": meta.n_sats,
         }
         rep.update(_value_figures(obs, meta))
+        rep["knowledge"] = _knowledge_figures(obs, meta)
+        rep["osse"] = dict(meta.osse or {})
         rep["schedules"] = {"count": self.n_schedules}
         rep["dtn"] = _dtn_figures(events)
         if counters:
@@ -296,15 +316,37 @@ def true_values(obs: list, revisit_zero_s: float) -> list[tuple]:
     return out
 
 
+INFO_AGE_EDGES_S = (0, 60, 300, 600, 900, 1800, 3600, 7200, 14400, 28800)
+
+
+def _knowledge_figures(obs: list, meta: RunMeta) -> dict:
+    ages = np.array([(o.t_ns - o.info_ns) / _NS for o in obs if o.info_ns is not None], dtype=np.float64)
+    out: dict = {"model": meta.knowledge or None, "looks_with_info_time": int(ages.size)}
+    if ages.size:
+        edges = np.array(INFO_AGE_EDGES_S + (np.inf,), dtype=np.float64)
+        hist, _ = np.histogram(ages, bins=edges)
+        out["info_age_s"] = {"mean": float(ages.mean()), "median": float(np.median(ages)),
+                             "p90": float(np.percentile(ages, 90)), "max": float(ages.max()),
+                             "hist_edges_s": list(INFO_AGE_EDGES_S), "hist": [int(x) for x in hist]}
+    else:
+        out["info_age_s"] = {"mean": None, "median": None, "p90": None}
+    return out
+
+
 def _value_figures(obs: list, meta: RunMeta) -> dict:
     rows = true_values(obs, meta.revisit_zero_s)
     total = 0.0
+    first = 0.0
+    seen: set[int] = set()
     errs = []
     per_sat: dict[str, float] = defaultdict(float)
     for o, v, _ in rows:
         if v > 0:
             errs.append(abs(o.assumed_value - v) / v)
         total += v
+        if o.gp not in seen:
+            seen.add(o.gp)
+            first += v
         per_sat[o.sat] += v
     dup = sum(1 for _, _, d in rows if d)
     observed = {o.gp for o in obs}
@@ -313,12 +355,14 @@ def _value_figures(obs: list, meta: RunMeta) -> dict:
             "cumulative": total,
             "assumed_error_mean": float(np.mean(errs)) if errs else None,
             "assumed_error_median": float(np.median(errs)) if errs else None,
+            "first_look_share": (first / total) if total > 0 else None,
             "per_sat": dict(sorted(per_sat.items())),
         },
         "coverage": {
             "gp_observed": len(observed),
             "gp_total": meta.n_gp,
             "gp_observed_fraction": (len(observed) / meta.n_gp) if meta.n_gp else None,
+            "looks_per_gp": (len(obs) / meta.n_gp) if meta.n_gp else None,
         },
         "observations": {"count": len(obs), "duplicates_15min": dup},
     }

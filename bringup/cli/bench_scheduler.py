@@ -12,6 +12,8 @@ Two measurements in one run (DESIGN.md section 1 "scheduler runtime 1 % of the h
 2. Small single-satellite instances cut from the same scenario's passes (several satellites, a
    ``--milp-window-s`` slice, ``--milp-gps`` random GPs of the pass) solved by the DP and by the
    exact MILP (HiGHS): ``dp_over_milp_min`` / ``dp_over_milp_mean`` (the study: >= 90 %).
+3. The same for pairs of satellites whose fields of regard overlap over a region (joint planning,
+   sat_node/scheduler/joint.py): ``joint_dp_over_milp_min`` / ``_mean`` against the joint MILP.
 
 The logic lives here (the package is installed; ``bench/`` is not) and ``bench/bench_scheduler.py``
 runs it with a human summary.
@@ -30,7 +32,7 @@ import numpy as np
 from bringup.cli.common import add_out_arg, add_scenario_args, output_stream, scenario_from_args
 from bringup.errors import UserError
 from bringup.scenario.world import OrbitContext
-from sat_node.scheduler import Knowledge, build_problem, solve_dp, solve_milp
+from sat_node.scheduler import Knowledge, build_problem, solve_dp, solve_joint, solve_milp, solve_milp_joint
 from sat_node.value import Belief, KnownObservation, true_value
 
 
@@ -134,6 +136,56 @@ def milp_comparison(ctx, *, instances: int, n_gps: int, window_s: float, time_li
     }
 
 
+def joint_milp_comparison(ctx, *, instances: int, n_gps: int, window_s: float, time_limit_s: float) -> dict:
+    """Joint DP and joint MILP on two-satellite instances: a satellite's pass and another satellite that
+    sees at least ``n_gps`` of the same GPs within ``revisit_zero_s`` (so the GPs count once for the
+    two); each gets a ``window_s`` slice where it sees most of them, over ``n_gps`` random shared GPs."""
+    sc = ctx.scenario
+    planner = ctx.planner()
+    field = Knowledge(ctx.osse)
+    rng = np.random.default_rng(sc.scenario.seed + 1)
+    span = float(sc.value.revisit_zero_s)
+    rows = []
+    names = list(sc.sat_names)
+    for a in names:
+        if len(rows) >= instances:
+            break
+        for t_pass in planner.pass_starts_s(a, 0.0, float(sc.scenario.horizon_s)):
+            if len(rows) >= instances:
+                break
+            t_pass = float(t_pass)
+            ids = planner.candidates(a, t_pass, t_pass + span) if planner.candidates else None
+            if ids is not None and len(ids) == 0:
+                continue
+            pa = planner.instance(a, t_pass, field, window_s=span, gp_ids=ids)
+            for b in names:
+                if b == a or len(rows) >= instances:
+                    continue
+                pb = planner.instance(b, t_pass, field, window_s=span, gp_ids=pa.gp_ids)
+                vis_a, vis_b = pa.in_for.any(axis=0), pb.in_for.any(axis=0)
+                shared = pa.gp_ids[vis_a & vis_b]
+                if len(shared) < n_gps:
+                    continue
+                ka = int(np.argmax(pa.in_for[:, vis_a & vis_b].sum(axis=1)))
+                kb = int(np.argmax(pb.in_for[:, vis_a & vis_b].sum(axis=1)))
+                t_a = t_pass + max(0.0, ka * pa.step_s - window_s / 2)
+                t_b = t_pass + max(0.0, kb * pb.step_s - window_s / 2)
+                if max(t_a, t_b) + window_s - min(t_a, t_b) > span:
+                    continue
+                pick = np.sort(rng.choice(shared, size=n_gps, replace=False))
+                probs = [planner.instance(a, t_a, field, window_s=window_s, gp_ids=pick),
+                         planner.instance(b, t_b, field, window_s=window_s, gp_ids=pick)]
+                j = solve_joint(probs)
+                _plans, obj, optimal = solve_milp_joint(probs, time_limit_s=time_limit_s)
+                rows.append({"sats": [a, b], "t0_s": [t_a, t_b], "joint_dp": j.value, "milp": obj,
+                             "optimal": optimal, "exact": j.exact, "dp_solves": j.dp_solves})
+                break
+    ratios = [r["joint_dp"] / r["milp"] for r in rows if r["milp"] > 0]
+    return {"joint_instances": len(rows), "joint_dp_over_milp_min": min(ratios) if ratios else None,
+            "joint_dp_over_milp_mean": float(np.mean(ratios)) if ratios else None,
+            "joint_milp_all_optimal": all(r["optimal"] for r in rows), "joint_instances_detail": rows}
+
+
 def run_benchmark(sc, *, sat: str | None = None, instances: int = 8, n_gps: int = 20, window_s: float = 60.0,
                   time_limit_s: float = 120.0) -> dict:
     if sat is not None and sat not in sc.sat_names:
@@ -148,6 +200,8 @@ def run_benchmark(sc, *, sat: str | None = None, instances: int = 8, n_gps: int 
            "plan_lookahead_s": sc.scheduler.plan_lookahead_s, "replan_period_s": sc.scheduler.replan_period_s}
     out.update(horizon_run(ctx, sat or sc.sat_names[0]))
     out.update(milp_comparison(ctx, instances=instances, n_gps=n_gps, window_s=window_s, time_limit_s=time_limit_s))
+    out.update(joint_milp_comparison(ctx, instances=max(2, instances // 2), n_gps=n_gps, window_s=window_s,
+                                     time_limit_s=time_limit_s))
     return out
 
 
@@ -171,6 +225,8 @@ def format_summary(r: dict) -> str:
         (f"  DP / MILP        min {r['dp_over_milp_min']:.4f}, mean {r['dp_over_milp_mean']:.4f} over "
          f"{r['instances']} instances (all MILP optimal: {r['milp_all_optimal']})"),
         f"  MILP time        {r['milp_s_total']:.2f} s total; DP on the same {r['dp_s_on_milp_instances']:.3f} s",
+        (f"  joint DP / MILP  min {r['joint_dp_over_milp_min'] or 0:.4f}, mean {r['joint_dp_over_milp_mean'] or 0:.4f} "
+         f"over {r['joint_instances']} two-satellite instances"),
     ]
     return "\n".join(lines)
 

@@ -11,22 +11,61 @@ import sys
 from contextlib import contextmanager
 from pathlib import Path
 
-from bringup.scenario.config import Scenario, load_scenario
+from bringup.errors import UserError
+from bringup.scenario.config import KNOWLEDGE_MODELS, Scenario, load_scenario
+
+_OVERRIDES = ("sats", "hours", "seed", "knowledge", "transiency_min", "gp_spacing_km", "joint_planning")
 
 
-def add_scenario_args(p: argparse.ArgumentParser, *, overrides: bool = True) -> None:
+def transiency_arg(text: str) -> float:
+    """``--transiency-min``: minutes, or ``slow`` (0: the slow storm-cell field)."""
+    if text.strip().lower() == "slow":
+        return 0.0
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r}: expected minutes (e.g. 15, 60) or 'slow'") from None
+    if v < 0:
+        raise argparse.ArgumentTypeError(f"{text!r}: must be >= 0 minutes")
+    return v
+
+
+def add_scenario_args(p: argparse.ArgumentParser, *, overrides: bool = True, knowledge: bool = False) -> None:
     p.add_argument("--scenario", default="paper", help="scenario name or TOML path (default: paper)")
     if overrides:
         p.add_argument("--sats", type=int, default=None, help="number of satellites (default: scenario)")
         p.add_argument("--hours", type=float, default=None, help="horizon [h] (default: scenario)")
         p.add_argument("--seed", type=int, default=None, help="seed (default: scenario)")
+    if knowledge:
+        add_knowledge_args(p)
+
+
+def add_knowledge_args(p: argparse.ArgumentParser) -> None:
+    """What the planners know and of which field (scenario keys value.knowledge, value.transiency_min,
+    regions.gp_spacing_km, scheduler.joint_planning)."""
+    p.add_argument("--knowledge", choices=KNOWLEDGE_MODELS, default=None,
+                   help="what a planner knows: study (the field as of its newest information per region), "
+                        "observed (forecast + observations), oracle (the truth; comparison only) "
+                        "(default: scenario)")
+    p.add_argument("--transiency-min", type=transiency_arg, default=None, metavar="MIN|slow",
+                   help="transiency of the synthetic field [min] (the study's: 15), or 'slow' for the storm-cell "
+                        "field (default: scenario)")
+    p.add_argument("--gp-spacing-km", type=float, default=None,
+                   help="GP spacing [km] (default: scenario; the paper's: footprint / 2)")
+    p.add_argument("--planning", choices=("joint", "alone"), default=None,
+                   help="plan satellites with overlapping fields of regard jointly (the study's) or each alone "
+                        "(default: scenario)")
 
 
 def scenario_from_args(args: argparse.Namespace) -> Scenario:
     sc = load_scenario(args.scenario)
-    sats, hours, seed = (getattr(args, k, None) for k in ("sats", "hours", "seed"))
-    if sats is not None or hours is not None or seed is not None:
-        sc = sc.with_overrides(sats=sats, hours=hours, seed=seed)
+    kw = {k: getattr(args, k, None) for k in _OVERRIDES if k != "joint_planning"}
+    planning = getattr(args, "planning", None)
+    kw["joint_planning"] = None if planning is None else planning == "joint"
+    if kw["gp_spacing_km"] is not None and not kw["gp_spacing_km"] > 0:
+        raise UserError(f"--gp-spacing-km {kw['gp_spacing_km']}: must be > 0")
+    if any(v is not None for v in kw.values()):
+        sc = sc.with_overrides(**kw)
     return sc
 
 

@@ -46,7 +46,7 @@ _NS = 1_000_000_000
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    add_scenario_args(p)
+    add_scenario_args(p, knowledge=True)
     p.add_argument("--mode", choices=("distributed", "centralized", "nonagile"), default="distributed")
     p.add_argument("--engine", choices=("ros", "local"), default="ros")
     p.add_argument("--out", type=Path, default=None, help="run folder (default runs/<scenario>-<mode>)")
@@ -102,9 +102,7 @@ def run(args: argparse.Namespace) -> int:
         world.save(world_path)
     say(f"run: world ready in {time.perf_counter() - t0:.1f} s ({len(world.isl_plan)} ISL contacts, "
         f"{len(world.ground_plan)} ground contacts, {world.n_gp} ground points)")
-    meta = RunMeta(scenario=sc.name, mode=args.mode, engine=args.engine, seed=sc.scenario.seed,
-                   horizon_s=sc.scenario.horizon_s, n_sats=len(world.sat_names), n_gp=world.n_gp,
-                   revisit_zero_s=sc.value.revisit_zero_s)
+    meta = RunMeta.for_world(world, args.mode, args.engine)
     router_kw = {"extra_delay_s": args.isl_delay_s, "cuts": cuts} if (args.isl_delay_s or cuts) else None
     rep = None
     if args.engine == "local":

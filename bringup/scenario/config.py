@@ -88,19 +88,30 @@ class RegionsCfg(_S, kw_only=True):
     list: Annotated[List[Region], msgspec.Meta(min_length=1)]
 
 
+KNOWLEDGE_MODELS = ("study", "observed", "oracle")  # sat_node/knowledge.py MODELS (checked by a test)
+
+
 class ValueCfg(_S, kw_only=True):
     osse_source: Literal["synthetic", "file"] = "synthetic"
     osse_file: str = ""
+    osse_forecast_file: str = ""
     slot_s: Pos = 900.0
     revisit_zero_s: NonNeg = 900.0
     belief_sigma_min: Frac = 0.02
     belief_sigma_max: Frac = 0.08
+    knowledge: Literal["study", "observed", "oracle"] = "study"
+    # 0: the slow storm-cell field; else the transient field's transiency [min] (up to a day)
+    transiency_min: Annotated[float, msgspec.Meta(ge=0, le=1440)] = 15.0
+    observation_spread_km: Annotated[float, msgspec.Meta(gt=0, le=500)] = 10.0
+    # 0: derived from the field's transiency (sat_node/knowledge.py)
+    observation_memory_min: Annotated[float, msgspec.Meta(ge=0, le=10080)] = 0.0
 
 
 class SchedulerCfg(_S, kw_only=True):
     replan_period_s: Pos = 600.0
     dp_step_s: Pos = 1.0
     plan_lookahead_s: Pos = 600.0
+    joint_planning: bool = True
 
 
 class IslCfg(_S, kw_only=True):
@@ -170,21 +181,30 @@ class Scenario(_S, kw_only=True):
 
     @property
     def gp_spacing_km(self) -> float:
-        return self.regions.gp_spacing_km or self.instrument.footprint_km
+        """GP spacing [km]: the key, or (0) half the footprint - Nyquist sampling, as the study."""
+        return self.regions.gp_spacing_km or 0.5 * self.instrument.footprint_km
 
     @property
     def sat_names(self) -> list[str]:
         return sat_names(self.constellation.planes, self.constellation.sats_per_plane)
 
     def with_overrides(self, *, sats: int | None = None, hours: float | None = None,
-                       seed: int | None = None) -> "Scenario":
-        """A copy with the CLI overrides applied (``--sats``, ``--hours``, ``--seed``).
+                       seed: int | None = None, knowledge: str | None = None,
+                       transiency_min: float | None = None, gp_spacing_km: float | None = None,
+                       joint_planning: bool | None = None) -> "Scenario":
+        """A copy with the CLI overrides applied (``--sats``, ``--hours``, ``--seed``,
+        ``--knowledge``, ``--transiency-min``, ``--gp-spacing-km``, ``--planning``).
 
         ``sats`` keeps the number of planes when it divides evenly, else uses one plane per
         ``ceil(sats / sats_per_plane)``; the result is validated like a file.
         """
         raw = msgspec.to_builtins(self)
         raw.pop("source_path", None)
+        for table, key, v in (("value", "knowledge", knowledge), ("value", "transiency_min", transiency_min),
+                              ("regions", "gp_spacing_km", gp_spacing_km),
+                              ("scheduler", "joint_planning", joint_planning)):
+            if v is not None:
+                raw[table][key] = float(v) if isinstance(v, int) and not isinstance(v, bool) else v
         if sats is not None:
             c = raw["constellation"]
             planes = c["planes"]
@@ -297,6 +317,12 @@ def _cross_checks(sc: Scenario, where: str) -> None:
         bad("value.belief_sigma_min", f"{v.belief_sigma_min} is above belief_sigma_max {v.belief_sigma_max}")
     if v.osse_source == "file" and not v.osse_file:
         bad("value.osse_file", "osse_source is 'file' but no osse_file is given")
+    if v.osse_forecast_file and v.osse_source != "file":
+        bad("value.osse_forecast_file", "a forecast file goes with osse_source 'file' (the synthetic "
+            "sources make their own forecast)")
+    if 0 < v.transiency_min < v.slot_s / 60.0:
+        bad("value.transiency_min", f"{v.transiency_min} min is shorter than one value slot "
+            f"({v.slot_s / 60.0:g} min; 0 = the slow storm-cell field)")
     if sc.scheduler.dp_step_s > sc.scheduler.replan_period_s:
         bad("scheduler.dp_step_s", "is longer than scheduler.replan_period_s")
     i = sc.isl

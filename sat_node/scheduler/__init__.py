@@ -12,8 +12,9 @@ Typical call (one satellite, one replan; the satellite and the ground segment bo
 or, from arrays: ``solve_dp(build_problem(t0_s=..., step_s=1.0, sat_pos_km=..., ...))``.
 """
 
-from sat_node.scheduler.brute import BruteTooLarge, solve_brute
+from sat_node.scheduler.brute import BruteTooLarge, solve_brute, solve_brute_joint
 from sat_node.scheduler.dp import Plan, ScheduleInvariantError, make_plan, solve_dp
+from sat_node.scheduler.joint import JointResult, joint_value, solve_joint
 from sat_node.scheduler.nonagile import nadir_pass_crossings, solve_nonagile
 from sat_node.scheduler.planner import (
     SOLVERS,
@@ -34,6 +35,7 @@ from sat_node.scheduler.problem import (
 __all__ = [
     "SOLVERS",
     "BruteTooLarge",
+    "JointResult",
     "Knowledge",
     "MilpResult",
     "PersistenceView",
@@ -49,9 +51,13 @@ __all__ = [
     "make_plan",
     "nadir_pass_crossings",
     "plan_violations",
+    "joint_value",
     "solve_brute",
+    "solve_brute_joint",
     "solve_dp",
+    "solve_joint",
     "solve_milp",
+    "solve_milp_joint",
     "solve_nonagile",
 ]
 
@@ -60,7 +66,7 @@ def __getattr__(name):
     # The MILP reference pulls in scipy.optimize (~50 MB per process, ~0.21 s to import measured
     # with python -X importtime): import it only when asked, so the flight processes (one per
     # satellite) do not carry it.
-    if name in ("MilpResult", "solve_milp"):
+    if name in ("MilpResult", "solve_milp", "solve_milp_joint"):
         from sat_node.scheduler import milp
 
         return getattr(milp, name)

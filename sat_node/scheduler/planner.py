@@ -20,6 +20,13 @@ all plan here, with the same steps:
 4. **Solver.** A named strategy of :data:`SOLVERS`: ``dp`` (the study's dynamic program,
    :func:`sat_node.scheduler.dp.solve_dp`, invariants checked) or ``nonagile`` (nadir only,
    :func:`sat_node.scheduler.nonagile.solve_nonagile`).
+5. **Joint planning** (``dp`` with ``PlannerSettings.joint``; the study's Table 1, lines 9-20): the
+   satellites whose fields of regard reach a GP the planned satellite may see - within
+   ``revisit_zero_s`` of its window's start, the time over which a GP counts once - are planned
+   with it from the same knowledge (:func:`sat_node.scheduler.joint.solve_joint`); the planned
+   satellite's part is its plan. Onboard the partners are every other satellite of the
+   constellation, from nadir at the window's start; the ground names them with the time their
+   committed plans end (``partners``).
 
 A planner holds only the scenario's fixed inputs (orbits, GPs, slew model, settings, pre-filter):
 everything that changes between calls - the satellite, the time, the window, the knowledge, the
@@ -43,6 +50,7 @@ import numpy as np
 from orbit_clock.access import for_mask
 from sat_node.acs import SlewModel
 from sat_node.scheduler.dp import Plan, solve_dp
+from sat_node.scheduler.joint import solve_joint
 from sat_node.scheduler.nonagile import solve_nonagile
 from sat_node.scheduler.problem import SchedulingProblem, build_problem
 from sat_node.value import Belief, KnownObservation, prior_state
@@ -97,6 +105,8 @@ class PlannerSettings:
     for_off_nadir_deg: float
     revisit_zero_s: float
     footprint_km: float
+    joint: bool = False
+    joint_budget_solves: int = 0  # the dive only (sat_node/scheduler/joint.py): the search gained nothing here
 
     @classmethod
     def from_scenario(cls, sc) -> PlannerSettings:
@@ -104,7 +114,8 @@ class PlannerSettings:
                    plan_lookahead_s=float(sc.scheduler.plan_lookahead_s),
                    for_off_nadir_deg=float(sc.instrument.for_off_nadir_deg),
                    revisit_zero_s=float(sc.value.revisit_zero_s),
-                   footprint_km=float(sc.instrument.footprint_km))
+                   footprint_km=float(sc.instrument.footprint_km),
+                   joint=bool(sc.scheduler.joint_planning))
 
 
 #: name -> solver(instance, settings) -> Plan
@@ -128,9 +139,12 @@ class Planner:
         self.candidates = candidates
 
     def plan(self, sat: str, t0_s: float, window_s: float, knowledge: Knowledge, *,
-             init_target_km: np.ndarray | None = None, solver: str = "dp") -> Plan | None:
+             init_target_km: np.ndarray | None = None, solver: str = "dp",
+             partners: Sequence[tuple[str, float]] | None = None) -> Plan | None:
         """The plan of ``sat`` over [t0_s, t0_s + window_s) from ``knowledge`` (None when no GP can
-        enter its field of regard); ``init_target_km``: what it points at now (None: nadir)."""
+        enter its field of regard); ``init_target_km``: what it points at now (None: nadir).
+        ``partners``: for joint planning, [(satellite, free from [s])] (None: every other satellite,
+        free now)."""
         if solver not in SOLVERS:
             raise ValueError(f"planner solver {solver!r}: unknown (known: {', '.join(sorted(SOLVERS))})")
         ids = None
@@ -139,7 +153,44 @@ class Planner:
             if len(ids) == 0:
                 return None
         p = self.instance(sat, t0_s, knowledge, window_s=window_s, gp_ids=ids, init_target_km=init_target_km)
+        if solver == "dp" and self.settings.joint:
+            group = self.group(sat, t0_s, window_s, knowledge, p, partners)
+            if group:
+                return solve_joint([p] + group, budget_solves=self.settings.joint_budget_solves).plans[0]
         return SOLVERS[solver](p, self.settings)
+
+    def group(self, sat: str, t0_s: float, window_s: float, knowledge: Knowledge, mine: SchedulingProblem,
+              partners: Sequence[tuple[str, float]] | None = None) -> list[SchedulingProblem]:
+        """The instances of the satellites planned jointly with ``sat`` (module docstring, step 5):
+        each partner free before the group's end - ``t0_s`` plus the longer of the window and
+        ``revisit_zero_s`` - over the GPs it may see then, kept when one of them is a GP ``mine``
+        may see."""
+        st = self.settings
+        end = t0_s + max(window_s, st.revisit_zero_s)
+        if partners is None:
+            partners = [(n, t0_s) for n in getattr(self.constellation, "names", ()) if n != sat]
+        mine_ids = mine.gp_ids[mine.v_first.any(axis=0)]
+        if len(mine_ids) == 0:
+            return []
+        mine_gps = set(mine_ids.tolist())
+        out = []
+        for name, free_s in partners:
+            start = max(t0_s, float(free_s))
+            if start >= end - st.dp_step_s:
+                continue
+            ids = self.candidates(name, start, end) if self.candidates is not None else None
+            if ids is not None and not mine_gps.intersection(ids.tolist()):
+                continue
+            # a coarse look first (every 10 s, the FOR over my GPs): most candidates pass far off
+            coarse = np.append(np.arange(start, end, 10.0), end - st.dp_step_s)
+            seen = for_mask(self.constellation.track_ecef_km(name, coarse), self.gp_ecef_km[mine_ids],
+                            st.for_off_nadir_deg)
+            if not seen.any():
+                continue
+            q = self.instance(name, start, knowledge, window_s=end - start, gp_ids=ids)
+            if mine_gps.intersection(q.gp_ids[q.v_first.any(axis=0)].tolist()):
+                out.append(q)
+        return out
 
     def instance(self, sat: str, t0_s: float, knowledge: Knowledge, *, window_s: float | None = None,
                  step_s: float | None = None, gp_ids=None, init_target_km=None,

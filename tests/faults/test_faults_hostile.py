@@ -46,12 +46,12 @@ def _forged_bundle(target: str, claimed_src: str, gp: int, t_ns: int, seq: int) 
     from sat_node.dtn.bpsec import add_bib
     from sat_node.dtn.bpv7 import Bundle, encode_bundle, ipn
     from sat_node.dtn.routing_blocks import set_routing
-    from sat_node.satellite import observation_payload
+    from sat_node.inference import Inference, encode_inference
 
     cfg = AgentConfig()
     b = Bundle(dest=ipn(node_number(target), 1), src=ipn(node_number(claimed_src), 1),
                creation_ms=cfg.epoch_dtn_ms + t_ns // 1_000_000, seq=10_000 + seq, lifetime_ms=900_000,
-               payload=observation_payload(claimed_src, gp, FORGED_T_NS, 99.0))
+               payload=encode_inference(Inference(claimed_src, gp, FORGED_T_NS, 99.0, 0)))
     set_routing(b, [(node_number(target), 1, 900_000)], {node_number(target): (node_number(target),)})
     b.hop_count = (cfg.hop_limit, 0)
     add_bib(b, b"not-the-constellation-key-000000", ipn(node_number(claimed_src), 0))

@@ -9,7 +9,6 @@ Oracle: exit status 2, exactly one stderr line naming the command, the file and 
 
 from __future__ import annotations
 
-import json
 import subprocess
 import sys
 
@@ -19,6 +18,7 @@ from scenario_edit import bad_value as _bad_value
 from scenario_edit import leaves as _leaves
 from scenario_edit import raw_scenario
 from scenario_edit import set_key as _set
+from scenario_edit import to_toml
 
 from bringup.scenario.config import load_scenario
 
@@ -29,41 +29,6 @@ COMMANDS = ("run", "access", "contacts", "constellation")
 
 def _raw():
     return raw_scenario(load_scenario("paper"))
-
-
-def _scalar(v) -> str:
-    if isinstance(v, bool):
-        return "true" if v else "false"
-    if isinstance(v, (int, float)):
-        return repr(v)
-    if isinstance(v, str):
-        return json.dumps(v)
-    if isinstance(v, list):
-        return "[" + ", ".join(_scalar(x) for x in v) + "]"
-    raise TypeError(f"cannot write {v!r} as TOML")
-
-
-def to_toml(d: dict, prefix: str = "") -> str:
-    """Minimal TOML writer for the scenario's shape (tables, arrays of tables, scalars, lists)."""
-    lines, subs = [], []
-    for k, v in d.items():
-        if v is None:
-            continue
-        if isinstance(v, dict):
-            subs.append((k, v, False))
-        elif isinstance(v, list) and v and isinstance(v[0], dict):
-            subs.append((k, v, True))
-        else:
-            lines.append(f"{k} = {_scalar(v)}")
-    out = "\n".join(lines) + ("\n" if lines else "")
-    for k, v, many in subs:
-        name = f"{prefix}{k}"
-        if many:
-            for item in v:
-                out += f"\n[[{name}]]\n" + to_toml(item, name + ".")
-        else:
-            out += f"\n[{name}]\n" + to_toml(v, name + ".")
-    return out
 
 
 KEYS = [k for k, _ in _leaves(_raw())]

@@ -17,7 +17,8 @@ from msgs_json import schemas as S
 
 @pytest.fixture(scope="module")
 def run(paper_scenario):
-    world = World.build(paper_scenario.with_overrides(sats=6, hours=3))
+    # the footprint spacing (500 GPs): GPs are seen more than once in 3 h, so the 15-min rule is put to work
+    world = World.build(paper_scenario.with_overrides(sats=6, hours=3, gp_spacing_km=8.0))
     sc = world.scenario
     res = run_local(all_participants(world, "centralized"), horizon_ns=sc.horizon_ns,
                     max_step_ns=int(sc.scenario.lockstep_max_step_s * 1e9))

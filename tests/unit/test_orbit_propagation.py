@@ -110,23 +110,27 @@ def test_ecef_against_skyfield(paper_scenario):
 
 
 def test_ground_points_paper(paper_scenario):
+    """Nyquist sampling of the 8 km footprint, as the study: 4 km apart, 20 x 20 = 400 per region."""
     g = ground_points(paper_scenario)
-    assert len(g) == 500 and g.region_names[0] == "Dhaka"
-    assert np.bincount(g.region_index).tolist() == [100] * 5
-    np.testing.assert_array_equal(g.ids, np.arange(500))
+    assert len(g) == 2000 and g.region_names[0] == "Dhaka"
+    assert np.bincount(g.region_index).tolist() == [400] * 5
+    np.testing.assert_array_equal(g.ids, np.arange(2000))
     # id order: region, then row (north -> south), then column (west -> east)
     d = g.in_region("Dhaka")
-    assert np.all(np.diff(g.lat_deg[d].reshape(10, 10)[:, 0]) < 0)
-    assert np.all(np.diff(g.lon_deg[d].reshape(10, 10)[0, :]) > 0)
-    # neighbours are 8 km apart along the surface (chord on the ellipsoid: independent of the grid maths)
+    assert np.all(np.diff(g.lat_deg[d].reshape(20, 20)[:, 0]) < 0)
+    assert np.all(np.diff(g.lon_deg[d].reshape(20, 20)[0, :]) > 0)
+    # neighbours are 4 km apart along the surface (chord on the ellipsoid: independent of the grid maths)
     for r in range(5):
-        ids = g.in_region(r).reshape(10, 10)
+        ids = g.in_region(r).reshape(20, 20)
         ew = np.linalg.norm(g.ecef_km[ids[:, 1:]] - g.ecef_km[ids[:, :-1]], axis=-1)
         ns = np.linalg.norm(g.ecef_km[ids[1:, :]] - g.ecef_km[ids[:-1, :]], axis=-1)
-        np.testing.assert_allclose(ew, 8.0, rtol=1e-3)
-        np.testing.assert_allclose(ns, 8.0, rtol=1e-3)
+        np.testing.assert_allclose(ew, 4.0, rtol=1e-3)
+        np.testing.assert_allclose(ns, 4.0, rtol=1e-3)
         centre = geodetic_to_ecef_km(g.region_center_lat_deg[r], g.region_center_lon_deg[r])
-        assert np.linalg.norm(g.ecef_km[ids] - centre, axis=-1).max() == pytest.approx(36.0 * 2**0.5, rel=5e-3)
+        assert np.linalg.norm(g.ecef_km[ids] - centre, axis=-1).max() == pytest.approx(38.0 * 2**0.5, rel=5e-3)
+    # the footprint spacing of earlier releases: 10 x 10, 8 km apart
+    g8 = ground_points(paper_scenario.with_overrides(gp_spacing_km=8.0))
+    assert np.bincount(g8.region_index).tolist() == [100] * 5
     assert g.region_id("London") == 3
     with pytest.raises(ValueError, match="not one of"):
         g.region_id("Paris")

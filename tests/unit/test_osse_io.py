@@ -119,8 +119,9 @@ def test_round_trip_on_orbit_clock_ground_points(paper_scenario, tmp_path):
     """The real GP layout (orbit_clock.ground_points, WGS-84 local grid) also round-trips exactly."""
     from orbit_clock import ground_points
 
-    gp = ground_points(paper_scenario.with_overrides(hours=1.0))
-    f = osse_from_scenario(paper_scenario.with_overrides(hours=1.0), gp)
+    sc = paper_scenario.with_overrides(hours=1.0, gp_spacing_km=8.0)  # 500 GPs: a CSV of 100k rows
+    gp = ground_points(sc)
+    f = osse_from_scenario(sc, gp)
     assert f.n_gp == len(gp) == 500
     back = load_value_grid(write_value_grid(f, tmp_path / "g.csv"), gp, horizon_s=3600.0)
     assert np.array_equal(back.values, f.values)

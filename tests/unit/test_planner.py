@@ -102,8 +102,13 @@ def test_prefiltered_plan_equals_the_plan_on_the_exact_columns(world):
 
 def test_satellite_and_ground_plan_through_the_world_planner(world):
     """The satellite's plan at its start and the ground's first uplinks are the planner's plans for
-    what each knows then (nothing observed; the OSSE as of then through its own belief)."""
+    what each knows then: nothing observed, so (the study's knowledge model) the field as of the
+    epoch, through its own belief."""
     from msgs_json import codec
+    from sat_node.knowledge import RegionPersistenceView
+
+    assert world.scenario.value.knowledge == "study"
+    epoch = np.zeros(world.n_gp)
 
     sc = world.scenario
     lookahead = float(sc.scheduler.plan_lookahead_s)
@@ -112,7 +117,7 @@ def test_satellite_and_ground_plan_through_the_world_planner(world):
         t0_ns = int(t0 * 1e9)
         sat = SatelliteLogic(world, SAT, "distributed", dtn=False)
         sched = codec.decode(*_first(sat.start(t0_ns).emits, "/schedule"))
-        k = Knowledge(PersistenceView(world.osse, t0_ns / 1e9), (), sat.belief)
+        k = Knowledge(RegionPersistenceView(world.osse, epoch, t0_ns / 1e9), (), sat.belief)
         plan = world.planner.plan(SAT, t0_ns / 1e9, lookahead, k)
         assert [(it.gp, it.t_ns) for it in sched.items] == [(g, round(t * 1e9)) for g, t in plan.as_list()]
         planned += len(sched.items)
@@ -121,7 +126,7 @@ def test_satellite_and_ground_plan_through_the_world_planner(world):
     SAT = world.sat_names[0]
     nonagile = SatelliteLogic(world, SAT, "nonagile", dtn=False)
     sched = codec.decode(*_first(nonagile.start(0).emits, "/schedule"))
-    k = Knowledge(PersistenceView(world.osse, 0.0), (), nonagile.belief)
+    k = Knowledge(RegionPersistenceView(world.osse, epoch, 0.0), (), nonagile.belief)
     plan = world.planner.plan(SAT, 0.0, sc.scenario.horizon_s, k, solver="nonagile")
     assert [(it.gp, it.t_ns) for it in sched.items] == [(g, round(t * 1e9)) for g, t in plan.as_list()]
 
@@ -132,7 +137,7 @@ def test_satellite_and_ground_plan_through_the_world_planner(world):
     for up in uplinks:  # each satellite's plan respects the plans uplinked before it
         nxt = ground._next_pass_after(up.sat, 0)
         window_s = min(sc.horizon_ns, (nxt if nxt is not None else sc.horizon_ns) + ground.margin_ns) / 1e9
-        k = Knowledge(PersistenceView(world.osse, 0.0), list(known), ground.belief)
+        k = Knowledge(RegionPersistenceView(world.osse, epoch, 0.0), list(known), ground.belief)
         plan = world.planner.plan(up.sat, 0.0, window_s, k)
         got = [(it.gp, it.t_ns) for it in up.schedule.items]
         assert got == ([(g, round(t * 1e9)) for g, t in plan.as_list()] if plan is not None else [])

@@ -21,7 +21,7 @@ def test_paper_scenario_matches_design(paper_scenario):
     assert sc.scenario.horizon_s == 21600.0
     assert sc.sat_names[0] == "sat_11" and sc.sat_names[-1] == "sat_38"
     assert [r.name for r in sc.regions.list] == ["Dhaka", "Sydney", "Dallas", "London", "Rio de Janeiro"]
-    assert sc.gp_spacing_km == 8.0
+    assert sc.gp_spacing_km == 4.0 == sc.instrument.footprint_km / 2  # Nyquist: 20 x 20 per region
     assert (sc.isl.ttl_s(1), sc.isl.ttl_s(3), sc.isl.ttl_s(4), sc.isl.ttl_s(15)) == (900, 1800, 3000, 3000)
     assert sc.epoch.isoformat() == "2000-01-01T11:59:28+00:00"
 

@@ -1,0 +1,97 @@
+"""Rank statistics of a value field over time: how fast the ranking of the GPs changes.
+
+The transiency of a field (DESIGN.md section 1; the study's precipitation field: 15 min) is the lag
+at which the Spearman rank correlation of all GP values falls to 0.5. :func:`rank_correlation` is
+that correlation at a lag of whole slots, averaged over the start slots of the horizon;
+:func:`measured_transiency_min` finds the crossing (linear between slot lags, lag 0 counting 1).
+Every run reports them for its truth field (``osse.rank_corr_15min``, ``osse.rank_corr_60min``,
+``osse.transiency_min``).
+
+How we know it is right (tests/unit/test_osse_transient.py): Spearman's rho here equals
+``scipy.stats.spearmanr`` on random data with ties; the crossing of a drawn correlation curve is
+found where it was put.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+__all__ = ["field_rank_figures", "measured_transiency_min", "rank_correlation", "ranks", "spearman"]
+
+
+def ranks(v: np.ndarray) -> np.ndarray:
+    """Ranks 1..n of the rows' entries along the last axis, ties given their average rank."""
+    v = np.asarray(v, dtype=np.float64)
+    order = np.argsort(v, axis=-1, kind="stable")
+    sv = np.take_along_axis(v, order, axis=-1)
+    n = v.shape[-1]
+    out = np.empty_like(v)
+    for idx in np.ndindex(v.shape[:-1]):
+        row = sv[idx]
+        start = np.flatnonzero(np.concatenate([[True], row[1:] != row[:-1]]))
+        end = np.concatenate([start[1:], [n]])
+        avg = 0.5 * (start + end - 1) + 1.0
+        r = np.repeat(avg, end - start)
+        o = np.empty(n)
+        o[order[idx]] = r
+        out[idx] = o
+    return out
+
+
+def spearman(a: np.ndarray, b: np.ndarray) -> float:
+    ra, rb = ranks(a), ranks(b)
+    ra, rb = ra - ra.mean(), rb - rb.mean()
+    den = math.sqrt(float((ra * ra).sum() * (rb * rb).sum()))
+    return float((ra * rb).sum() / den) if den > 0 else 0.0
+
+
+def rank_correlation(values: np.ndarray, lag_slots: int) -> float | None:
+    """Mean over start slots of the Spearman rank correlation of every GP's value between slot ``t``
+    and slot ``t + lag_slots`` (``values`` [n_slots, n_gp]); None when the horizon is too short or a
+    slot is constant (no ranking)."""
+    v = np.asarray(values)
+    n = v.shape[0]
+    if lag_slots < 0:
+        raise ValueError(f"rank correlation: lag must be >= 0 slots, got {lag_slots}")
+    if lag_slots == 0:
+        return 1.0
+    if n <= lag_slots or v.shape[1] < 3:
+        return None
+    r = ranks(v)
+    r = r - r.mean(axis=1, keepdims=True)
+    norm = np.sqrt((r * r).sum(axis=1))
+    if np.any(norm == 0):
+        return None
+    c = (r[:-lag_slots] * r[lag_slots:]).sum(axis=1) / (norm[:-lag_slots] * norm[lag_slots:])
+    return float(c.mean())
+
+
+def measured_transiency_min(values: np.ndarray, slot_s: float) -> float | None:
+    """The lag [min] at which :func:`rank_correlation` falls to 0.5, linear between slot lags (lag 0
+    counts 1.0); None when it stays above 0.5 over the horizon."""
+    prev = 1.0
+    for lag in range(1, np.asarray(values).shape[0]):
+        rc = rank_correlation(values, lag)
+        if rc is None:
+            return None
+        if rc <= 0.5:
+            frac = (prev - 0.5) / (prev - rc) if prev != rc else 1.0
+            return (lag - 1 + frac) * slot_s / 60.0
+        prev = rc
+    return None
+
+
+
+
+def field_rank_figures(values: np.ndarray, slot_s: float) -> dict:
+    """The figures every run reports of its truth field: rank correlation at 15 and 60 min (None
+    when those lags are not whole slots or exceed the horizon) and the measured transiency [min]."""
+    out = {}
+    for minutes in (15, 60):
+        lag = minutes * 60.0 / slot_s
+        out[f"rank_corr_{minutes}min"] = (rank_correlation(values, int(round(lag)))
+                                          if abs(lag - round(lag)) < 1e-9 else None)
+    out["transiency_min"] = measured_transiency_min(values, slot_s)
+    return out

@@ -1,0 +1,281 @@
+"""What a planner knows about the value field, and only through the system: named knowledge models.
+
+The rule of the project (DESIGN.md section 1): a planner - a satellite onboard, or the ground segment
+- knows only what reached it: its own observations, the inferences bundles delivered to it, and for
+the ground what was downlinked at passes. A :class:`KnowledgeState` is that record for one planner
+(the :class:`~sat_node.inference.Inference` of every observation it knows of, and the newest
+information time per region); :meth:`KnowledgeState.knowledge` turns it into the
+:class:`~sat_node.scheduler.planner.Knowledge` the planner plans with. How it values the GPs is a
+named strategy (:data:`MODELS`, scenario key ``value.knowledge``):
+
+* ``study`` - the study's reading (Nag et al., ICAPS SPARK 2019, sections 4-5): the planner values
+  each GP with the field as it was at the time of its newest information about the GP's region (an
+  own look, a delivered bundle's observation with its region insight, a downlinked observation's
+  collection time; before any, the epoch - the state the a-priori forecast was issued with), through
+  its own inference noise (:class:`sat_node.value.Belief`). It never reads the field at a later time
+  (:class:`RegionPersistenceView`).
+* ``observed`` - beyond the study: the planner starts from the a-priori forecast (which does not hold
+  the events nobody could foresee, ground_station/osse.py ``OsseField.forecast``) and updates it from
+  the inferred values it knows only (:class:`ObservedView`): in log space, the innovation
+  ``d = ln(v / forecast)`` of each observation spreads to the GPs of its region with a Gaussian
+  kernel of ``observation_spread_km`` and fades with e-folding time ``observation_memory_min``; where
+  the observations' total weight ``W`` is below one, the region insight of the newest inference
+  (``omega`` + ``delta`` x time, fading alike) fills ``1 - W`` of it::
+
+      D(g, t) = sum_o k(g, o, t) d_o / max(1, W) + (1 - min(1, W)) omega_r(t),   W = sum_o k(g, o, t)
+      value(g, t) = clip(forecast(g, t) exp(D), 1, 256)
+
+  so an observed GP, right after its observation, is valued at what was seen, its neighbours move
+  with it, and the rest of the region follows the region's insight.
+* ``oracle`` - the behaviour before knowledge models (kept for comparison, never a default): the true
+  field as of planning time, for every GP, through the belief noise
+  (:class:`~sat_node.scheduler.planner.PersistenceView`). It reads the truth; it is not a planner
+  anyone could fly.
+
+Each model also names the information time of a region for a plan (:meth:`KnowledgeState.info_time_s`):
+``study``/``observed`` the newest known observation there (0: the epoch), ``oracle`` the planning
+time. Each executed look carries it (``Observation.info_ns``); the report's
+``knowledge.info_age_s`` is the look's time minus it.
+
+How we know it is right (tests/unit/test_knowledge.py): two truth fields that differ only in a
+region nobody observed give the same planner inputs (``study``, ``observed``) until an observation
+of it is known, and different ones under ``oracle``; ``study`` reads the truth at no time later than
+the region's information time; the observed view equals a scalar re-computation of the formula on
+random observations, is exact at an observation just made, and reverts to the forecast far away and
+long after; a flood seen by one satellite makes the next one choose it. The whole-run check, both
+engines: tests/system/test_knowledge_flow.py.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from sat_node.inference import Inference
+from sat_node.scheduler.planner import Knowledge, PersistenceView
+from sat_node.value import Belief
+
+__all__ = ["MODELS", "SLOW_FIELD_TRANSIENCY_MIN", "KnowledgeParams", "KnowledgeState", "ObservedView",
+           "RegionPersistenceView"]
+
+#: name -> one line of help (scenario validation and the CLI use the names)
+MODELS: dict[str, str] = {
+    "study": "the field as of the newest information about each region (own looks, bundles, downlinks)",
+    "observed": "the a-priori forecast updated by the inferred values that reached the planner",
+    "oracle": "the true field at planning time for every GP (comparison only: no planner can know it)",
+}
+
+#: the slow storm-cell field's transiency (``value.transiency_min = 0``), measured on seeds 1-3:
+#: 144-238 min (ground_station/osse_stats.py); what the observed model assumes of it
+SLOW_FIELD_TRANSIENCY_MIN = 180.0
+_LN_MAX = math.log(256.0)
+
+
+@dataclass(frozen=True)
+class KnowledgeParams:
+    """A planner's knowledge model and its two parameters (units in names)."""
+
+    model: str = "study"
+    spread_km: float = 10.0
+    memory_s: float = 15.0 * 60.0 / math.log(2.0)
+
+    def __post_init__(self) -> None:
+        if self.model not in MODELS:
+            raise ValueError(f"knowledge model {self.model!r}: unknown (known: {', '.join(MODELS)})")
+        if not (self.spread_km > 0 and self.memory_s > 0):
+            raise ValueError(f"knowledge: spread_km ({self.spread_km}) and memory_s ({self.memory_s}) must be > 0")
+
+    @classmethod
+    def from_scenario(cls, sc) -> KnowledgeParams:
+        """``value.knowledge`` and its parameters; the memory defaults to an e-folding time whose
+        half-life is the field's transiency."""
+        v = sc.value
+        memory_min = v.observation_memory_min or (v.transiency_min or SLOW_FIELD_TRANSIENCY_MIN) / math.log(2.0)
+        return cls(model=v.knowledge, spread_km=float(v.observation_spread_km), memory_s=60.0 * memory_min)
+
+
+class RegionPersistenceView:
+    """``study``: the field read at each GP's region information time, never later. ``info_s`` [s]:
+    per GP (all GPs of the scenario), the time of the newest information about its region;
+    ``t_now_s``: planning time (the belief noise's slot, as :class:`PersistenceView`)."""
+
+    def __init__(self, field, info_s: np.ndarray, t_now_s: float):
+        self._field = field
+        self._info = np.asarray(info_s, np.float64)
+        self._t = float(t_now_s)
+
+    def value_at(self, gp_idx, t_s):
+        gp, t = np.broadcast_arrays(np.asarray(gp_idx), np.asarray(t_s, np.float64))
+        return self._field.value_at(gp, np.minimum(t, self._info[gp]))
+
+    def slot_of(self, t_s):
+        return self._field.slot_of(np.minimum(np.asarray(t_s, np.float64), self._t))
+
+
+class ObservedView:
+    """``observed``: the forecast updated by observations (module docstring's formula).
+
+    obs: arrays ``gp``, ``t_s``, ``d`` (innovation, ln inferred/forecast) of the known inferences
+    with their ``xyz`` [km] positions; ``insight``: region -> (t_s, omega, delta) newest."""
+
+    def __init__(self, field, region_index: np.ndarray, gp_ecef_km: np.ndarray, obs: dict,
+                 insight: dict[int, tuple[float, float, float]], params: KnowledgeParams, t_now_s: float):
+        self._field = field
+        self._region = region_index
+        self._xyz = gp_ecef_km
+        self._obs = obs
+        self._insight = insight
+        self._p = params
+        self._t = float(t_now_s)
+        self._cache: dict[int, tuple[float, float]] = {}
+
+    def _ref(self, gps: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Per GP: (sum_o k d_o, sum_o k) at the planning time."""
+        n = np.zeros(len(gps))
+        w = np.zeros(len(gps))
+        o = self._obs
+        if len(o["gp"]) == 0:
+            return n, w
+        for r in np.unique(self._region[gps]):
+            sel = np.flatnonzero(self._region[gps] == r)
+            mo = o["region"] == r
+            if not mo.any():
+                continue
+            dx = self._xyz[gps[sel]][:, None, :] - o["xyz"][mo][None, :, :]
+            k = np.exp(-0.5 * np.einsum("ijk,ijk->ij", dx, dx) / self._p.spread_km ** 2
+                       - (self._t - o["t_s"][mo])[None, :] / self._p.memory_s)
+            n[sel] = k @ o["d"][mo]
+            w[sel] = k.sum(axis=1)
+        return n, w
+
+    def innovation(self, gp_idx, t_s) -> np.ndarray:
+        """D(g, t) of the module docstring (t at or after the planning time)."""
+        gp, t = np.broadcast_arrays(np.asarray(gp_idx), np.asarray(t_s, np.float64))
+        uniq, inv = np.unique(gp, return_inverse=True)
+        n, w = self._ref(uniq)
+        a = np.exp(-np.maximum(t - self._t, 0.0) / self._p.memory_s)
+        wt = a * w[inv].reshape(gp.shape)
+        d = a * n[inv].reshape(gp.shape) / np.maximum(1.0, wt)
+        om = np.zeros(gp.shape)
+        reg = self._region[gp]
+        for r, (t_i, omega, delta) in self._insight.items():
+            m = reg == r
+            if m.any():
+                age = t[m] - t_i
+                om[m] = (omega + delta * np.minimum(age, self._p.memory_s) / 3600.0) * np.exp(-age / self._p.memory_s)
+        return np.clip(d + (1.0 - np.minimum(1.0, wt)) * om, -_LN_MAX, _LN_MAX)
+
+    def value_at(self, gp_idx, t_s):
+        gp, t = np.broadcast_arrays(np.asarray(gp_idx), np.asarray(t_s, np.float64))
+        f = self._field.forecast_at(gp, t).astype(np.float64)
+        return np.clip(f * np.exp(self.innovation(gp, t)), 1.0, 256.0)
+
+    def slot_of(self, t_s):
+        return self._field.slot_of(t_s)
+
+
+class KnowledgeState:
+    """What one planner (``me``) knows of the field: every inference it learned, the newest
+    information time per region, the newest region insight per region. Small and picklable (the
+    satellite's checkpoint holds it); the field, GPs and belief are passed in when planning."""
+
+    def __init__(self, params: KnowledgeParams, me: str):
+        self.params = params
+        self.me = me
+        self.region_info_s: dict[int, float] = {}
+        self.insight: dict[int, tuple[float, float, float]] = {}
+        self._keys: set[tuple[str, int, int]] = set()
+        self._gp: list[int] = []
+        self._t: list[float] = []
+        self._v: list[float] = []
+        self._region: list[int] = []
+
+    def __len__(self) -> int:
+        return len(self._gp)
+
+    def learn(self, inf: Inference) -> bool:
+        """Take one inference in (own look, delivered bundle, downlink); False if already known."""
+        key = (inf.src, int(inf.gp), int(inf.t_ns))
+        if key in self._keys:
+            return False
+        self._keys.add(key)
+        t = inf.t_ns / 1e9
+        self._gp.append(int(inf.gp))
+        self._t.append(t)
+        self._v.append(float(inf.value))
+        self._region.append(int(inf.region))
+        r = int(inf.region)
+        if t > self.region_info_s.get(r, -math.inf):
+            self.region_info_s[r] = t
+        old = self.insight.get(r)
+        if old is None or t > old[0]:
+            self.insight[r] = (t, float(inf.omega), float(inf.delta))
+        return True
+
+    def observe(self, field, gp: int, t_ns: int, inferred: float, region: int, src: str | None = None) -> Inference:
+        """A look of ``src`` (default: this planner) known first-hand - an own look, or for the ground
+        an observation it processes from a downlink: its inference, with the region insight that
+        includes it (to share), learned."""
+        t_s = t_ns / 1e9
+        self._gp.append(int(gp))
+        self._t.append(t_s)
+        self._v.append(float(inferred))
+        self._region.append(int(region))
+        omega, delta = self.region_insight(field, int(region), t_s)
+        for lst in (self._gp, self._t, self._v, self._region):
+            lst.pop()
+        inf = Inference(src=src or self.me, gp=int(gp), t_ns=int(t_ns), value=float(inferred), region=int(region),
+                        omega=omega, delta=delta)
+        self.learn(inf)
+        return inf
+
+    def info_time_s(self, region: int, t_now_s: float) -> float:
+        """The time of the information a plan made now uses for ``region`` (module docstring)."""
+        if self.params.model == "oracle":
+            return float(t_now_s)
+        return float(self.region_info_s.get(int(region), 0.0))
+
+    def region_insight(self, field, region: int, t_s: float) -> tuple[float, float]:
+        """(omega, delta) of ``region`` at ``t_s`` from every inference known (sat_node/inference.py):
+        omega = the age-weighted mean of ln(inferred / forecast) there, delta = its change since the
+        newest insight held before [1/h] (0 without one within the memory)."""
+        sel = [i for i, r in enumerate(self._region) if r == region and self._t[i] <= t_s]
+        if not sel:
+            return 0.0, 0.0
+        gp = np.array([self._gp[i] for i in sel])
+        t = np.array([self._t[i] for i in sel])
+        v = np.array([self._v[i] for i in sel])
+        d = np.log(np.maximum(v, 1.0) / field.forecast_at(gp, t).astype(np.float64))
+        w = np.exp(-(t_s - t) / self.params.memory_s)
+        omega = float(np.clip((w @ d) / w.sum(), -_LN_MAX, _LN_MAX))
+        delta = 0.0
+        prev = self.insight.get(region)
+        if prev is not None and 0.0 < t_s - prev[0] <= self.params.memory_s:
+            delta = float(np.clip((omega - prev[1]) / ((t_s - prev[0]) / 3600.0), -_LN_MAX, _LN_MAX))
+        return omega, delta
+
+    def knowledge(self, field, region_index: np.ndarray, gp_ecef_km: np.ndarray, t_now_s: float,
+                  known, belief: Belief | None) -> Knowledge:
+        """The :class:`Knowledge` a plan made at ``t_now_s`` uses (``known``: the observations for
+        Eq. 1's prior state, as the caller keeps them)."""
+        model = self.params.model
+        if model == "oracle":
+            return Knowledge(PersistenceView(field, t_now_s), known, belief)
+        if model == "study":
+            info = np.zeros(len(region_index))
+            for r, t in self.region_info_s.items():
+                info[region_index == r] = min(t, t_now_s)
+            return Knowledge(RegionPersistenceView(field, info, t_now_s), known, belief)
+        gp = np.asarray(self._gp, np.int64)
+        t = np.asarray(self._t, np.float64)
+        keep = (t <= t_now_s) & (t_now_s - t < 7.0 * self.params.memory_s)  # older ones weigh < 1e-3
+        gp, t = gp[keep], t[keep]
+        v = np.asarray(self._v, np.float64)[keep]
+        d = np.log(np.maximum(v, 1.0) / field.forecast_at(gp, t).astype(np.float64)) if len(gp) else np.zeros(0)
+        obs = {"gp": gp, "t_s": t, "d": d, "region": np.asarray(region_index)[gp] if len(gp) else np.zeros(0, int),
+               "xyz": gp_ecef_km[gp] if len(gp) else np.zeros((0, 3))}
+        insight = {r: x for r, x in self.insight.items() if x[0] <= t_now_s}
+        return Knowledge(ObservedView(field, np.asarray(region_index), gp_ecef_km, obs, insight, self.params,
+                                      t_now_s), known, None)

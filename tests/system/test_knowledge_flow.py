@@ -1,0 +1,171 @@
+"""A planner knows only what reached it: the test that cannot be fooled, through whole runs.
+
+Two truth fields (value files, ``value.osse_source = "file"``) are equal everywhere except in one
+region R, with one a-priori forecast. The scenario is the paper's reduced to 12 satellites and 1 h
+(DTN traffic crosses planes), the transient field of 15 min. R is the region observed last in the
+first run. Oracles:
+
+* ``observed`` knowledge, R's truth different from the start: every plan (satellite schedules with
+  items, values and information times) and every look (assumed, recorded, information time) before
+  the first look at R, and every bundle delivered before it, are identical in the two runs - on the
+  local engine and on the ROS engine; after it, the runs part (R's recorded values differ);
+* ``study`` knowledge, R's truth different after the first slot (the epoch state is what the
+  forecast was issued with, which the study model may know): the same;
+* ``oracle`` knowledge (the truth at planning time, the behaviour before knowledge models): the plans
+  part *before* the first look at R - the comparison can fail, and does on a peeking planner.
+"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from scenario_edit import raw_scenario, to_toml
+
+from bringup.analysis.trace import deliveries_from_bag, looks_from_bag, plans_from_bag
+from bringup.scenario.config import load_scenario
+from ground_station import osse_from_scenario, write_value_grid
+from ground_station.osse import OsseField
+from orbit_clock import ground_points
+
+pytestmark = [pytest.mark.system]
+
+SATS, HOURS = 12, 1.0
+
+
+def _base(model: str):
+    return load_scenario("paper").with_overrides(sats=SATS, hours=HOURS, knowledge=model, transiency_min=15.0)
+
+
+def _write_fields(tmp: Path, region: int | None, from_slot: int) -> tuple[Path, Path]:
+    """truth.npz (R's values v -> 257 - v from ``from_slot`` on; region None: unchanged) and
+    forecast.npz, both on the GP nodes (exact on load)."""
+    sc = _base("study")
+    gps = ground_points(sc)
+    f = osse_from_scenario(sc, gps)
+    fc_path = tmp / "forecast.npz"
+    if not fc_path.exists():
+        write_value_grid(f, fc_path, which="forecast")
+    v = f.values.copy()
+    if region is not None:
+        cols = np.flatnonzero(f.region_index == region)
+        v[from_slot:, cols] = 257 - v[from_slot:, cols]
+    g = OsseField(values=v, slot_s=f.slot_s, lat_deg=f.lat_deg, lon_deg=f.lon_deg, region_index=f.region_index,
+                  region_names=f.region_names, forecast=f.forecast)
+    truth = tmp / f"truth-{region}-{from_slot}.npz"
+    write_value_grid(g, truth)
+    return truth, fc_path
+
+
+def _scenario_file(tmp: Path, model: str, truth: Path, forecast: Path, tag: str) -> Path:
+    raw = raw_scenario(_base(model))
+    raw["value"].update(osse_source="file", osse_file=str(truth), osse_forecast_file=str(forecast))
+    p = tmp / f"{tag}.toml"
+    p.write_text(to_toml(raw))
+    return p
+
+
+def _run(scenario: Path, engine: str, out: Path) -> Path:
+    cmd = [sys.executable, "-m", "bringup.cli", "run", "--scenario", str(scenario), "--engine", engine,
+           "--out", str(out), "--no-plots", "--no-progress"]
+    r = subprocess.run(cmd, capture_output=True, text=True, timeout=900, check=False)
+    assert r.returncode == 0, r.stderr[-3000:]
+    return out / "bag"
+
+
+@pytest.fixture(scope="module")
+def work(tmp_path_factory):
+    tmp = tmp_path_factory.mktemp("knowledge")
+    _write_fields(tmp, None, 0)
+    return {"tmp": tmp, "gp_region": ground_points(_base("study")).region_index}
+
+
+def _until(rows: list, t_ns: int, key=lambda x: x[0]) -> list:
+    return [x for x in rows if key(x) < t_ns]
+
+
+def _passes(looks, gp_region) -> dict[int, list[int]]:
+    by: dict[int, list[int]] = {}
+    for t, _s, gp, *_ in looks:
+        by.setdefault(int(gp_region[gp]), []).append(t)
+    return by
+
+
+def _latest_first(looks, gp_region, slot_ns) -> tuple[int, int]:
+    """R = the region first observed last; different from the start."""
+    by = _passes(looks, gp_region)
+    return max(by, key=lambda r: by[r][0]), 0
+
+
+def _seen_then_gap(looks, gp_region, slot_ns) -> tuple[int, int]:
+    """R and a slot k: R was observed before k's start, and not again for a replan period after it
+    (so a plan covering its next look is made after the change); different from slot k on."""
+    for k in range(1, 8):
+        t_k = k * slot_ns
+        for r, ts in sorted(_passes(looks, gp_region).items()):
+            later = [t for t in ts if t >= t_k]
+            if any(t < t_k for t in ts) and later and later[0] - t_k >= 600 * 10 ** 9:
+                return r, k
+    raise AssertionError("no region is observed, then left alone for a replan period after a slot start")
+
+
+def _pair(work, model: str, choose, engine: str) -> tuple[dict, dict, int, int, int]:
+    tmp = work["tmp"]
+    same, fc = _write_fields(tmp, None, 0)
+    runs = {}
+    bag = _run(_scenario_file(tmp, model, same, fc, f"{model}-a"), engine, tmp / f"{model}-{engine}-a")
+    runs["a"] = {"plans": plans_from_bag(bag), "looks": looks_from_bag(bag), "deliveries": deliveries_from_bag(bag)}
+    gp_region = work["gp_region"]
+    slot_ns = 900 * 10 ** 9
+    r, k = choose(runs["a"]["looks"], gp_region, slot_ns)
+    changed, _ = _write_fields(tmp, r, k)
+    bag = _run(_scenario_file(tmp, model, changed, fc, f"{model}-b"), engine, tmp / f"{model}-{engine}-b")
+    runs["b"] = {"plans": plans_from_bag(bag), "looks": looks_from_bag(bag), "deliveries": deliveries_from_bag(bag)}
+    t_first = min(t for x in runs.values() for t, _s, gp, *_ in x["looks"] if gp_region[gp] == r and t >= k * slot_ns)
+    return runs["a"], runs["b"], t_first, r, k * slot_ns
+
+
+def _assert_same_until(a: dict, b: dict, t_first: int, t_change: int, gp_region, r: int) -> None:
+    pa, pb = _until(a["plans"], t_first), _until(b["plans"], t_first)
+    assert any(gp_region[it[0]] == r for p in pa if p[0] >= t_change for it in p[3]), \
+        "no plan made between the change and the first look covers R: the comparison would prove nothing"
+    assert pa == pb
+    assert _until(a["looks"], t_first) == _until(b["looks"], t_first)
+    assert _until(a["deliveries"], t_first, key=lambda x: x[2]) == _until(b["deliveries"], t_first, key=lambda x: x[2])
+    assert len(_until(a["deliveries"], t_first, key=lambda x: x[2])) > 10, "no DTN traffic before the first look"
+    # and then they part: the instrument records R's different truth
+    rec_a = {(s, gp, t): rec for t, s, gp, _a, rec, _i in a["looks"] if gp_region[gp] == r and t >= t_change}
+    rec_b = {(s, gp, t): rec for t, s, gp, _a, rec, _i in b["looks"] if gp_region[gp] == r and t >= t_change}
+    assert any(rec_a[k] != rec_b[k] for k in rec_a.keys() & rec_b.keys())
+
+
+@pytest.mark.parametrize("engine", ["local", pytest.param("ros", marks=pytest.mark.ros)])
+def test_observed_knowledge_plans_nothing_from_an_unobserved_region(work, engine):
+    a, b, t_first, r, t_change = _pair(work, "observed", _latest_first, engine)
+    _assert_same_until(a, b, t_first, t_change, work["gp_region"], r)
+
+
+def test_study_knowledge_uses_nothing_before_its_information_time(work):
+    a, b, t_first, r, t_change = _pair(work, "study", _seen_then_gap, "local")
+    _assert_same_until(a, b, t_first, t_change, work["gp_region"], r)
+
+
+@pytest.mark.parametrize("choose", [_latest_first, _seen_then_gap], ids=["unobserved", "seen-then-changed"])
+def test_the_oracle_peeks_and_the_comparison_sees_it(work, choose):
+    a, b, t_first, _r, _t = _pair(work, "oracle", choose, "local")
+    assert _until(a["plans"], t_first) != _until(b["plans"], t_first)
+
+
+def test_reports_carry_the_knowledge_figures(work):
+    rep = json.loads((work["tmp"] / "observed-local-a" / "report.json").read_text())
+    assert rep["knowledge"]["model"] == "observed"
+    ages = rep["knowledge"]["info_age_s"]
+    assert 0 <= ages["median"] <= ages["p90"] and ages["mean"] >= 0
+    assert sum(rep["knowledge"]["info_age_s"]["hist"]) == rep["observations"]["count"]
+    assert 0 < rep["coverage"]["looks_per_gp"] and 0 < rep["value"]["first_look_share"] <= 1
+    assert 0.3 < rep["osse"]["rank_corr_15min"] < 0.7  # the file holds the 15-min transient field
+    assert rep["osse"]["rank_corr_60min"] is None       # a 1 h horizon has no 60-min pair of slots
