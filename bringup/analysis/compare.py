@@ -33,6 +33,7 @@ from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import msgspec
+from scipy.stats import t as student_t
 
 from bringup.analysis.report import REPORT_TOPIC_SUFFIXES, RunMeta, build_report
 from bringup.engine.local import run_local
@@ -49,6 +50,7 @@ __all__ = [
     "compare_result",
     "get_path",
     "ratios",
+    "mean_ci95",
     "ratios_markdown",
     "run_in_process",
     "run_matrix",
@@ -66,6 +68,10 @@ TABLE_KEYS: tuple[tuple[str, str, str], ...] = (
     ("observations.count", "observations", "{:.0f}"),
     ("observations.duplicates_15min", "duplicate obs. (<15 min)", "{:.0f}"),
     ("value.assumed_error_mean", "assumed-vs-recorded error", "{:.1%}"),
+    ("coverage.looks_per_gp", "looks per GP", "{:.2f}"),
+    ("value.first_look_share", "value from first looks", "{:.0%}"),
+    ("knowledge.info_age_s.median", "info age median [s]", "{:.0f}"),
+    ("osse.rank_corr_15min", "rank corr. 15 min", "{:.2f}"),
 )
 
 # ratio name -> (report key, numerator mode, denominator mode)
@@ -161,15 +167,17 @@ def run_one(*, scenario: str, mode: str, seed: int | None, out: Path, engine: st
 
 
 def run_matrix(*, scenario: str, seeds: list[int | None], out: Path, engine: str = "local", sats=None,
-               hours=None, jobs: int = 1, modes=MODES, say=lambda *a: None) -> dict[str, list[dict]]:
-    """Every mode x seed; ``out/<mode>-s<seed>/``; the first seed's runs also write their plots."""
+               hours=None, jobs: int = 1, modes=MODES, say=lambda *a: None,
+               extra: list[str] | None = None) -> dict[str, list[dict]]:
+    """Every mode x seed; ``out/<mode>-s<seed>/``; the first seed's runs also write their plots.
+    ``extra``: more ``constellation run`` arguments for every run (e.g. ``--knowledge observed``)."""
     tasks = [(m, i, s) for i, s in enumerate(seeds) for m in modes]
 
     def one(task):
         m, i, s = task
         d = Path(out) / f"{m}-s{s if s is not None else 'default'}"
         rep = run_one(scenario=scenario, mode=m, seed=s, out=d, engine=engine, sats=sats, hours=hours,
-                      plots=(i == 0))
+                      plots=(i == 0), extra=extra)
         say(f"compare: {m} seed {s}: value {get_path(rep, 'value.cumulative') or 0:.0f}, "
             f"{(get_path(rep, 'coverage.gp_observed_fraction') or 0) * 100:.1f} % GPs "
             f"({(get_path(rep, 'runtime.wall_s') or 0):.0f} s)")
@@ -216,13 +224,18 @@ def ratios_markdown(result: dict) -> str:
 
 # ---------------------------------------------------------------------------------------------- sweep
 def scenario_variant(sc, *, replan_period_s: float | None = None, isl_rate_bps: float | None = None,
-                     sats_per_plane: int | None = None, n_stations: int | None = None):
+                     sats_per_plane: int | None = None, n_stations: int | None = None,
+                     transiency_min: float | None = None, seed: int | None = None):
     """A copy of scenario ``sc`` with one study parameter changed, validated like a file.
     ``replan_period_s`` also sets the plan lookahead to the period; ``n_stations`` keeps the first
     N ground stations of the scenario."""
 
     raw = msgspec.to_builtins(sc)
     raw.pop("source_path", None)
+    if transiency_min is not None:
+        raw["value"]["transiency_min"] = float(transiency_min)
+    if seed is not None:
+        raw["scenario"]["seed"] = int(seed)
     if replan_period_s is not None:
         # a plan must cover the time to the next replan, else the satellite idles in between:
         # the lookahead follows the period (the study's 10 min / 10 min)
@@ -256,3 +269,17 @@ def run_in_process(sc, mode: str, *, store_dir: Path | None = None) -> dict:
         res = run_local(parts, horizon_ns=sc.horizon_ns,
                         max_step_ns=round(sc.scenario.lockstep_max_step_s * 1e9), sink=sink)
     return build_report(envs, meta, {"wall_s": res.wall_s, "real_time_factor": res.real_time_factor})
+
+
+def mean_ci95(xs: list) -> dict:
+    """Mean and the 95 % confidence interval of the mean (Student's t, n - 1 degrees of freedom) of
+    the finite values of ``xs``; half-width None for fewer than two."""
+    v = [float(x) for x in xs if x is not None and math.isfinite(float(x))]
+    if not v:
+        return {"mean": None, "ci95": None, "n": 0, "values": []}
+    m = sum(v) / len(v)
+    if len(v) < 2:
+        return {"mean": m, "ci95": None, "n": 1, "values": v}
+    sd = math.sqrt(sum((x - m) ** 2 for x in v) / (len(v) - 1))
+    return {"mean": m, "ci95": float(student_t.ppf(0.975, len(v) - 1)) * sd / math.sqrt(len(v)), "n": len(v),
+            "values": v}

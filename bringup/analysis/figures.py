@@ -12,7 +12,10 @@ Figures (in kind, after Nag et al., ICAPS SPARK 2019, Figs. 3-5 and Table 2):
 * Gantt chart of observations per satellite (rows satellites, marks coloured by region);
 * contact-plan timeline (rows node pairs, bars for windows; ISL and ground coloured apart);
 * value accumulated over time per mode (distributed / centralized / non-agile ...);
-* bundle latency by priority against access gaps by priority, box plots (the study's Fig. 5).
+* bundle latency by priority against access gaps by priority, box plots (the study's Fig. 5);
+* the distributed / centralized value ratio against the field's transiency, mean and 95 % confidence
+  interval over seeds (the transiency sweep, bringup/cli/sweep.py);
+* the age of the information each look was planned with, one histogram per mode or knowledge model.
 
 How we know it is right: ``tests/unit/test_plots.py`` draws each from small generated data, checks
 a non-empty PNG is written and that the data went in (plotted arrays, number of bars/boxes/patches).
@@ -41,6 +44,8 @@ __all__ = [
     "figure_observation_gantt",
     "figure_value_over_time",
     "figure_value_snapshot",
+    "figure_info_age",
+    "figure_transiency_sweep",
     "plot_contact_timeline",
     "plot_ground_tracks",
     "plot_latency_vs_gaps",
@@ -48,6 +53,8 @@ __all__ = [
     "plot_osse_snapshot",
     "plot_value_over_time",
     "plot_value_snapshot",
+    "plot_info_age",
+    "plot_transiency_sweep",
     "save_figure",
 ]
 
@@ -442,3 +449,64 @@ def figure_latency_vs_gaps(latency_s_by_priority: Mapping[int, Sequence[float]],
 def plot_latency_vs_gaps(path: str | Path, latency_s_by_priority, gap_s_by_priority, **kw) -> Path:
     """PNG of :func:`figure_latency_vs_gaps`; returns the path."""
     return save_figure(figure_latency_vs_gaps(latency_s_by_priority, gap_s_by_priority, **kw), path)
+
+
+def figure_transiency_sweep(rows: Sequence[Mapping[str, Any]], title: str = "",
+                            study: tuple[float, float] | None = (15.0, 26347 / 21820)) -> Figure:
+    """Rows ``{"transiency_min", "measured_min", "mean", "ci95", "values"}``: the ratio's mean with
+    its 95 % interval per transiency (log axis), the seeds' values as dots, 1 as a line, and the
+    study's point (15 min, +21 %)."""
+    rows = [r for r in rows if r.get("mean") is not None]
+    if not rows:
+        raise PlotError("transiency sweep: no row with a value")
+    fig = Figure(figsize=(6.4, 4.0))
+    FigureCanvasAgg(fig)
+    ax = fig.add_subplot(1, 1, 1)
+    x = np.array([float(r["transiency_min"]) for r in rows])
+    m = np.array([float(r["mean"]) for r in rows])
+    e = np.array([float(r["ci95"] or 0.0) for r in rows])
+    ax.errorbar(x, m, yerr=e, fmt="o-", color="C0", capsize=4, label="distributed / centralized (mean, 95 % CI)")
+    for r in rows:
+        v = r.get("values") or []
+        ax.plot([float(r["transiency_min"])] * len(v), v, ".", color="C0", alpha=0.35)
+    ax.axhline(1.0, color="0.5", lw=0.8)
+    if study is not None:
+        ax.plot([study[0]], [study[1]], "*", ms=12, color="C3", label="the study (15 min, +21 %)")
+    ax.set_xscale("log")
+    ax.set_xticks(x)
+    ax.set_xticklabels([f"{v:g}" for v in x])
+    ax.set_xlabel("field transiency [min] (lag at which the rank correlation falls to 0.5)")
+    ax.set_ylabel("cumulative value, distributed / centralized")
+    ax.set_title(title or "Reactive imaging against the field's time scale")
+    ax.legend(loc="best", fontsize=8)
+    fig.tight_layout()
+    return fig
+
+
+def plot_transiency_sweep(path: str | Path, rows, **kw) -> Path:
+    return save_figure(figure_transiency_sweep(rows, **kw), path)
+
+
+def figure_info_age(ages_s: Mapping[str, Sequence[float]], title: str = "") -> Figure:
+    """One histogram per label (mode or knowledge model) of the information age [min] of its looks."""
+    ages = {k: np.asarray(v, dtype=float) / 60.0 for k, v in ages_s.items() if len(v)}
+    if not ages:
+        raise PlotError("information age: no looks")
+    fig = Figure(figsize=(6.4, 4.0))
+    FigureCanvasAgg(fig)
+    ax = fig.add_subplot(1, 1, 1)
+    top = max(float(np.percentile(a, 99)) for a in ages.values())
+    bins = np.linspace(0.0, max(top, 1.0), 40)
+    for i, (k, a) in enumerate(ages.items()):
+        ax.hist(np.clip(a, 0, bins[-1]), bins=bins, histtype="step", lw=1.5, color=f"C{i}",
+                label=f"{k} (median {np.median(a):.0f} min)")
+    ax.set_xlabel("age of the information a look was planned with [min]")
+    ax.set_ylabel("looks")
+    ax.set_title(title or "Information age")
+    ax.legend(loc="best", fontsize=8)
+    fig.tight_layout()
+    return fig
+
+
+def plot_info_age(path: str | Path, ages_s, **kw) -> Path:
+    return save_figure(figure_info_age(ages_s, **kw), path)

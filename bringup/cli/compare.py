@@ -3,8 +3,11 @@
 
 Writes ``OUT/<mode>-s<seed>/`` (each a whole run: bag, report.json, report.md; the first seed's
 runs also their plots), ``OUT/compare.json`` (the ``--json`` object), ``OUT/compare.md`` (tables),
-``OUT/plots/value_over_time.png`` (the three modes, first seed) and ``OUT/plots/figure5.png``
-(bundle latency vs access gaps by priority, distributed, first seed; bringup/analysis/figure5.py).
+``OUT/plots/value_over_time.png`` (the three modes, first seed), ``OUT/plots/figure5.png``
+(bundle latency vs access gaps by priority, distributed, first seed; bringup/analysis/figure5.py) and
+``OUT/plots/info_age.png`` (the age of the information each look was planned with, distributed and
+centralized, first seed). ``--knowledge``, ``--transiency-min``, ``--gp-spacing-km`` and
+``--planning`` go to every run.
 With K seeds each mode's report is the first seed's report.json plus per-key mean/std under
 ``"seeds"`` (bringup/analysis/compare.py combine).
 
@@ -22,7 +25,7 @@ from pathlib import Path
 from bringup.analysis import compare as C
 from bringup.analysis.figure5 import bundle_rows_from_bag, figure5_data, figure5_summary, plot_figure5
 from bringup.analysis.report import true_values
-from bringup.cli.common import scenario_from_args
+from bringup.cli.common import add_knowledge_args, scenario_from_args
 from bringup.errors import UserError
 from bringup.recording.bag import BagReader
 from bringup.scenario.world import World
@@ -39,6 +42,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--json", action="store_true", help="print exactly one JSON object on stdout")
     p.add_argument("--out", type=Path, default=None, help="folder (default runs/compare-<scenario>)")
     p.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
+    add_knowledge_args(p)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -57,15 +61,27 @@ def run(args: argparse.Namespace) -> int:
 
     say(f"compare: {sc.name}, {sc.constellation.total_sats} satellites, {sc.scenario.horizon_s / 3600:g} h, "
         f"seeds {seeds}, engine {args.engine} -> {out}")
+    extra = []
+    if args.knowledge is not None:
+        extra += ["--knowledge", args.knowledge]
+    if args.transiency_min is not None:
+        extra += ["--transiency-min", repr(args.transiency_min)]
+    if args.gp_spacing_km is not None:
+        extra += ["--gp-spacing-km", repr(args.gp_spacing_km)]
+    if args.planning is not None:
+        extra += ["--planning", args.planning]
+    say(f"compare: knowledge {sc.value.knowledge}, transiency {sc.value.transiency_min:g} min "
+        f"(0: slow), {sc.gp_spacing_km:g} km GPs, planning {'joint' if sc.scheduler.joint_planning else 'alone'}")
     by_mode = C.run_matrix(scenario=args.scenario, seeds=seeds, out=out, engine=args.engine, sats=args.sats,
-                           hours=args.hours, jobs=args.jobs, say=say)
+                           hours=args.hours, jobs=args.jobs, say=say, extra=extra)
     res = C.compare_result(by_mode, seeds)
     extra_plots = []
     if not args.no_plots:
         extra_plots = _plots(out, seeds[0], res, sc, args)
     (out / "compare.json").write_text(json.dumps(res, indent=2, sort_keys=True) + "\n")
     title = (f"# Compare: {sc.name}, {sc.constellation.total_sats} satellites, {sc.scenario.horizon_s / 3600:g} h, "
-             f"seeds {seeds}, engine {args.engine}")
+             f"seeds {seeds}, engine {args.engine}, knowledge {sc.value.knowledge}, transiency "
+             f"{sc.value.transiency_min:g} min (0: slow)")
     md = [title, "",
           C.table_markdown(res), "", C.ratios_markdown(res), ""]
     md += [f"![{p.stem}](plots/{p.name})" for p in extra_plots]
@@ -89,6 +105,7 @@ def _plots(out: Path, seed: int, res: dict, sc, args) -> list[Path]:
     d = out / "plots"
     d.mkdir(parents=True, exist_ok=True)
     series = {}
+    ages = {}
     for m in ("distributed", "centralized", "nonagile"):
         bag = out / f"{m}-s{seed}" / "bag"
         with BagReader(bag) as b:
@@ -96,7 +113,12 @@ def _plots(out: Path, seed: int, res: dict, sc, args) -> list[Path]:
             obs = [codec.decode(e.topic, e.data) for e in b.envelopes(topics)] if topics else []
         tv = true_values(obs, sc.value.revisit_zero_s)
         series[m] = ([o.t_ns / 1e9 for o, _, _ in tv], [v for _, v, _ in tv])
+        if m != "nonagile":
+            ages[m] = [(o.t_ns - o.info_ns) / 1e9 for o in obs if o.info_ns is not None]
     made = [plots.plot_value_over_time(d / "value_over_time.png", series, horizon_s=sc.scenario.horizon_s)]
+    if any(ages.values()):
+        made.append(plots.plot_info_age(d / "info_age.png", ages,
+                                        title=f"Information age, {sc.value.knowledge} knowledge, seed {seed}"))
     run_sc = sc.with_overrides(seed=seed)
     world = World.cached(run_sc, out / f"distributed-s{seed}" / "cache")
     rows = bundle_rows_from_bag(out / f"distributed-s{seed}" / "bag")

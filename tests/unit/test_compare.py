@@ -118,3 +118,40 @@ def test_sweep_rows_plan_marks_the_baseline(paper_scenario):
          "value_cumulative": 41050.1, "gp_observed_fraction": 0.994, "observations": 3332, "duplicates_15min": 85,
          "assumed_error_mean": 0.063, "delivery_ratio": None}]})
     assert "| replan_period_s | 600 * | distributed | 24 | 41050 | 99.4% | 3332 | 85 | 6.3% | - |" in md
+
+
+def test_mean_ci95_by_hand():
+    r = C.mean_ci95([1.0, 2.0, 3.0, None, float("nan")])
+    # mean 2, sample sd 1, t(0.975, 2) = 4.302653: half-width 4.302653 / sqrt(3)
+    assert r["mean"] == 2.0 and r["n"] == 3 and r["ci95"] == pytest.approx(4.302653 / math.sqrt(3), rel=1e-6)
+    assert C.mean_ci95([5.0])["ci95"] is None and C.mean_ci95([])["mean"] is None
+
+
+def test_transiency_sweep_rows_and_plot(paper_scenario, tmp_path):
+    """The transiency sweep's rows from given reports (a fake run): per-seed ratios, their mean and
+    interval, the variants' transiency and seed, and the plot of them."""
+    from bringup.analysis.figures import figure_transiency_sweep, plot_transiency_sweep
+    from bringup.cli.sweep import transiency_markdown, transiency_rows
+
+    seen = []
+
+    def fake(sc, mode):
+        seen.append((sc.value.transiency_min, sc.scenario.seed, mode))
+        v = 100.0 * sc.scenario.seed + (50.0 if mode == "distributed" else 0.0) - sc.value.transiency_min
+        return {"value": {"cumulative": v}, "osse": {"transiency_min": sc.value.transiency_min * 1.1},
+                "knowledge": {"info_age_s": {"median": 60.0}}}
+
+    rows = transiency_rows(paper_scenario, [15.0, 60.0], [1, 2], run=fake)
+    assert seen == [(15.0, 1, "distributed"), (15.0, 1, "centralized"), (15.0, 2, "distributed"),
+                    (15.0, 2, "centralized"), (60.0, 1, "distributed"), (60.0, 1, "centralized"),
+                    (60.0, 2, "distributed"), (60.0, 2, "centralized")]
+    want = [135.0 / 85.0, 235.0 / 185.0]
+    assert rows[0]["values"] == pytest.approx(want) and rows[0]["mean"] == pytest.approx(sum(want) / 2)
+    assert rows[0]["measured_min"] == pytest.approx(16.5) and rows[1]["ci95"] > 0
+    md = transiency_markdown({"scenario": "paper", "sats": 24, "hours": 6.0, "seeds": [1, 2], "knowledge": "study",
+                              "rows": rows})
+    assert md.count("\n| ") == 3 and "| 1.429 |" in md
+    fig = figure_transiency_sweep(rows)
+    line = fig.axes[0].lines[0]
+    assert list(line.get_xdata()) == [15.0, 60.0]
+    assert plot_transiency_sweep(tmp_path / "t.png", rows).stat().st_size > 1000
