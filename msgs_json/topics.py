@@ -4,8 +4,8 @@ Names are contracts: build them only with these functions. A satellite's topics 
 ``/<sat>/`` (``sat_PS``). Every lockstep data topic carries a wire envelope (msgs_json/wire.py) on
 std_msgs/msg/String; its payload is JSON of the schema ``schema_for(topic)`` names, or raw bytes
 (BPv7 bundles) when ``is_bytes_topic(topic)``. Visualisation topics (``fix_topic(sat)``,
-``VIZ_MARKERS``, the plotted series ``VIZ_VALUE`` and ``VIZ_IN_FLIGHT``) and ``/clock`` are recorded
-as their own ROS types, not envelopes.
+``VIZ_MARKERS``, the plotted series ``VIZ_VALUE`` and ``VIZ_IN_FLIGHT``, the TF tree ``TF`` and
+``TF_STATIC``), ``/clock`` and the live ``DIAGNOSTICS`` are their own ROS types, not envelopes.
 
 Oracle: tests/unit/test_msgs_json.py checks every builder's name maps back to the right schema and
 that unknown names map to nothing.
@@ -21,11 +21,14 @@ from msgs_json.schemas import SCHEMA_VERSION
 __all__ = [
     "CLOCK",
     "CONTACTS",
+    "DIAGNOSTICS",
     "GROUND_DOWNLINK",
     "GROUND_UPLINK",
     "SCHEMA_VERSION",
     "SIM_ACK",
     "SIM_STEP",
+    "TF",
+    "TF_STATIC",
     "VIZ_IN_FLIGHT",
     "VIZ_MARKERS",
     "VIZ_VALUE",
@@ -39,6 +42,7 @@ __all__ = [
     "fix_topic",
     "is_bytes_topic",
     "is_known_topic",
+    "is_sat_name",
     "observations_topic",
     "sat_of_topic",
     "schedule_topic",
@@ -54,8 +58,16 @@ GROUND_DOWNLINK = "/ground/downlink"
 VIZ_MARKERS = "/viz/constellation"
 VIZ_VALUE = "/viz/value"  # std_msgs/msg/Float64: the run's cumulative true value (Eq. 1) so far
 VIZ_IN_FLIGHT = "/viz/bundles_in_flight"  # std_msgs/msg/UInt32: bundle copies the ISL medium holds
+TF = "/tf"  # tf2_msgs/msg/TFMessage: earth -> each satellite's orbit frame
+TF_STATIC = "/tf_static"  # tf2_msgs/msg/TFMessage: earth -> each ground station (ENU)
+DIAGNOSTICS = "/diagnostics"  # diagnostic_msgs/msg/DiagnosticArray: live counters of ROS runs
 
 _SAT_RE = re.compile(r"^sat_[1-9][0-9]$")
+
+
+def is_sat_name(name: str) -> bool:
+    """True for a satellite's name (``sat_PS``), the first part of its topics."""
+    return isinstance(name, str) and _SAT_RE.match(name) is not None
 
 
 def _sat(sat: str, leaf: str) -> str:

@@ -57,6 +57,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--isl-delay-s", type=float, default=0.0, help="extra one-way ISL delay [s] added by the router")
     p.add_argument("--cut", action="append", default=[], metavar="A-B@T1-T2",
                    help="cut the ISL between satellites A and B from T1 to T2 [s] (repeatable)")
+    p.add_argument("--viz-period-s", type=float, default=None, metavar="S",
+                   help="sim seconds between visualisation frames: the bag's fixes, markers and /tf, and the ros "
+                        "engine's live topics (default: the scenario's [viz] period_s, 60)")
     p.add_argument("--restart", type=int, default=0, metavar="N",
                    help="ros engine: restart a crashed process (satellite, router, ground or the clock) up to "
                         "N times; every process checkpoints each step and resumes from it (default 0: a crash "
@@ -77,6 +80,10 @@ def parse_cut(text: str) -> tuple[str, str, float, float]:
 
 def run(args: argparse.Namespace) -> int:
     sc = scenario_from_args(args)
+    if args.viz_period_s is not None:
+        if not 0 < args.viz_period_s <= 86400:
+            raise UserError(f"--viz-period-s {args.viz_period_s:g}: expected 0 < S <= 86400")
+        sc = sc.with_overrides(viz_period_s=args.viz_period_s)
     out = args.out or Path("runs") / f"{sc.name}-{args.mode}"
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)

@@ -34,9 +34,13 @@ chunk CRC as each chunk closes, the other two when the file is complete (:func:`
 Envelopes are recorded as their wire text (msgs_json/wire.py) in std_msgs/msg/String, so
 ``BagReader.envelopes()`` gives back the exact envelopes. ``write_msg`` takes a message built
 with rosbags' typestore (``TYPESTORE.types[msgtype](...)``; bringup/recording/viz_messages.py builds them).
-QoS offered per topic: reliable/volatile/keep_last(100) by default; ``/clock`` best effort depth 1
-(what rclpy's TimeSource subscribes with); ``/sim/step`` and ``/sim/ack`` reliable, transient local,
-keep all (ROS2_NOTES.md lockstep traps 3-4). Override with ``qos=`` on a topic's first write.
+QoS offered per topic (:func:`topic_qos`; ``constellation replay`` offers them again, and the ROS
+engine's live visualisation publishes with them): reliable/volatile/keep_last(100) by default
+(markers, fixes, /tf, the plotted series); envelopes (std_msgs/String) reliable, volatile, keep all,
+as the ROS engine's data topics; ``/clock`` best effort depth 1 (what rclpy's TimeSource subscribes
+with); ``/tf_static`` reliable, transient local, depth 1 (tf2's static broadcaster); ``/sim/step``
+and ``/sim/ack`` reliable, transient local, keep all (ROS2_NOTES.md lockstep traps 3-4). Override
+with ``qos=`` on a topic's first write.
 
 Reader API::
 
@@ -90,6 +94,7 @@ __all__ = [
     "clock_cdr",
     "epoch_custom_data",
     "make_qos",
+    "topic_qos",
     "string_cdr",
     "string_from_cdr",
 ]
@@ -120,11 +125,21 @@ def make_qos(*, reliable: bool = True, transient_local: bool = False, keep_all: 
 
 
 _DEFAULT_QOS = make_qos()
+_ENVELOPE_QOS = make_qos(keep_all=True)
 _TOPIC_QOS = {
     "/clock": make_qos(reliable=False, depth=1),
+    "/tf_static": make_qos(transient_local=True, depth=1),
     "/sim/step": make_qos(transient_local=True, keep_all=True),
     "/sim/ack": make_qos(transient_local=True, keep_all=True),
 }
+
+
+def topic_qos(topic: str, msgtype: str) -> Qos:
+    """The QoS a topic is recorded (and offered live) with when none is given (module docstring)."""
+    q = _TOPIC_QOS.get(topic)
+    if q is not None:
+        return q
+    return _ENVELOPE_QOS if msgtype == STRING else _DEFAULT_QOS
 
 
 # -- speed (a paper run records ~450k messages) ------------------------------------------------------
@@ -311,7 +326,7 @@ class BagWriter:
         if c is None:
             if msgtype not in TYPESTORE.types:
                 raise ValueError(f"bag {self.path}: unknown message type {msgtype!r} for {topic}")
-            q = qos or _TOPIC_QOS.get(topic, _DEFAULT_QOS)
+            q = qos or topic_qos(topic, msgtype)
             with self._speedups():
                 c = self._w.add_connection(topic, msgtype, typestore=TYPESTORE, offered_qos_profiles=[q])
             self._conns[key] = c

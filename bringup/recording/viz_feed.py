@@ -1,10 +1,14 @@
 """Feeds the visualisation topics of a run into its bag at a modest rate.
 
-``VizFeed(world, period_s)`` writes, every ``period_s`` of sim time, one NavSatFix per satellite and
-the constellation MarkerArray (bringup/recording/viz_messages.py): satellite positions from SGP4, ground points
-coloured by their OSSE value at that time, and the ISL links open then (truth contact plan). Both
-engines call it with the step times, so a bag opened in Foxglove shows the constellation moving and
-the links coming and going.
+``VizFeed(world, period_s)`` writes, every ``period_s`` of sim time (default: the scenario's
+``[viz] period_s``), one NavSatFix per satellite, the constellation MarkerArray
+(bringup/recording/viz_messages.py: satellite positions from SGP4, ground points coloured by their
+OSSE value at that time, the ISL links open then, from the truth contact plan) and the TF tree on
+``/tf`` (earth -> each satellite's orbit frame, bringup/recording/viz_frames.py); once, at its first
+frame, the ground stations on ``/tf_static``. Both engines call it with the step times, so a bag
+opened in Foxglove shows the constellation moving and the links coming and going. ``frame(t_ns,
+stamp_ns)`` gives the same messages as (topic, msgtype, CDR) without a bag: the ROS engine's clock
+publishes them live.
 
 The ground-point marker (500 cubes coloured by value, most of a frame's bytes) goes out only when
 its colours change (the OSSE field is piecewise constant, 15-min slots in the paper scenario) and at
@@ -19,7 +23,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from bringup.recording.viz_messages import write_viz
+from bringup.recording.viz_frames import TF_TYPE, satellite_tf, station_tf, tf_cdr
+from bringup.recording.viz_messages import viz_cdr
+from msgs_json.topics import TF, TF_STATIC
 
 __all__ = ["VizFeed"]
 
@@ -27,8 +33,10 @@ _NS = 1_000_000_000
 
 
 class VizFeed:
-    def __init__(self, world, period_s: float = 60.0, gp_keyframe_s: float = 600.0):
+    def __init__(self, world, period_s: float | None = None, gp_keyframe_s: float = 600.0):
         self.world = world
+        if period_s is None:
+            period_s = world.scenario.viz.period_s
         self.period_ns = int(round(period_s * _NS))
         self.gp_keyframe_ns = int(round(gp_keyframe_s * _NS))
         self._gp_vals: np.ndarray | None = None  # colours last sent, and when
@@ -50,9 +58,18 @@ class VizFeed:
         return t_ns >= self.next_ns
 
     def write(self, bag, t_ns: int) -> int:
-        """Write the visualisation of instant ``t_ns`` if due; returns messages written."""
+        """Write the visualisation of instant ``t_ns`` if due, stamped with the bag's instant
+        (``bag.epoch_ns + t_ns``); returns messages written."""
+        msgs = self.frame(t_ns, getattr(bag, "epoch_ns", 0) + t_ns)
+        for topic, msgtype, cdr in msgs:
+            bag.write_raw(topic, msgtype, cdr, t_ns)
+        return len(msgs)
+
+    def frame(self, t_ns: int, stamp_ns: int) -> list[tuple[str, str, bytes]]:
+        """The visualisation of instant ``t_ns`` if due (else []): (topic, msgtype, CDR) with header
+        stamps ``stamp_ns`` (the UTC instant); the first frame also holds /tf_static."""
         if t_ns < self.next_ns:
-            return 0
+            return []
         self.next_ns = (t_ns // self.period_ns + 1) * self.period_ns
         w = self.world
         t_s = t_ns / _NS
@@ -65,6 +82,13 @@ class VizFeed:
             gp = {"gp_ecef_km": w.gps.ecef_km, "gp_values": vals}
         else:
             gp = {}
-        n = write_viz(bag, w.sat_names, r, t_ns, links=links, **gp)
-        self.written += n
-        return n
+        out = viz_cdr(w.sat_names, r, stamp_ns, links=links, **gp)
+        # the orbit frames' velocity: central difference of the Earth-fixed track over 1 s
+        ahead, behind = w.sat_positions_ecef_km(t_s + 0.5), w.sat_positions_ecef_km(t_s - 0.5)
+        out.append((TF, TF_TYPE, tf_cdr(satellite_tf(w.sat_names, r, ahead - behind, stamp_ns))))
+        if self.written == 0:
+            stations = w.scenario.ground.stations
+            if stations:
+                out.append((TF_STATIC, TF_TYPE, tf_cdr(station_tf(stations, stamp_ns))))
+        self.written += len(out)
+        return out

@@ -6,10 +6,13 @@ Pure functions returning rosbags typestore messages (``bringup.recording.bag.TYP
 * ``navsat_fix(r_ecef_km, t_ns)`` -> sensor_msgs/msg/NavSatFix of the sub-satellite point
   (WGS-84 geodetic latitude/longitude [deg], altitude [m]); Foxglove's Map panel draws it.
 * ``constellation_markers(sat_names, r_ecef_km, t_ns, gp_ecef_km=, gp_values=, links=)`` ->
-  visualization_msgs/msg/MarkerArray in the one fixed frame ``earth`` (ECEF) scaled to 1000 km
-  units (Foxglove renders in 32-bit floats): the Earth (sphere), satellites (SPHERE_LIST) with name
-  labels, ground points (CUBE_LIST) coloured by value (blue low -> red high), live ISL links
-  (LINE_LIST). Markers keep fixed (ns, id) so each message replaces the last.
+  visualization_msgs/msg/MarkerArray in the one fixed frame ``earth`` (ECEF), in metres (REP 103):
+  the Earth (WGS-84 ellipsoid), satellites (SPHERE_LIST, 150 km) with name labels, ground points
+  (CUBE_LIST, 8 km) coloured by value (blue low -> red high), live ISL links (LINE_LIST, 20 km
+  wide). Markers keep fixed (ns, id) so each message replaces the last. Metres at Earth scale are
+  fine for Foxglove's 3D panel, which renders in 32-bit floats: the README's Foxglove paragraph has
+  the figures (float32 spacing 0.5 m at 7,000 km; the shipped layout's near/far planes), checked by
+  tests/unit/test_viz.py.
 * ``viz_messages(...)`` -> [(topic, msgtype, msg)] for one instant: one fix per satellite on
   ``/<sat>/fix`` plus the MarkerArray on ``/viz/constellation``.
 * ``viz_cdr(...)`` -> [(topic, msgtype, cdr)]: the same messages' CDR written directly (constant
@@ -25,7 +28,7 @@ The sub-satellite point is the WGS-84 geodetic conversion of the orbit core
 (:func:`orbit_clock.frames.ecef_to_geodetic`, checked in tests/unit/test_orbit_frames.py).
 
 Oracle (tests/unit/test_viz.py): the messages serialize with rosbags and decode with
-mcap-ros2-support; fix fields and marker geometry checked against the inputs (positions / 1000,
+mcap-ros2-support; fix fields and marker geometry checked against the inputs (positions in metres,
 links joining the right satellites, colour ramp monotone). tests/unit/test_viz_fast.py: ``viz_cdr``
 bytes equal rosbags' serialization of ``viz_messages`` frame by frame (links none/one/duplicated,
 with/without ground points and labels), the vectorised fixes equal ``navsat_fix`` row by row, and a
@@ -47,8 +50,8 @@ from orbit_clock.frames import WGS84_A_KM, WGS84_B_KM, ecef_to_geodetic
 __all__ = [
     "FRAME",
     "MARKERS_TYPE",
+    "M_PER_KM",
     "NAVSAT_TYPE",
-    "SCALE_KM",
     "constellation_markers",
     "constellation_markers_cdr",
     "navsat_fix",
@@ -60,10 +63,16 @@ __all__ = [
 ]
 
 FRAME = "earth"
-SCALE_KM = 1000.0  # one visualisation unit = 1000 km
+M_PER_KM = 1000.0  # markers are in metres (REP 103)
 NAVSAT_TYPE = "sensor_msgs/msg/NavSatFix"
 MARKERS_TYPE = "visualization_msgs/msg/MarkerArray"
 _T = TYPESTORE.types
+# marker sizes [m]: satellites 150 km spheres, ISL lines 20 km wide, ground points 8 km cubes,
+# labels 250 km high (readable from the layout's 45,000 km camera distance)
+_SAT_SCALE = (150e3, 150e3, 150e3)
+_ISL_SCALE = (20e3, 0.0, 0.0)
+_GP_SCALE = (8e3, 8e3, 8e3)
+_LABEL_SCALE = (0.0, 0.0, 250e3)
 _Marker = _T["visualization_msgs/msg/Marker"]
 
 
@@ -117,7 +126,7 @@ def _value_color(value: float, vmax: float, alpha: float):
 
 
 def _point(v):
-    return _T["geometry_msgs/msg/Point"](x=float(v[0]) / SCALE_KM, y=float(v[1]) / SCALE_KM, z=float(v[2]) / SCALE_KM)
+    return _T["geometry_msgs/msg/Point"](x=float(v[0]) * M_PER_KM, y=float(v[1]) * M_PER_KM, z=float(v[2]) * M_PER_KM)
 
 
 def _gp_points(g: np.ndarray) -> list:
@@ -181,7 +190,7 @@ def constellation_markers(
     value_max: float = 256.0,
     labels: bool = True,
 ):
-    """MarkerArray (frame ``earth``, 1000 km units): Earth, satellites, ground points, ISL links.
+    """MarkerArray (frame ``earth``, metres): Earth, satellites, ground points, ISL links.
 
     r_ecef_km: (N, 3) satellite positions [km], in ``sat_names`` order; gp_ecef_km: (M, 3) [km] with
     gp_values (M,) (value 1..256; 0 = nothing left to see); links: pairs of satellite names now in
@@ -191,28 +200,28 @@ def constellation_markers(
         raise ValueError(f"constellation_markers: {len(sat_names)} names but {len(r)} positions")
     C = _T["std_msgs/msg/ColorRGBA"]
     M = _Marker
-    earth_d = 2 * WGS84_A_KM / SCALE_KM
+    earth_d = 2 * WGS84_A_KM * M_PER_KM
     markers = [
-        _marker(t_ns, "earth", 0, M.SPHERE, scale=(earth_d, earth_d, 2 * WGS84_B_KM / SCALE_KM),
+        _marker(t_ns, "earth", 0, M.SPHERE, scale=(earth_d, earth_d, 2 * WGS84_B_KM * M_PER_KM),
                 color=C(r=0.15, g=0.3, b=0.6, a=0.6)),
-        _marker(t_ns, "satellites", 0, M.SPHERE_LIST, scale=(0.15, 0.15, 0.15),
+        _marker(t_ns, "satellites", 0, M.SPHERE_LIST, scale=_SAT_SCALE,
                 color=C(r=1.0, g=1.0, b=1.0, a=1.0), points=[_point(v) for v in r]),
     ]
     pts = [_point(r[i]) for i in _link_ends(sat_names, links)]
-    markers.append(_marker(t_ns, "isl", 0, M.LINE_LIST, scale=(0.02, 0.0, 0.0),
+    markers.append(_marker(t_ns, "isl", 0, M.LINE_LIST, scale=_ISL_SCALE,
                            color=C(r=1.0, g=0.85, b=0.1, a=0.9), points=pts))
     if gp_ecef_km is not None:
         g = np.asarray(gp_ecef_km, dtype=float).reshape(-1, 3)
         vals = np.zeros(len(g)) if gp_values is None else np.asarray(gp_values, dtype=float)
         if len(vals) != len(g):
             raise ValueError(f"constellation_markers: {len(g)} ground points but {len(vals)} values")
-        markers.append(_marker(t_ns, "ground_points", 0, M.CUBE_LIST, scale=(0.008, 0.008, 0.008),
+        markers.append(_marker(t_ns, "ground_points", 0, M.CUBE_LIST, scale=_GP_SCALE,
                                color=C(r=1.0, g=1.0, b=1.0, a=1.0), points=_gp_points(g),
                                colors=[value_color(v, value_max) for v in vals]))
     if labels:
         for i, name in enumerate(sat_names):
-            p = r[i] / SCALE_KM * 1.04
-            markers.append(_marker(t_ns, "labels", i, M.TEXT_VIEW_FACING, scale=(0.0, 0.0, 0.25),
+            p = r[i] * M_PER_KM * 1.04
+            markers.append(_marker(t_ns, "labels", i, M.TEXT_VIEW_FACING, scale=_LABEL_SCALE,
                                    color=C(r=1.0, g=1.0, b=1.0, a=1.0), text=name,
                                    position=(float(p[0]), float(p[1]), float(p[2]))))
     return _T[MARKERS_TYPE](markers=markers)
@@ -326,8 +335,8 @@ def _color_bytes(value: float, vmax: float, alpha: float = 0.9) -> bytes:
 
 
 def _points_bytes(r_km: np.ndarray) -> bytes:
-    """(K, 3) km -> K geometry_msgs/Point in 1000 km units (the same division as :func:`_point`)."""
-    return np.ascontiguousarray(r_km / SCALE_KM, dtype="<f8").tobytes()
+    """(K, 3) km -> K geometry_msgs/Point in metres (the same product as :func:`_point`)."""
+    return np.ascontiguousarray(r_km * M_PER_KM, dtype="<f8").tobytes()
 
 
 _GP_BYTES: dict = {}
@@ -368,21 +377,21 @@ def constellation_markers_cdr(sat_names: Sequence[str], r_ecef_km, t_ns: int, *,
     n_markers = 3 + (gp is not None) + (len(sat_names) if labels else 0)
     b = bytearray(_CDR_HDR)
     b += _ST_U32.pack(n_markers)
-    earth_d = 2 * WGS84_A_KM / SCALE_KM
-    _marker_cdr(b, sec, nsec, b"earth", 0, M.SPHERE, _ORIGIN, (earth_d, earth_d, 2 * WGS84_B_KM / SCALE_KM), _C_EARTH)
-    _marker_cdr(b, sec, nsec, b"satellites", 0, M.SPHERE_LIST, _ORIGIN, (0.15, 0.15, 0.15), _C_WHITE,
+    earth_d = 2 * WGS84_A_KM * M_PER_KM
+    _marker_cdr(b, sec, nsec, b"earth", 0, M.SPHERE, _ORIGIN, (earth_d, earth_d, 2 * WGS84_B_KM * M_PER_KM), _C_EARTH)
+    _marker_cdr(b, sec, nsec, b"satellites", 0, M.SPHERE_LIST, _ORIGIN, _SAT_SCALE, _C_WHITE,
                 points=_points_bytes(r), npoints=len(r))
-    _marker_cdr(b, sec, nsec, b"isl", 0, M.LINE_LIST, _ORIGIN, (0.02, 0.0, 0.0), _C_ISL,
+    _marker_cdr(b, sec, nsec, b"isl", 0, M.LINE_LIST, _ORIGIN, _ISL_SCALE, _C_ISL,
                 points=_points_bytes(r[ends]) if ends else b"", npoints=len(ends))
     if gp is not None:
         g, vals = gp
         cols = b"".join([_color_bytes(v, value_max) for v in vals.tolist()])
-        _marker_cdr(b, sec, nsec, b"ground_points", 0, M.CUBE_LIST, _ORIGIN, (0.008, 0.008, 0.008), _C_WHITE,
+        _marker_cdr(b, sec, nsec, b"ground_points", 0, M.CUBE_LIST, _ORIGIN, _GP_SCALE, _C_WHITE,
                     points=_gp_points_bytes(g), npoints=len(g), colors=cols, ncolors=len(g))
     if labels:
-        lp = (r / SCALE_KM * 1.04).tolist()
+        lp = (r * M_PER_KM * 1.04).tolist()
         for i, name in enumerate(sat_names):
-            _marker_cdr(b, sec, nsec, b"labels", i, M.TEXT_VIEW_FACING, lp[i], (0.0, 0.0, 0.25), _C_WHITE,
+            _marker_cdr(b, sec, nsec, b"labels", i, M.TEXT_VIEW_FACING, lp[i], _LABEL_SCALE, _C_WHITE,
                         text=name.encode())
     return bytes(b)
 

@@ -134,6 +134,12 @@ class IslCfg(_S, kw_only=True):
         return self.ttl_p4_15_s
 
 
+class VizCfg(_S, kw_only=True):
+    # sim seconds between two visualisation frames: the bag's fixes, markers and /tf, and the ROS
+    # engine's live topics (fixes, markers, /tf, per-satellite state on /diagnostics)
+    period_s: Annotated[float, msgspec.Meta(gt=0, le=86400)] = 60.0
+
+
 class Station(_S, kw_only=True):
     name: Name
     lat_deg: Lat
@@ -157,6 +163,7 @@ class Scenario(_S, kw_only=True):
     scheduler: SchedulerCfg = SchedulerCfg()
     isl: IslCfg = IslCfg()
     ground: GroundCfg = GroundCfg()
+    viz: VizCfg = VizCfg()
     # Where the file was loaded from (set by load_scenario; not a TOML key).
     source_path: str = ""
 
@@ -191,9 +198,9 @@ class Scenario(_S, kw_only=True):
     def with_overrides(self, *, sats: int | None = None, hours: float | None = None,
                        seed: int | None = None, knowledge: str | None = None,
                        transiency_min: float | None = None, gp_spacing_km: float | None = None,
-                       joint_planning: bool | None = None) -> "Scenario":
+                       joint_planning: bool | None = None, viz_period_s: float | None = None) -> "Scenario":
         """A copy with the CLI overrides applied (``--sats``, ``--hours``, ``--seed``,
-        ``--knowledge``, ``--transiency-min``, ``--gp-spacing-km``, ``--planning``).
+        ``--knowledge``, ``--transiency-min``, ``--gp-spacing-km``, ``--planning``, ``--viz-period-s``).
 
         ``sats`` keeps the number of planes when it divides evenly, else uses one plane per
         ``ceil(sats / sats_per_plane)``; the result is validated like a file.
@@ -202,7 +209,7 @@ class Scenario(_S, kw_only=True):
         raw.pop("source_path", None)
         for table, key, v in (("value", "knowledge", knowledge), ("value", "transiency_min", transiency_min),
                               ("regions", "gp_spacing_km", gp_spacing_km),
-                              ("scheduler", "joint_planning", joint_planning)):
+                              ("scheduler", "joint_planning", joint_planning), ("viz", "period_s", viz_period_s)):
             if v is not None:
                 raw[table][key] = float(v) if isinstance(v, int) and not isinstance(v, bool) else v
         if sats is not None:

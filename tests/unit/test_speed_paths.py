@@ -343,7 +343,7 @@ def test_viz_feed_links_equal_contact_scan():
         a, b = rng.sample([f"sat_{p}{k}" for p in (1, 2, 3) for k in range(1, 9)], 2)
         contacts.append(Contact(s, s + rng.choice([rng.uniform(1, 3000), 60.0]), a, b, 1000.0, 0.0))
     plan = ContactPlan(contacts)
-    feed = VizFeed(SimpleNamespace(isl_plan=plan))
+    feed = VizFeed(SimpleNamespace(isl_plan=plan), period_s=60.0)
     scan_order = sorted(plan.contacts, key=lambda c: c.start_s)  # what the feed scanned before
     seen = 0
     for t in [float(x) for x in range(0, 24000, 60)] + [c.start_s for c in contacts] + [c.end_s for c in contacts]:

@@ -8,9 +8,9 @@ import pytest
 from bringup.recording.bag import TYPESTORE, BagReader, BagWriter
 from bringup.recording.viz_messages import (
     FRAME,
+    M_PER_KM,
     MARKERS_TYPE,
     NAVSAT_TYPE,
-    SCALE_KM,
     constellation_markers,
     navsat_fix,
     value_color,
@@ -41,11 +41,11 @@ def test_markers_geometry():
         by_ns.setdefault(m.ns, []).append(m)
         assert m.header.frame_id == FRAME
     sats = by_ns["satellites"][0]
-    assert [(p.x, p.y, p.z) for p in sats.points] == [tuple(v / SCALE_KM) for v in r]
+    assert [(p.x, p.y, p.z) for p in sats.points] == [tuple(v * M_PER_KM) for v in r]
     isl = by_ns["isl"][0]
     assert len(isl.points) == 4  # two distinct links, each drawn once
     ends = {((a.x, a.y, a.z), (b.x, b.y, b.z)) for a, b in zip(isl.points[::2], isl.points[1::2])}
-    assert ((7.088, 0, 0), (0, 7.088, 0)) in ends and ((0, 7.088, 0), (0, 0, 7.088)) in ends
+    assert ((7.088e6, 0, 0), (0, 7.088e6, 0)) in ends and ((0, 7.088e6, 0), (0, 0, 7.088e6)) in ends
     g = by_ns["ground_points"][0]
     assert len(g.points) == len(g.colors) == 2
     assert g.colors[0].r == g.colors[0].g == g.colors[0].b  # grey: nothing left to see
@@ -87,3 +87,28 @@ def test_viz_written_to_bag_decodes_with_mcap(tmp_path):
 def test_viz_messages_topics():
     msgs = viz_messages(["sat_11"], [[7000.0, 0, 0]], 0)
     assert [(t, m) for t, m, _ in msgs] == [("/sat_11/fix", NAVSAT_TYPE), ("/viz/constellation", MARKERS_TYPE)]
+
+
+def test_metres_at_earth_scale_fit_foxglove_float32():
+    """Foxglove's 3D panel (three.js/WebGL) holds vertex positions as float32 and has a depth buffer
+    (24 bits assumed) between the camera's near and far planes. Markers in metres: the float32
+    spacing at the satellites' radius is 0.5 m (GEO: 4 m), nothing a view of the constellation can
+    show; the shipped layout's camera sees the whole Earth and the orbits (near < distance - orbit
+    radius, far > distance + orbit radius) with a depth step smaller than half a ground-point cube."""
+    import json
+    from pathlib import Path
+
+    from bringup.recording.viz_messages import _GP_SCALE
+
+    leo = np.array([[7088.0, 123.456789, -4321.0], [-1.0, 7088.0, 0.001]]) * M_PER_KM
+    assert np.abs(leo.astype(np.float32).astype(np.float64) - leo).max() <= 0.5
+    geo = np.array([[42164.0, 1.0, 2.0]]) * M_PER_KM
+    assert np.abs(geo.astype(np.float32).astype(np.float64) - geo).max() <= 4.0
+    layout = json.loads((Path(__file__).resolve().parents[2] / "bringup" / "recording"
+                         / "foxglove_layout.json").read_text())
+    cam = layout["configById"]["3D!constellation"]["cameraState"]
+    orbit_m = 7088e3 * 1.1
+    assert cam["near"] < cam["distance"] - orbit_m and cam["far"] > cam["distance"] + orbit_m
+    # perspective depth step at distance z: z^2 / (near * 2^24)
+    far_side = cam["distance"] + 6378e3
+    assert far_side**2 / (cam["near"] * 2**24) < _GP_SCALE[0] / 2
