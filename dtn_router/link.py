@@ -62,6 +62,8 @@ class LinkModel:
         self._span_s = max((c.end_s - c.start_s for c in truth.contacts), default=0.0) + 1.0
         self._busy_until_ns: dict[str, int] = {}
         self.counters = {"tx": 0, "ok": 0, "no_contact": 0, "contact_ended": 0, "radio_busy": 0, "copies": 0}
+        self.air_ns: dict[str, int] = {}  # sender -> time on air [ns] (every transmission that went out)
+        self.bits_sent: dict[str, int] = {}  # sender -> bits put on air
 
     def open_contacts(self, sender: str, t_s: float) -> list[Contact]:
         cs = self._by_src.get(sender, [])
@@ -91,6 +93,8 @@ class LinkModel:
         end_ns = start_ns + int(-(-bits * _NS // int(rate))) if float(rate).is_integer() \
             else start_ns + int(bits / rate * _NS + 0.999999)
         self._busy_until_ns[sender] = end_ns
+        self.air_ns[sender] = self.air_ns.get(sender, 0) + end_ns - start_ns
+        self.bits_sent[sender] = self.bits_sent.get(sender, 0) + int(bits)
         failed = {h: ("no_contact" if h not in links else "contact_ended") for h in hops
                   if h not in links or end_ns > links[h].end_s * _NS}
         copies = []

@@ -85,12 +85,17 @@ def restore(sat, blob: bytes) -> None:
 def _reconcile_store(ag) -> dict:
     rows = {sb.bundle_id for sb in ag.store.load_all()}
     held = dict(ag._held)
-    for bid, (_tx, h) in ag._in_flight.items():
-        held[bid] = h
+    multicast = not hasattr(ag, "_in_flight")  # sat_node/dtn/multicast.py: in-flight recipients are in _held
+    if not multicast:
+        for bid, (_tx, h) in ag._in_flight.items():
+            held[bid] = h
     added = removed = 0
     for bid, h in held.items():
         if bid not in rows:
-            ag.store.put(StoredBundle(bid, encode_bundle(h.bundle), h.priority, h.dest, h.expiry_ns, h.ready_ns))
+            if multicast:
+                ag._persist(h)  # the row of the recipients it is responsible for
+            else:
+                ag.store.put(StoredBundle(bid, encode_bundle(h.bundle), h.priority, h.dest, h.expiry_ns, h.ready_ns))
             added += 1
     for bid in rows - held.keys():
         ag.store.delete(bid)

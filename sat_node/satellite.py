@@ -10,10 +10,11 @@ local engine in one process. It owns the satellite's three functions of DESIGN.m
   executes the plan the ground uplinked at its last pass and downlinks its observations at each
   pass; non-agile mode: observes what passes under the nadir footprint;
 * ACS - tracks the pointing target and reports each slew (/sat_XX/acs/state);
-* DTN bundle agent - one BPv7 bundle per executed observation and destination satellite
-  (the satellites next on scene over the observed region, priority 1 = next), routed by CGR
-  (sat_node/dtn/agent.py) and put on the bus by its port (sat_node/dtn/port.py: transmissions,
-  the medium's failure reports, bundle events); bundles delivered here update what it knows.
+* DTN bundle agent - one BPv7 bundle per executed observation to its recipients (the satellites
+  next on scene over the observed region, priority 1 = next; ``isl.forwarding = "multicast"``,
+  sat_node/dtn/multicast.py) or one per recipient (``"unicast"``, sat_node/dtn/agent.py), routed by
+  CGR and put on the bus by its port (sat_node/dtn/port.py: transmissions, the medium's failure
+  reports, bundle events); bundles delivered here update what it knows.
 
 Value knowledge (the :class:`~sat_node.scheduler.planner.Knowledge` it hands the planner): what
 reached it only - its own looks and the inferences delivered bundles carry (sat_node/inference.py) -
@@ -53,7 +54,8 @@ from msgs_json import topics as T
 from msgs_json.envelope import Emit, Envelope, StepResult
 from sat_node import persist
 from sat_node.acs import angle_between_deg, nadir_unit, unit_vectors
-from sat_node.dtn.agent import AgentConfig, BundleAgent
+from sat_node.dtn.agent import AgentConfig
+from sat_node.dtn.multicast import new_agent
 from sat_node.dtn.port import DtnPort, count_rejection
 from sat_node.dtn.store import BundleStore
 from sat_node.inference import Inference, decode_inference, encode_inference
@@ -114,9 +116,9 @@ class SatelliteLogic:
             # settle_delay_s=None: the port settles each transmission when no failure report can come
             cfg = AgentConfig.for_policy(
                 i.send_order, i.hop_tolerance_s, ttl_s_by_priority={1: i.ttl_p1_s, 3: i.ttl_p2_3_s, 15: i.ttl_p4_15_s},
-                bundle_bits=i.bundle_bits, settle_delay_s=None)
+                bundle_bits=i.bundle_bits, settle_delay_s=None, forwarding=i.forwarding)
             store = BundleStore(store_path) if store_path else None
-            self.agent = BundleAgent(name, world.isl_plan, cfg, store=store)
+            self.agent = new_agent(name, world.isl_plan, cfg, store=store)
             self.port = DtnPort(name, self.agent)
         self.rejected_by_reason: dict[str, int] = {}
 

@@ -36,6 +36,7 @@ from dtn_router.router import RouterLogic
 from orbit_clock.contact_plan import ContactPlan
 from sat_node.dtn.agent import AgentConfig, BundleAgent
 from sat_node.dtn.cgr import ContactGraph
+from sat_node.dtn.multicast import new_agent
 from sat_node.dtn.stats import dtn_report
 from sat_node.dtn.traffic import TrafficItem, TrafficNode
 
@@ -57,8 +58,12 @@ class DtnRun:
     end_ns: int = 0
     steps: int = 0
     nodes: list = field(default_factory=list)
+    observations: int = 0  # traffic rows with at least one destination
+    air_ns: dict = field(default_factory=dict)  # node -> time its radio was on air [ns]
+    bits_on_air: dict = field(default_factory=dict)  # node -> bits it sent (recipient lists included)
 
     def held(self) -> int:
+        """(bundle, recipient) pairs still held by the agents."""
         return sum(a.held_count() for a in self.agents.values())
 
     def discarded(self) -> dict[str, int]:
@@ -66,16 +71,26 @@ class DtnRun:
         return {"not_next_hop": sum(a.counters["discarded.not_next_hop"] for a in self.agents.values())}
 
     def transmissions(self) -> int:
-        """Radio transmissions started by all nodes (a failed one counts; so does each relay hop)."""
+        """Radio transmissions started by all nodes (a failed one counts; so does each relay hop; a
+        multicast transmission serving several next hops is one)."""
         return sum(a.counters["forwarded"] for a in self.agents.values())
 
-    def report(self, lower_bound_s: dict[str, float] | None = None) -> dict:
-        """The dtn.* figures of this run (:func:`sat_node.dtn.stats.dtn_report`, as a run's report)."""
+    def report(self, lower_bound_s: dict | None = None) -> dict:
+        """The dtn.* figures of this run (:func:`sat_node.dtn.stats.dtn_report`, as a run's report),
+        with transmissions per pair and per observation (a traffic row), the radios' busy fraction
+        over the run and the bits they put on air."""
         rep = dtn_report(self.events, held=self.held(), lower_bound_s=lower_bound_s, discarded=self.discarded())
         created = rep["dtn.bundles_created"]
         rep["dtn.transmissions"] = self.transmissions()
         rep["dtn.transmissions_per_bundle"] = (rep["dtn.transmissions"] / created) if created else None
+        rep["dtn.observations"] = self.observations
+        rep["dtn.transmissions_per_observation"] = (rep["dtn.transmissions"] / self.observations) \
+            if self.observations else None
         rep["dtn.tx_failed"] = sum(n.port.tx_failed.get(k, 0) for n in self.nodes for k in n.port.tx_failed)
+        busy = [self.air_ns.get(n, 0) / self.end_ns for n in self.agents] if self.end_ns else []
+        rep["dtn.radio_busy_fraction.mean"] = float(sum(busy) / len(busy)) if busy else None
+        rep["dtn.radio_busy_fraction.max"] = max(busy) if busy else None
+        rep["dtn.bits_on_air"] = sum(self.bits_on_air.values())
         return rep
 
 
@@ -109,7 +124,7 @@ def run_dtn(plan: ContactPlan, traffic: list[TrafficItem], *, config: AgentConfi
                 raw = agents_by_name[traffic[index].source].bundle_bytes(bid)
                 if raw is not None:
                     (Path(dump_dir) / f"{bid}.bpv7").write_bytes(raw)
-    nodes = [TrafficNode(BundleAgent(n, graph, config, on_event=events.append), by_src[n],
+    nodes = [TrafficNode(new_agent(n, graph, config, on_event=events.append), by_src[n],
                          payload_bytes=payload_bytes, on_created=on_created, publish_events=sink is not None)
              for n in names]
     if dump_dir is not None:
@@ -123,8 +138,10 @@ def run_dtn(plan: ContactPlan, traffic: list[TrafficItem], *, config: AgentConfi
     created_ids: dict[int, str] = {}
     for n in nodes:
         created_ids.update(n.created_ids)
+    n_obs = len({(traffic[i].source, traffic[i].row, traffic[i].t_s) for i in created_ids})
     return DtnRun({n.name: n.agent for n in nodes}, router.link, events, created_ids,
-                  time.perf_counter() - t0, horizon_ns, res.steps, nodes)
+                  time.perf_counter() - t0, horizon_ns, res.steps, nodes, n_obs,
+                  dict(router.link.air_ns), dict(router.link.bits_sent))
 
 
 def _discard(_envelopes) -> None:

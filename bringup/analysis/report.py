@@ -99,7 +99,8 @@ def _bundle_event(msg):
     reason = getattr(msg, "reason", "")
     if kind == "dropped" and getattr(msg, "detail", "") in ("hop_limit",):
         reason = msg.detail
-    return BundleEvent(msg.t_ns, kind, msg.sat, msg.bundle_id, msg.priority, msg.dst, msg.creation_ns, reason)
+    deadline = msg.creation_ns + msg.lifetime_ns if kind == "created" else 0
+    return BundleEvent(msg.t_ns, kind, msg.sat, msg.bundle_id, msg.priority, msg.dst, msg.creation_ns, reason, deadline)
 
 
 def build_report(envelopes, meta: RunMeta, runtime: dict | None = None) -> dict:
@@ -137,10 +138,10 @@ class ReportBuilder:
             elif t.endswith("/dtn/events"):
                 m = codec.decode(t, env.data)
                 self.events.append(_bundle_event(m))
-                if isinstance(m, S.BundleCreated):
-                    self.created[m.bundle_id] = (m.src, m.gp, m.obs_t_ns, m.dst)
-                elif isinstance(m, S.BundleDelivered) and m.bundle_id not in self.delivered:
-                    self.delivered[m.bundle_id] = (m.sat, m.t_ns)
+                if isinstance(m, S.BundleCreated):  # per (bundle, recipient): a multicast bundle has several
+                    self.created[(m.bundle_id, m.dst)] = (m.src, m.gp, m.obs_t_ns, m.dst)
+                elif isinstance(m, S.BundleDelivered) and (m.bundle_id, m.sat) not in self.delivered:
+                    self.delivered[(m.bundle_id, m.sat)] = (m.sat, m.t_ns)
             elif t.endswith("/dtn/counters"):
                 m = codec.decode(t, env.data)
                 self.counters[m.sat] = m.counters
@@ -166,6 +167,10 @@ class ReportBuilder:
         rep["osse"] = dict(meta.osse or {})
         rep["schedules"] = {"count": self.n_schedules}
         rep["dtn"] = _dtn_figures(events)
+        n_obs = len({(src, gp, obs) for src, gp, obs, _dst in self.created.values()})
+        if n_obs:
+            rep["dtn"]["observations"] = n_obs
+            rep["dtn"]["transmissions_per_observation"] = rep["dtn"]["transmissions"] / n_obs
         if counters:
             # overheard copies are counted by the satellites (DtnCounters), not sent as events
             over = sum(c.get("discarded.not_next_hop", 0) for c in counters.values())
@@ -225,8 +230,8 @@ def consensus_figures(obs: list, created: dict, delivered: dict, planned: dict, 
                       *, pass_gap_s: float = PASS_GAP_S) -> dict:
     """ISL-delayed consensus figures (module docstring).
 
-    ``created``: bundle id -> (src, gp, obs_t_ns, dst); ``delivered``: bundle id -> (receiver,
-    t_ns) of its first delivery; ``planned``: (sat, schedule version) -> planned_ns.
+    ``created``: (bundle id, recipient) -> (src, gp, obs_t_ns, dst); ``delivered``: (bundle id,
+    recipient) -> (receiver, t_ns) of its first delivery; ``planned``: (sat, schedule version) -> planned_ns.
     A *pass* is a run of one satellite's observations in one area with gaps <= ``pass_gap_s``.
     For successive passes (A then B, A != B) over an area, sorted by their first observation:
     ``informed`` - at least one of A's pass observations was delivered to B at or before B's

@@ -124,6 +124,7 @@ class IslCfg(_S, kw_only=True):
     ttl_p4_15_s: Pos = 3000.0
     send_order: Literal["priority", "deadline"] = "priority"
     hop_tolerance_s: NonNeg = 0.0
+    forwarding: Literal["multicast", "unicast"] = "multicast"
 
     def ttl_s(self, priority: int) -> float:
         """Bundle lifetime [s] for a priority 1..15 (DESIGN.md section 1)."""

@@ -75,11 +75,12 @@ from .routing_blocks import peek_next_hops, recipients_of, set_routing
 from .store import BundleStore, StoredBundle
 
 __all__ = ["BundleAgent", "AgentConfig", "Transmission", "BundleEvent", "ttl_s_for_priority",
-           "DROP_REASONS", "SEND_ORDERS", "deadline_delays", "peek_next_hop"]
+           "DROP_REASONS", "SEND_ORDERS", "FORWARDINGS", "deadline_delays", "peek_next_hop"]
 
 DROP_REASONS = ("ttl", "integrity", "no_route", "hop_limit", "other")
 # Send orders (AgentConfig.for_policy): strict priority (the study's), or earliest expiry first
 SEND_ORDERS = ("priority", "deadline")
+FORWARDINGS = ("multicast", "unicast")
 _NS = 1_000_000_000
 # next hops of recently heard bytes: a broadcast copy reaches every node in view, and the peek is a
 # pure function of the (immutable) bytes, so each transmission is parsed once per process.
@@ -128,13 +129,19 @@ class AgentConfig:
     # lockstep port does, sat_node/dtn/port.py).
     settle_delay_s: float | None = 0.0
     priority_delay_s: tuple | None = None
+    # "unicast": one bundle per recipient (this module's BundleAgent, the study simulator's model);
+    # "multicast": one bundle per observation to its recipient list (sat_node/dtn/multicast.py)
+    forwarding: str = "unicast"
 
     @classmethod
     def for_policy(cls, send_order: str = "priority", hop_tolerance_s: float = 0.0, **kw) -> "AgentConfig":
         """A config for one of :data:`SEND_ORDERS` (``deadline``: each priority's delay is its TTL,
-        so the earliest expiry goes first) and a CGR hop tolerance [s]; other fields from ``kw``."""
+        so the earliest expiry goes first) and a CGR hop tolerance [s]; other fields from ``kw``
+        (``forwarding``: one of :data:`FORWARDINGS`)."""
         if send_order not in SEND_ORDERS:
             raise ValueError(f"send order {send_order!r}: one of {', '.join(SEND_ORDERS)}")
+        if kw.get("forwarding", "unicast") not in FORWARDINGS:
+            raise ValueError(f"forwarding {kw['forwarding']!r}: one of {', '.join(FORWARDINGS)}")
         if not hop_tolerance_s >= 0.0:
             raise ValueError(f"hop tolerance {hop_tolerance_s!r} s: must be >= 0")
         cfg = cls(hop_tolerance_s=float(hop_tolerance_s), **kw)
@@ -265,6 +272,11 @@ class BundleAgent:
     def held_count(self) -> int:
         """Bundles this node still holds (queued or in flight)."""
         return len(self._held) + len(self._in_flight)
+
+    def held_pairs(self) -> set[tuple[str, str]]:
+        """(bundle id, recipient) of every bundle this node still holds (queued or in flight)."""
+        return {(bid, h.dest) for bid, h in self._held.items()} | {
+            (bid, h.dest) for bid, (_tx, h) in self._in_flight.items()}
 
     # ---------------------------------------------------------------- entry points
     def originate(self, payload: bytes, dest: str, priority: int, now_ns: int) -> str:

@@ -46,7 +46,7 @@ from msgs_json import topics as T
 from msgs_json.envelope import Emit, Envelope
 from orbit_clock.contact_plan import node_name
 from sat_node.dtn.agent import BundleAgent, ttl_s_for_priority
-from sat_node.dtn.bpv7 import BundleError, decode_bundle
+from sat_node.dtn.bpv7 import BundleError, Imc, decode_bundle
 from sat_node.dtn.routing_blocks import next_hops_of, recipients_of
 
 __all__ = ["DtnPort", "count_rejection"]
@@ -244,7 +244,7 @@ class DtnPort:
         except ValueError:
             rs = ()
         info = {"bundle_id": b.bundle_id, "src": node_name(b.src[0]),
-                "dst": node_name(rs[0][0]) if rs else node_name(b.dest[0]),
+                "dst": node_name(rs[0][0]) if rs else (self.name if isinstance(b.dest, Imc) else node_name(b.dest[0])),
                 "priority": min((r[1] for r in rs), default=0),
                 "creation_ns": (b.creation_ms - self.agent.config.epoch_dtn_ms) * 1_000_000,
                 "hop_count": (b.hop_count[1] if b.hop_count else 0)}

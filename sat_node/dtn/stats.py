@@ -1,10 +1,16 @@
 """The report's ``dtn.*`` figures (DESIGN.md section 6) from a list of bundle events.
 
 Input: :class:`sat_node.dtn.agent.BundleEvent` records of every agent (created, forwarded,
-delivered, dropped(reason), discarded(reason)) and optionally the per-bundle lower bound on latency.
-Latency is delivery time minus creation time [s]; a bundle counts once as delivered (its first
-delivery). Drop reasons map to the report's keys: ttl, integrity, other (no_route, hop_limit and
-anything else, also listed one by one under ``dtn.dropped_detail``).
+delivered, dropped(reason), discarded(reason)) and optionally a lower bound on latency per pair.
+Everything is counted per (bundle, recipient) pair - an observation's news for one recipient: one
+bundle per pair with unicast forwarding, one bundle for all of an observation's recipients with
+multicast (sat_node/dtn/multicast.py); ``dtn.bundles_created`` / ``dtn.bundles_delivered`` count
+pairs (their meaning with unicast), ``dtn.bundles_originated`` the bundles. Latency is delivery time
+minus creation time [s]; a pair counts once as delivered (its first delivery); within TTL: delivered
+by the pair's deadline (creation + its priority's TTL). Drop reasons map to the report's keys: ttl,
+integrity, other (no_route, hop_limit and anything else, also listed one by one under
+``dtn.dropped_detail``); drops are counted per pair (a malformed copy names none: ``integrity``).
+Conservation: pairs created = delivered + dropped (with a reason) + held at the end.
 
 How we know it is right: tests/unit/test_dtn_alone.py on hand-worked chains (per-priority medians,
 the mean against its lower bound, delivery ratio, copies discarded, conservation).
@@ -23,33 +29,39 @@ def _pct(x, q):
     return float(np.percentile(np.asarray(x, dtype=float), q)) if len(x) else None
 
 
-def dtn_report(events, *, lower_bound_s: dict[str, float] | None = None, held: int | None = None,
+def dtn_report(events, *, lower_bound_s: dict | None = None, held: int | None = None,
                discarded: dict[str, int] | None = None) -> dict:
-    """Flat dict of dtn.* figures. ``lower_bound_s``: bundle id -> latency bound [s]; ``held``: bundles
-    still held by agents at the end (for the conservation figure); ``discarded``: copies discarded
-    without an event record, by reason (the agents' ``overheard`` counters)."""
-    created: dict[str, object] = {}
-    delivered: dict[str, object] = {}
+    """Flat dict of dtn.* figures. ``lower_bound_s``: (bundle id, recipient) -> latency bound [s];
+    ``held``: pairs still held by agents at the end (for the conservation figure); ``discarded``: copies
+    discarded without an event record, by reason (the agents' ``overheard`` counters)."""
+    created: dict[tuple, object] = {}
+    delivered: dict[tuple, object] = {}
     drops: Counter = Counter()
     dropped_ids = set()
     discarded = Counter(discarded or {})
+    forwarded = 0
     for ev in events:
+        key = (ev.bundle_id, ev.dest)
         if ev.kind == "created":
-            created[ev.bundle_id] = ev
+            created[key] = ev
         elif ev.kind == "delivered":
-            delivered.setdefault(ev.bundle_id, ev)
+            delivered.setdefault(key, ev)
         elif ev.kind == "dropped":
             drops[ev.reason] += 1
-            dropped_ids.add(ev.bundle_id)
+            dropped_ids.add(key)
         elif ev.kind == "discarded":
             discarded[ev.reason] += 1
-    lat = {bid: (ev.t_ns - ev.created_ns) / 1e9 for bid, ev in delivered.items()}
+        elif ev.kind == "forwarded":
+            forwarded += 1
+    lat = {k: (ev.t_ns - ev.created_ns) / 1e9 for k, ev in delivered.items()}
     lat_list = list(lat.values())
     n_created = len(created)
-    in_ttl = sum(1 for bid, ev in delivered.items()
-                 if bid in created and lat[bid] <= _ttl_of(created[bid]))
+    in_ttl = sum(1 for k, ev in delivered.items()
+                 if k in created and (not created[k].deadline_ns or ev.t_ns <= created[k].deadline_ns))
     out = {
         "dtn.bundles_created": n_created,
+        "dtn.bundles_originated": len({k[0] for k in created}),
+        "dtn.transmissions": forwarded,
         "dtn.bundles_delivered": len(delivered),
         "dtn.delivery_ratio": (len(delivered) / n_created) if n_created else None,
         "dtn.delivered_within_ttl_ratio": (in_ttl / n_created) if n_created else None,
@@ -68,10 +80,10 @@ def dtn_report(events, *, lower_bound_s: dict[str, float] | None = None, held: i
         out[f"dtn.copies_discarded_detail.{k}"] = v
     by_p = defaultdict(list)
     n_by_p = Counter()
-    for bid, ev in created.items():
+    for ev in created.values():
         n_by_p[ev.priority] += 1
-    for bid, ev in delivered.items():
-        by_p[ev.priority].append(lat[bid])
+    for k, ev in delivered.items():
+        by_p[ev.priority].append(lat[k])
     for p in range(1, 16):
         xs = by_p.get(p, [])
         out[f"dtn.latency_s_by_priority.{p}.median"] = _pct(xs, 50)
@@ -86,9 +98,6 @@ def dtn_report(events, *, lower_bound_s: dict[str, float] | None = None, held: i
         out["dtn.latency_s.lower_bound_mean_delivered"] = float(np.mean(both)) if both else None
     if held is not None:
         out["dtn.bundles_held_at_end"] = held
-        out["dtn.conservation_ok"] = n_created == len(delivered) + len(dropped_ids & set(created)) + held
+        out["dtn.conservation_ok"] = n_created == len(delivered) + len((dropped_ids & set(created)) - set(delivered)) \
+            + held
     return out
-
-
-def _ttl_of(ev) -> float:
-    return getattr(ev, "ttl_s", float("inf")) or float("inf")

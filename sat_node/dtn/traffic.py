@@ -9,7 +9,8 @@ file row, then priority, then destination name.
 :class:`TrafficNode` is a lockstep participant (msgs_json/envelope.py) for one node of a DTN-alone
 run: a satellite whose bundles come from the table instead of its observations. It creates the
 bundles of each creation time at that instant (a payload naming the packet, padded to
-``payload_bytes``); everything else - receiving, the medium's failure reports, the radio, the bundle
+``payload_bytes``): one per (row, destination) with a unicast agent, one per row - an observation,
+with all its destinations - with a multicast agent (sat_node/dtn/multicast.py); everything else - receiving, the medium's failure reports, the radio, the bundle
 events - is the satellite's own code path (sat_node/dtn/port.py). It asks to be woken just after
 its next creation time and its port's next event (the radio's next decision, an expiry, the end of
 a transmission in flight), so every decision is taken at its own instant after every arrival and
@@ -138,11 +139,19 @@ class TrafficNode:
         items, i = self._items, self._next
         while i < len(items) and items[i][0] <= upto:
             at, index, item = items[i]
+            row = [(index, item)]  # one observation: the same row's destinations, next to each other
             i += 1
-            bid = port.originate(traffic_payload(item, self.payload_bytes), [(item.dest, item.priority)], at)[0]
-            self.created_ids[index] = bid
-            if self.on_created is not None:
-                self.on_created(index, bid)
+            while i < len(items) and items[i][0] == at and items[i][2].row == item.row \
+                    and items[i][2].source == item.source:
+                row.append(items[i][1:])
+                i += 1
+            bids = port.originate(traffic_payload(item, self.payload_bytes), [(it.dest, it.priority) for _k, it in row],
+                                  at)
+            for k, (index_k, _it) in enumerate(row):
+                bid = bids[k] if len(bids) == len(row) else bids[0]
+                self.created_ids[index_k] = bid
+                if self.on_created is not None:
+                    self.on_created(index_k, bid)
         self._next = i
         emits = port.radio(upto)
         due = items[i][0] if i < len(items) else None

@@ -70,7 +70,7 @@ def test_bounds_do_not_depend_on_the_order_of_the_traffic_list():
     traffic = [TrafficItem(100.0, "sat_11", "sat_12", 1, "p1", "r", 1), TrafficItem(0.0, "sat_11", "sat_12", 1, "p0", "r", 0)]
     assert store_forward_bound_mean(plan, traffic, 2000, {15: 3000.0}) == pytest.approx(2.5)
     lb = latency_lower_bounds(plan, traffic, 2000, {0: "late", 1: "early"})
-    assert lb == pytest.approx({"late": 2.5, "early": 2.5})
+    assert lb == pytest.approx({("late", "sat_12"): 2.5, ("early", "sat_12"): 2.5})
     assert store_forward_bound_mean(plan, traffic[::-1], 2000, {15: 3000.0}) == pytest.approx(2.5)
 
 
