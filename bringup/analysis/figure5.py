@@ -62,24 +62,26 @@ class BundleRow:
 
 
 def bundle_rows(events) -> list[BundleRow]:
-    """Bundles from decoded msgs_json bundle events (any order). The first delivery counts;
-    deliveries of bundles whose creation is not in ``events`` are ignored."""
-    rows: dict[str, BundleRow] = {}
-    deliveries: dict[str, int] = {}
+    """One row per (bundle, recipient) pair - a bundle of unicast forwarding, a recipient of a
+    multicast bundle - from decoded msgs_json bundle events (any order). The first delivery counts;
+    deliveries of pairs whose creation is not in ``events`` are ignored."""
+    rows: dict[tuple[str, str], BundleRow] = {}
+    deliveries: dict[tuple[str, str], int] = {}
     for m in events:
         tag = type(m).__struct_config__.tag
         if tag == "created":
-            if m.bundle_id not in rows:
-                rows[m.bundle_id] = BundleRow(m.bundle_id, m.src, m.dst, int(m.priority), int(m.creation_ns),
-                                              int(m.gp))
+            if (m.bundle_id, m.dst) not in rows:
+                rows[(m.bundle_id, m.dst)] = BundleRow(m.bundle_id, m.src, m.dst, int(m.priority), int(m.creation_ns),
+                                                       int(m.gp))
         elif tag == "delivered":
             t = int(m.t_ns)
-            if m.bundle_id not in deliveries or t < deliveries[m.bundle_id]:
-                deliveries[m.bundle_id] = t
-    for bid, t in deliveries.items():
-        if bid in rows:
-            rows[bid].delivered_ns = t
-    return sorted(rows.values(), key=lambda r: (r.created_ns, r.bundle_id))
+            key = (m.bundle_id, m.sat)
+            if key not in deliveries or t < deliveries[key]:
+                deliveries[key] = t
+    for key, t in deliveries.items():
+        if key in rows:
+            rows[key].delivered_ns = t
+    return sorted(rows.values(), key=lambda r: (r.created_ns, r.bundle_id, r.dst))
 
 
 def bundle_rows_from_bag(bag_dir) -> list[BundleRow]:

@@ -393,8 +393,7 @@ def _encode_primary(b: Bundle) -> bytes:
     if b.fragment is not None:
         prim += [b.fragment[0], b.fragment[1]]
     raw = _encode_with_crc(prim, b.crc_type)
-    if b.fragment is None and b.crc_type in (CRC_16, CRC_32C) and Imc not in (type(b.dest), type(b.src),
-                                                                              type(b.report_to)):
+    if b.fragment is None and b.crc_type in (CRC_16, CRC_32C):
         rpt = b.report_to or b.src
         _remember_primary((b.flags, b.crc_type, _ipn_key(b.dest), _ipn_key(b.src), _ipn_key(rpt), b.creation_ms,
                            b.seq, b.lifetime_ms, raw[-_CRC_LEN[b.crc_type]:]), raw)
@@ -403,6 +402,8 @@ def _encode_primary(b: Bundle) -> bytes:
 
 def _ipn_key(eid) -> tuple[int, int]:
     """What :func:`_ipn_fast` reads back from ``_eid_cbor(eid)``."""
+    if type(eid) is Imc:
+        return eid
     return DTN_NONE if eid is None or eid == DTN_NONE else (eid[0], eid[1])
 
 
@@ -496,15 +497,15 @@ _CHECK = {CRC_16: lambda raw: crc16_x25(raw[:-2] + b"\0\0").to_bytes(2, "big") =
 
 
 def _ipn_fast(e):
-    """(node, service) of a well-formed ipn EID item, DTN_NONE for [1, 0], else None (then the
-    plain path decides)."""
+    """(node, service) of a well-formed ipn EID item, :class:`Imc` of an imc one, DTN_NONE for
+    [1, 0], else None (then the plain path decides)."""
     if type(e) is list and len(e) == 2:
         s, v = e
         if type(s) is int:
-            if s == 2 and type(v) is list and len(v) == 2:
+            if (s == 2 or s == IMC_SCHEME) and type(v) is list and len(v) == 2:
                 n, x = v
                 if type(n) is int and type(x) is int and n >= 0 and x >= 0:
-                    return (n, x)
+                    return (n, x) if s == 2 else Imc(n, x)
             elif s == 1 and type(v) is int and v == 0:
                 return DTN_NONE
     return None

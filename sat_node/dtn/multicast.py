@@ -36,6 +36,10 @@ responsible for (queued or in flight, until settled), rewritten whenever that se
 kill the node reloads them and routes them again. A recipient is settled only once delivered or
 dropped with a reason, as in the unicast agent.
 
+Why one module: the agent's steps (originate, receive, decide and send, settle, fail, expire, resume)
+all act on one set of per-bundle recipient sets and one radio queue; routing is cgr.py's, the codec
+bpv7.py's and routing_blocks.py's, the store store.py's, as for the unicast agent.
+
 Accounting is per (bundle, recipient) pair: a BundleEvent names the recipient (``dest``), its
 priority and deadline; conservation is pairs created = delivered + dropped (by reason) + held.
 
@@ -64,7 +68,7 @@ from .bpsec import IntegrityError, add_bib, verify_bib
 from .bpv7 import Bundle, BundleError, decode_bundle, encode_bundle, ipn
 from .cgr import ContactGraph
 from .routing_blocks import (IMC_BLOCK, NEXT_HOPS_BLOCK, OBSERVATION_GROUP, RECIPIENTS_BLOCK, next_hops_of,
-                             overhead_bits, peek_next_hops, recipients_of, set_routing)
+                             overhead_bits_of, peek_next_hops, recipients_of, set_routing)
 from .store import BundleStore, StoredBundle
 
 __all__ = ["MulticastAgent", "new_agent"]
@@ -251,6 +255,7 @@ class MulticastAgent:
             return False
         if not nhs or self.number in nhs:
             return False
+        self._settle_by_time(now_ns)
         self.last_received = None
         self.counters["discarded.not_next_hop"] += 1
         return True
@@ -258,6 +263,7 @@ class MulticastAgent:
     def receive(self, bundle_bytes: bytes, from_node: str, now_ns: int) -> str:
         """A copy heard on the medium; returns what happened: delivered (this node was a recipient and
         got it now), queued, discarded.* or dropped.*."""
+        self._settle_by_time(now_ns)
         self.last_received = None
         try:
             nhs = peek_next_hops(bundle_bytes)
@@ -470,17 +476,17 @@ class MulticastAgent:
         """On-air overhead bits if every queued recipient went in one transmission (an upper bound of
         any transmission of them: fewer recipients never encode longer)."""
         rs = list(h.queued.values())
-        set_routing(h.bundle, [(r.num, r.priority, r.life_ms) for r in rs], {self.number: tuple(r.num for r in rs)})
-        return overhead_bits(encode_bundle(h.bundle))
+        return overhead_bits_of([(r.num, r.priority, r.life_ms) for r in rs], {self.number: tuple(r.num for r in rs)})
 
     def _send(self, h: _MHeld, groups: dict, s: int) -> Transmission | None:
         b = h.bundle
         b.previous_node = ipn(self.number, 0)
         served = [r for _c, rs in groups.values() for r in rs]
         split = {node_number(nh): tuple(r.num for r in rs) for nh, (_c, rs) in groups.items()}
-        set_routing(b, [(r.num, r.priority, r.life_ms) for r in served], split)
+        rcpts = [(r.num, r.priority, r.life_ms) for r in served]
+        set_routing(b, rcpts, split)
         data = encode_bundle(b)
-        bits = self.config.bundle_bits + overhead_bits(data)
+        bits = self.config.bundle_bits + overhead_bits_of(rcpts, split)  # = overhead_bits(data), not parsed
         rate = min(self.graph.rate_bps[c] for c, _rs in groups.values())
         end = s + int(np.ceil(bits / rate * _NS))
         late = [c for c, _rs in groups.values() if end > self.graph.end_s[c] * _NS]

@@ -47,7 +47,7 @@ import cbor2
 from .bpv7 import Bundle, BundleError, Imc
 
 __all__ = ["IMC_BLOCK", "RECIPIENTS_BLOCK", "NEXT_HOPS_BLOCK", "ION_ASSIGNED_BLOCK_TYPES", "OBSERVATION_GROUP",
-           "Recipient", "set_routing", "recipients_of", "next_hops_of", "peek_next_hops", "overhead_bits",
+           "Recipient", "set_routing", "recipients_of", "next_hops_of", "peek_next_hops", "overhead_bits", "overhead_bits_of",
            "routing_bytes"]
 
 IMC_BLOCK = 195
@@ -254,6 +254,18 @@ def _overhead_bytes(block_data: dict[int, bytes]) -> int:
         first_nh = parse_next_hops(block_data[NEXT_HOPS_BLOCK])[0][0]
         base[NEXT_HOPS_BLOCK] = encode_next_hops({first_nh: (node,)})
     return max(0, routing_bytes(block_data) - routing_bytes(base))
+
+
+def overhead_bits_of(recipients, split: dict[int, tuple[int, ...]] | None, multicast: bool = True) -> int:
+    """:func:`overhead_bits` of the copy whose routing blocks :func:`set_routing` would write for
+    ``recipients`` and ``split`` (without encoding the bundle)."""
+    recipients = sorted(recipients)
+    data = {RECIPIENTS_BLOCK: encode_recipients(recipients)}
+    if multicast:
+        data[IMC_BLOCK] = encode_imc(r[0] for r in recipients)
+    if split is not None:
+        data[NEXT_HOPS_BLOCK] = encode_next_hops(split)
+    return 8 * _overhead_bytes(data)
 
 
 def overhead_bits(data: bytes) -> int:

@@ -145,3 +145,53 @@ def test_satellites_rebuilt_from_snapshot_and_store_continue_exactly(world, tmp_
     diffs = [(a.topic, a.t_ns) for a, b in zip(have, want) if (a.topic, a.t_ns, a.source, a.seq, _data(a)) !=
              (b.topic, b.t_ns, b.source, b.seq, _data(b))]
     assert not diffs, diffs[:5]
+
+
+def test_partially_served_multicast_bundle_survives_sigkill(tmp_path):
+    """A multicast bundle for sat_12 (in view now) and sat_13 (contact from 100 s): the transmission to
+    sat_12 has ended and settled, sat_13's recipient waits. A second bundle is on the air at the kill.
+    After SIGKILL the restarted agent holds exactly sat_13's recipient of the first bundle (sent alone
+    at 100 s) and every recipient of the second (sent again): no recipient is lost or served twice."""
+    import os
+    import textwrap
+
+    from orbit_clock.contact_plan import Contact, ContactPlan
+    from sat_node.dtn.bpv7 import decode_bundle
+    from sat_node.dtn.multicast import MulticastAgent
+    from sat_node.dtn.routing_blocks import next_hops_of
+    from sat_node.dtn.store import BundleStore
+
+    db = tmp_path / "sat_11.sqlite"
+    plan_src = ('ContactPlan([Contact(0.0, 100.0, "sat_11", "sat_12", 1000.0, 0.0), '
+                'Contact(100.0, 200.0, "sat_11", "sat_13", 1000.0, 0.0)])')
+    script = textwrap.dedent(f"""
+        import sys
+        from orbit_clock.contact_plan import Contact, ContactPlan
+        from sat_node.dtn.multicast import MulticastAgent
+        from sat_node.dtn.store import BundleStore
+        a = MulticastAgent("sat_11", {plan_src}, store=BundleStore({str(db)!r}))
+        first = a.originate_many(b"partly served", [("sat_12", 1), ("sat_13", 2)], 10 * 10**9)
+        tx = a.transmissions_until(10 * 10**9)
+        assert [t.next_hops for t in tx] == [("sat_12",)], tx
+        a.receive(b"", "sat_12", 20 * 10**9)  # a later call: the ended transmission is settled
+        second = a.originate_many(b"on the air", [("sat_12", 3)], 30 * 10**9)
+        tx2 = a.transmissions_until(31 * 10**9)  # 30 s to 32 s+: on the air at the kill
+        assert [t.start_ns for t in tx2] == [30 * 10**9], tx2
+        print("ready", first, second, flush=True)
+        sys.stdin.readline()
+    """)
+    p = subprocess.Popen([sys.executable, "-c", script], stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True,
+                         cwd=str(REPO), env=dict(os.environ, PYTHONPATH=str(REPO)))
+    line = p.stdout.readline().split()
+    assert line and line[0] == "ready", line
+    first, second = line[1], line[2]
+    os.kill(p.pid, signal.SIGKILL)
+    p.wait(timeout=30)
+    a = MulticastAgent("sat_11", ContactPlan([Contact(0.0, 100.0, "sat_11", "sat_12", 1000.0, 0.0),
+                                              Contact(100.0, 200.0, "sat_11", "sat_13", 1000.0, 0.0)]),
+                       store=BundleStore(db))
+    assert a.held_pairs() == {(first, "sat_13"), (second, "sat_12")}
+    txs = a.transmissions_until(150 * 10**9)
+    sent = {(t.bundle_id, t.next_hops): next_hops_of(decode_bundle(t.bundle_bytes)) for t in txs}
+    assert sent == {(second, ("sat_12",)): {12: (12,)}, (first, ("sat_13",)): {13: (13,)}}
+    assert next(t for t in txs if t.bundle_id == first).start_ns == 100 * 10**9

@@ -8,7 +8,8 @@ Oracles:
 * the bag opens with the ``mcap`` reader and with ``rosbags`` (independent readers), has /clock and
   every satellite's topics; ``constellation report BAG`` equals report.json (runtime aside);
 * physics of the medium - every copy on /sat_YY/dtn/in matches a transmission on /sat_XX/dtn/out
-  with arrival = start + bits / rate + light time, inside a contact XX -> YY of the truth plan.
+  with arrival = start + bits / rate + light time (bits: the bundle size plus a multicast copy's
+  recipient list), inside a contact XX -> YY of the truth plan.
 """
 
 from __future__ import annotations
@@ -117,11 +118,13 @@ def test_bundles_cross_only_inside_contacts_with_link_delay(runs, engine):
     by_pair: dict[tuple[str, str], list] = {}
     for c in world.isl_plan.contacts:
         by_pair.setdefault((c.src, c.dst), []).append(c)
+    from sat_node.dtn.routing_blocks import overhead_bits
+
     for receiver, t_arr, data in arrivals:
         ok = False
         for sender, t_start in sent.get(data, []):
             for c in by_pair.get((sender, receiver), []):
-                tx_ns = bits / c.rate_bps * 1e9
+                tx_ns = (bits + overhead_bits(data)) / c.rate_bps * 1e9  # a multicast copy's recipient list too
                 expect = t_start + tx_ns + c.range_light_s * 1e9
                 inside = c.start_s * 1e9 <= t_start and t_start + tx_ns <= c.end_s * 1e9 + 1
                 if inside and abs(t_arr - expect) <= 2:

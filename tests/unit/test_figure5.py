@@ -87,3 +87,12 @@ def test_plan_margin_needs_the_replan_before_the_access():
     # replans every 100 s: the plan for 80 s was made at 0 s, before X was even created
     assert figure5_data(bundle_rows(_events()), _windows(), GP_REGION, 100.0)["by_priority"][1]["arrived_before_plan"] == 0
     assert figure5_data(bundle_rows(_events()), _windows(), GP_REGION)["overall"]["plan_margin_fraction"] is None
+
+
+def test_bundle_rows_per_recipient_of_a_multicast_bundle():
+    """One multicast bundle "M" for sat_12 (P1) and sat_13 (P2): one row per recipient, each with its
+    own first delivery; a delivery to sat_13 does not stand for sat_12's."""
+    rows = bundle_rows([_created("M", "sat_12", 1, 50, 0), _created("M", "sat_13", 2, 50, 0),
+                        _delivered("M", "sat_13", 2, 50, 58), _delivered("M", "sat_13", 2, 50, 70)])
+    assert [(r.bundle_id, r.dst, r.priority, r.delivered_ns) for r in rows] == [
+        ("M", "sat_12", 1, None), ("M", "sat_13", 2, 58 * NS)]

@@ -48,6 +48,8 @@ def test_overhead_bits_count_the_recipient_list():
              + 2 * 7 + 1  # two more triples of 7 bytes (17 04 1a.., 181f 02 1a..); the 3 -> 9 item header
              + 5)  # next hops: 12 -> [12, 23] (one more byte), 21 -> [31] (15 81 181f: 4 more)
     assert rb.overhead_bits(encode_bundle(b)) == 8 * extra
+    assert rb.overhead_bits_of(rb.recipients_of(b), rb.next_hops_of(b)) == 8 * extra  # the agent's shortcut
+    assert rb.overhead_bits_of([(12, 1, 900_000)], {12: (12,)}, multicast=False) == 0
 
 
 @pytest.mark.parametrize("field, data, match", [

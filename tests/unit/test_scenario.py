@@ -65,6 +65,7 @@ def test_every_field_wrong_in_turn_gives_one_clear_error(paper_scenario, key):
         ("value.belief_sigma_min", 0.5, "above belief_sigma_max"),
         ("regions.list[0].lat_deg", 91.0, "<= 90"),
         ("isl.ttl_p1_s", 5000.0, "must not shrink"),
+        ("isl.forwarding", "flood", "enum"),
     ],
 )
 def test_out_of_range_values_are_named(paper_scenario, key, value, needle):

@@ -149,13 +149,14 @@ def _random_bundles(n: int, seed: int):
     next hop) and others (CRC-32C or no CRC, fragments, CRCs on blocks, unknown blocks, bundle age,
     creation time 0, report-to, dtn:none)."""
     from sat_node.dtn.bpsec import add_bib
-    from sat_node.dtn.bpv7 import CRC_16, CRC_32C, CRC_NONE, Bundle, CanonicalBlock
+    from sat_node.dtn.bpv7 import CRC_16, CRC_32C, CRC_NONE, Bundle, CanonicalBlock, Imc
     from sat_node.dtn.routing_blocks import set_routing
 
     rng = random.Random(seed)
     out = []
     for i in range(n):
-        b = Bundle(dest=(rng.randrange(0, 40), rng.choice([0, 1])), src=(rng.randrange(1, 40), 1),
+        b = Bundle(dest=rng.choice([(rng.randrange(0, 40), rng.choice([0, 1])), Imc(1, rng.choice([0, 1]))]),
+                   src=(rng.randrange(1, 40), 1),
                    creation_ms=rng.choice([0, rng.randrange(1, 2**40)]), seq=rng.randrange(0, 300),
                    lifetime_ms=rng.randrange(0, 10**7), payload=bytes(rng.randrange(256) for _ in range(rng.randrange(0, 90))),
                    crc_type=rng.choice([CRC_16, CRC_16, CRC_32C, CRC_NONE]),

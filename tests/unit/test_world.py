@@ -50,3 +50,23 @@ def test_satellite_agents_take_the_scenario_send_order_and_hop_tolerance(world):
     assert cfg.hop_tolerance_s == 30.0
     assert cfg.priority_delay_s == deadline_delays(cfg.ttl_s_by_priority)
     assert cfg.priority_delay_s[0] == isl.ttl_p1_s and cfg.priority_delay_s[14] == isl.ttl_p4_15_s
+
+
+def test_satellite_agents_take_the_scenario_forwarding(world):
+    """[isl] forwarding: multicast (the default) gives every satellite the multicast agent, unicast the
+    one-bundle-per-recipient agent of the study's simulator."""
+    import dataclasses
+
+    import msgspec
+
+    from sat_node.dtn.agent import BundleAgent
+    from sat_node.dtn.multicast import MulticastAgent
+    from sat_node.satellite import SatelliteLogic
+
+    sat = world.sat_names[0]
+    assert world.scenario.isl.forwarding == "multicast"
+    ag = SatelliteLogic(world, sat, "distributed").agent
+    assert type(ag) is MulticastAgent and ag.config.forwarding == "multicast"
+    isl = msgspec.structs.replace(world.scenario.isl, forwarding="unicast")
+    w2 = dataclasses.replace(world, scenario=msgspec.structs.replace(world.scenario, isl=isl))
+    assert type(SatelliteLogic(w2, sat, "distributed").agent) is BundleAgent
