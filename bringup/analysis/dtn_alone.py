@@ -61,6 +61,7 @@ class DtnRun:
     observations: int = 0  # traffic rows with at least one destination
     air_ns: dict = field(default_factory=dict)  # node -> time its radio was on air [ns]
     bits_on_air: dict = field(default_factory=dict)  # node -> bits it sent (recipient lists included)
+    span_ns: int = 0  # the contact plan's last contact end [ns]
 
     def held(self) -> int:
         """(bundle, recipient) pairs still held by the agents."""
@@ -87,7 +88,8 @@ class DtnRun:
         rep["dtn.transmissions_per_observation"] = (rep["dtn.transmissions"] / self.observations) \
             if self.observations else None
         rep["dtn.tx_failed"] = sum(n.port.tx_failed.get(k, 0) for n in self.nodes for k in n.port.tx_failed)
-        busy = [self.air_ns.get(n, 0) / self.end_ns for n in self.agents] if self.end_ns else []
+        span = self.span_ns or self.end_ns  # the plan's span (its last contact end): the radios' time
+        busy = [self.air_ns.get(n, 0) / span for n in self.agents] if span else []
         rep["dtn.radio_busy_fraction.mean"] = float(sum(busy) / len(busy)) if busy else None
         rep["dtn.radio_busy_fraction.max"] = max(busy) if busy else None
         rep["dtn.bits_on_air"] = sum(self.bits_on_air.values())
@@ -141,7 +143,8 @@ def run_dtn(plan: ContactPlan, traffic: list[TrafficItem], *, config: AgentConfi
     n_obs = len({(traffic[i].source, traffic[i].row, traffic[i].t_s) for i in created_ids})
     return DtnRun({n.name: n.agent for n in nodes}, router.link, events, created_ids,
                   time.perf_counter() - t0, horizon_ns, res.steps, nodes, n_obs,
-                  dict(router.link.air_ns), dict(router.link.bits_sent))
+                  dict(router.link.air_ns), dict(router.link.bits_sent),
+                  int(max((c.end_s for c in plan.contacts), default=0.0) * _NS))
 
 
 def _discard(_envelopes) -> None:
