@@ -10,8 +10,8 @@ file row, then priority, then destination name.
 run: a satellite whose bundles come from the table instead of its observations. It creates the
 bundles of each creation time at that instant (a payload naming the packet, padded to
 ``payload_bytes``): one per (row, destination) with a unicast agent, one per row - an observation,
-with all its destinations - with a multicast agent (sat_node/dtn/multicast.py); everything else - receiving, the medium's failure reports, the radio, the bundle
-events - is the satellite's own code path (sat_node/dtn/port.py). It asks to be woken just after
+with all its destinations - with a multicast agent (sat_node/dtn/multicast.py); everything else -
+receiving, the medium's failure reports, the radio, the bundle events - is the satellite's own code path (sat_node/dtn/port.py). It asks to be woken just after
 its next creation time and its port's next event (the radio's next decision, an expiry, the end of
 a transmission in flight), so every decision is taken at its own instant after every arrival and
 creation up to it, and the medium hears of every transmission by its end: the run is the DTN in
