@@ -236,9 +236,15 @@ def peek_next_hops(data: bytes) -> tuple[int, ...]:
     return _peek(data)[0]
 
 
+def _head_len(n: int) -> int:
+    """Bytes of a CBOR head carrying ``n`` (an unsigned integer, or a length)."""
+    return 1 if n < 24 else 2 if n < 256 else 3 if n < 65536 else 5 if n < 2**32 else 9
+
+
 def routing_bytes(block_data: dict[int, bytes]) -> int:
-    """Encoded size of routing blocks given their data by type (block header included)."""
-    return sum(len(cbor2.dumps([t, 2, 0, 0, d])) for t, d in block_data.items())
+    """Encoded size of routing blocks given their data by type (block header included):
+    ``len(cbor2.dumps([type, number, 0, 0, data]))`` for a block number below 24, by arithmetic."""
+    return sum(1 + _head_len(t) + 1 + 1 + 1 + _head_len(len(d)) + len(d) for t, d in block_data.items())
 
 
 def _overhead_bytes(block_data: dict[int, bytes]) -> int:
@@ -259,13 +265,20 @@ def _overhead_bytes(block_data: dict[int, bytes]) -> int:
 def overhead_bits_of(recipients, split: dict[int, tuple[int, ...]] | None, multicast: bool = True) -> int:
     """:func:`overhead_bits` of the copy whose routing blocks :func:`set_routing` would write for
     ``recipients`` and ``split`` (without encoding the bundle)."""
-    recipients = sorted(recipients)
-    data = {RECIPIENTS_BLOCK: encode_recipients(recipients)}
-    if multicast:
-        data[IMC_BLOCK] = encode_imc(r[0] for r in recipients)
-    if split is not None:
-        data[NEXT_HOPS_BLOCK] = encode_next_hops(split)
-    return 8 * _overhead_bytes(data)
+    key = (tuple(sorted(recipients)), None if split is None else tuple(sorted(split.items())), multicast)
+    got = _OVERHEAD_OF.get(key)
+    if got is None:
+        data = {RECIPIENTS_BLOCK: encode_recipients(key[0])}
+        if multicast:
+            data[IMC_BLOCK] = encode_imc(r[0] for r in key[0])
+        if split is not None:
+            data[NEXT_HOPS_BLOCK] = encode_next_hops(split)
+        got = 8 * _overhead_bytes(data)
+        _memo(_OVERHEAD_OF, key, got)
+    return got
+
+
+_OVERHEAD_OF: dict = {}
 
 
 def overhead_bits(data: bytes) -> int:

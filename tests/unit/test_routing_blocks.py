@@ -160,3 +160,14 @@ def test_multicast_bundle_parses_in_pyd3tn(pyd3tn_bundle7):
     _check_with_pyd3tn(pyd3tn_bundle7, raw, decode_bundle(raw))
     verify_bib(decode_bundle(bytes(pyd3tn_bundle7.Bundle.parse(raw))), b"k" * 32)
     assert node_number("sat_12") == 12
+
+
+def test_routing_block_sizes_by_arithmetic_equal_cbor2():
+    """routing_bytes computes a block's encoded size without encoding it: checked against cbor2."""
+    import random
+
+    rng = random.Random(5)
+    for _ in range(500):
+        t = rng.choice([rb.IMC_BLOCK, rb.RECIPIENTS_BLOCK, rb.NEXT_HOPS_BLOCK, 7, 23, 24])
+        d = bytes(rng.randrange(256) for _ in range(rng.choice([0, 5, 23, 24, 100, 255, 256, 300])))
+        assert rb.routing_bytes({t: d}) == len(cbor2.dumps([t, 2, 0, 0, d]))
