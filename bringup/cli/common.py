@@ -14,7 +14,7 @@ from pathlib import Path
 from bringup.errors import UserError
 from bringup.scenario.config import KNOWLEDGE_MODELS, Scenario, load_scenario
 
-_OVERRIDES = ("sats", "hours", "seed", "knowledge", "transiency_min", "gp_spacing_km", "joint_planning")
+_OVERRIDES = ("sats", "hours", "seed", "knowledge", "transiency_min", "gp_spacing_km", "joint_planning", "forwarding")
 
 
 def transiency_arg(text: str) -> float:
@@ -42,7 +42,7 @@ def add_scenario_args(p: argparse.ArgumentParser, *, overrides: bool = True, kno
 
 def add_knowledge_args(p: argparse.ArgumentParser) -> None:
     """What the planners know and of which field (scenario keys value.knowledge, value.transiency_min,
-    regions.gp_spacing_km, scheduler.joint_planning)."""
+    regions.gp_spacing_km, scheduler.joint_planning), and how the news travels (isl.forwarding)."""
     p.add_argument("--knowledge", choices=KNOWLEDGE_MODELS, default=None,
                    help="what a planner knows: study (the field as of its newest information per region), "
                         "observed (forecast + observations), oracle (the truth; comparison only) "
@@ -55,6 +55,9 @@ def add_knowledge_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--planning", choices=("joint", "alone"), default=None,
                    help="plan satellites with overlapping fields of regard jointly (the study's) or each alone "
                         "(default: scenario)")
+    p.add_argument("--forwarding", choices=("multicast", "unicast"), default=None,
+                   help="DTN forwarding (scenario key isl.forwarding): one bundle per observation to its recipient "
+                        "list (multicast) or one per recipient (unicast, the study simulator's) (default: scenario)")
 
 
 def scenario_from_args(args: argparse.Namespace) -> Scenario:

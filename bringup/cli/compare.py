@@ -70,6 +70,8 @@ def run(args: argparse.Namespace) -> int:
         extra += ["--gp-spacing-km", repr(args.gp_spacing_km)]
     if args.planning is not None:
         extra += ["--planning", args.planning]
+    if getattr(args, "forwarding", None) is not None:
+        extra += ["--forwarding", args.forwarding]
     say(f"compare: knowledge {sc.value.knowledge}, transiency {sc.value.transiency_min:g} min "
         f"(0: slow), {sc.gp_spacing_km:g} km GPs, planning {'joint' if sc.scheduler.joint_planning else 'alone'}")
     by_mode = C.run_matrix(scenario=args.scenario, seeds=seeds, out=out, engine=args.engine, sats=args.sats,

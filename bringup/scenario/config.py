@@ -199,9 +199,11 @@ class Scenario(_S, kw_only=True):
     def with_overrides(self, *, sats: int | None = None, hours: float | None = None,
                        seed: int | None = None, knowledge: str | None = None,
                        transiency_min: float | None = None, gp_spacing_km: float | None = None,
-                       joint_planning: bool | None = None, viz_period_s: float | None = None) -> "Scenario":
+                       joint_planning: bool | None = None, viz_period_s: float | None = None,
+                       forwarding: str | None = None) -> "Scenario":
         """A copy with the CLI overrides applied (``--sats``, ``--hours``, ``--seed``,
-        ``--knowledge``, ``--transiency-min``, ``--gp-spacing-km``, ``--planning``, ``--viz-period-s``).
+        ``--knowledge``, ``--transiency-min``, ``--gp-spacing-km``, ``--planning``, ``--viz-period-s``,
+        ``--forwarding``).
 
         ``sats`` keeps the number of planes when it divides evenly, else uses one plane per
         ``ceil(sats / sats_per_plane)``; the result is validated like a file.
@@ -210,7 +212,8 @@ class Scenario(_S, kw_only=True):
         raw.pop("source_path", None)
         for table, key, v in (("value", "knowledge", knowledge), ("value", "transiency_min", transiency_min),
                               ("regions", "gp_spacing_km", gp_spacing_km),
-                              ("scheduler", "joint_planning", joint_planning), ("viz", "period_s", viz_period_s)):
+                              ("scheduler", "joint_planning", joint_planning), ("viz", "period_s", viz_period_s),
+                              ("isl", "forwarding", forwarding)):
             if v is not None:
                 raw[table][key] = float(v) if isinstance(v, int) and not isinstance(v, bool) else v
         if sats is not None:

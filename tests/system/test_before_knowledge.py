@@ -4,7 +4,7 @@ difference can be explained rather than lost.
 
 Oracle: the paper scenario with the settings before those changes - ``oracle`` knowledge (the
 truth at planning time), the slow storm-cell field (transiency 0), GPs at the footprint (8 km, 500
-GPs), each satellite planned alone - gives the report of the commit before them (local engine, seed
+GPs), each satellite planned alone, one unicast bundle per recipient - gives the report of the commit before them (local engine, seed
 1): cumulative value 41786.93, 3334 observations, 497 of 500 GPs, 22260 bundles created and 21651
 delivered (the README's figures before knowledge models).
 """
@@ -21,7 +21,7 @@ pytestmark = [pytest.mark.system]
 
 def test_old_settings_give_the_old_report():
     sc = load_scenario("paper").with_overrides(knowledge="oracle", transiency_min=0.0, gp_spacing_km=8.0,
-                                               joint_planning=False)
+                                               joint_planning=False, forwarding="unicast")
     rep = run_in_process(sc, "distributed")
     assert rep["value"]["cumulative"] == pytest.approx(41786.929, abs=5e-3)
     assert rep["observations"]["count"] == 3334

@@ -108,3 +108,16 @@ def test_cli_prints_one_line_without_traceback(tmp_path):
     assert "Traceback" not in r.stderr
     lines = [ln for ln in r.stderr.splitlines() if ln.strip()]
     assert len(lines) == 1 and "isl.rate_bps" in lines[0], r.stderr
+
+
+def test_forwarding_override(paper_scenario):
+    """``--forwarding`` (run, compare, sweep) sets isl.forwarding; the paper's default is multicast."""
+    assert paper_scenario.isl.forwarding == "multicast"
+    assert paper_scenario.with_overrides(forwarding="unicast").isl.forwarding == "unicast"
+    with pytest.raises(ScenarioError, match="isl.forwarding"):
+        paper_scenario.with_overrides(forwarding="flood")
+    from bringup.cli.main import build_parser
+    from bringup.cli.common import scenario_from_args
+
+    args = build_parser().parse_args(["run", "--forwarding", "unicast", "--hours", "1"])
+    assert scenario_from_args(args).isl.forwarding == "unicast"
