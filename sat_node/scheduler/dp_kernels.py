@@ -152,7 +152,8 @@ def dp_forward(k_lo, k_hi, t_off, st_k, st_g, st_u, st_vf, st_n1, root_ok, cos_t
             bp[s] = b
             if bits and b > -2:
                 if b >= 0:
-                    seen_b[s, :] = seen_b[b, :]
+                    for w in range(seen_b.shape[1]):
+                        seen_b[s, w] = seen_b[b, w]
                 seen_b[s, g >> 6] |= np.uint64(1) << np.uint64(g & 63)
             elif table and b > -2:
                 if b >= 0:

@@ -21,9 +21,10 @@ takes a contested GP:
   runs out.
 
 For longer spans (the ground's plans reach to the next pass) a GP can be worth something twice,
-15 min apart: there the dive alone runs, and a contested look becomes a claim (the winner's look
-as a plan that outranks, :func:`sat_node.value.prior_state`) that zeroes the GP only within 15 min
-of it.
+15 min apart: there the dive alone runs, for at most ``DIVE_ROUNDS_LONG`` rounds, and a contested
+look becomes a claim (the winner's look as a plan that outranks, :func:`sat_node.value.prior_state`)
+that zeroes the GP only within 15 min of it; looks still contested after the last round are worth
+0 in the joint value (the plans stay feasible).
 
 Exactness (the oracle statements the tests check, tests/unit/test_joint.py): when every satellite's
 DP is exact (no satellite can see a GP twice in the window, as in dp.py) and the budget is not
@@ -49,6 +50,8 @@ from sat_node.value import KnownObservation, prior_state
 __all__ = ["JointResult", "group_span_s", "joint_value", "solve_joint", "with_claims", "with_forbidden"]
 
 CLAIM_SOURCE = ""  # sorts before every satellite name: a claim outranks the satellite it is put on
+DIVE_ROUNDS = 16  # rounds of the greedy dive (a round re-solves the satellites that lost a contest)
+DIVE_ROUNDS_LONG = 4  # for long spans (the ground's: a satellite's plan to its next pass costs ~0.2-0.5 s)
 
 
 @dataclass(frozen=True)
@@ -165,7 +168,7 @@ def solve_joint(problems: list[SchedulingProblem], *, budget_solves: int = 64, c
     visible = [_visible(p) for p in problems]
     # the greedy dive: contested GPs to the first look, until nothing is contested
     forb = tuple(frozenset() for _ in problems)
-    for _ in range(16):
+    for _ in range(DIVE_ROUNDS):
         plans = s.node(forb)
         cont = _contested(problems, plans)
         if not cont:
@@ -220,7 +223,7 @@ def _dive_claims(problems, check: bool) -> tuple[list[Plan], int]:
     claims: list[list[tuple[int, float]]] = [[] for _ in problems]
     plans = [solve_dp(p, check=check) for p in problems]
     solves = len(problems)
-    for _ in range(16):
+    for _ in range(DIVE_ROUNDS_LONG):
         cont = _contested(problems, plans)
         if not cont:
             break

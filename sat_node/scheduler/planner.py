@@ -163,8 +163,8 @@ class Planner:
               partners: Sequence[tuple[str, float]] | None = None) -> list[SchedulingProblem]:
         """The instances of the satellites planned jointly with ``sat`` (module docstring, step 5):
         each partner free before the group's end - ``t0_s`` plus the longer of the window and
-        ``revisit_zero_s`` - over the GPs it may see then, kept when one of them is a GP ``mine``
-        may see."""
+        ``revisit_zero_s`` - over its first ``revisit_zero_s`` once free and the GPs it may see then,
+        kept when one of them is a GP ``mine`` may see."""
         st = self.settings
         end = t0_s + max(window_s, st.revisit_zero_s)
         if partners is None:
@@ -187,7 +187,8 @@ class Planner:
                             st.for_off_nadir_deg)
             if not seen.any():
                 continue
-            q = self.instance(name, start, knowledge, window_s=end - start, gp_ids=ids)
+            # a partner's part: its first revisit_zero_s once free (a GP counts once over it)
+            q = self.instance(name, start, knowledge, window_s=min(end, start + st.revisit_zero_s) - start, gp_ids=ids)
             if mine_gps.intersection(q.gp_ids[q.v_first.any(axis=0)].tolist()):
                 out.append(q)
         return out
