@@ -45,6 +45,8 @@ from typing import Annotated, Literal
 import msgspec
 from msgspec import Meta
 
+from msgs_json.names import SAT_NAME_PATTERN
+
 __all__ = [
     "DROP_REASONS",
     "MESSAGE_TYPES",
@@ -73,9 +75,9 @@ SCHEMA_VERSION = 1
 
 # --- field types (constraints are checked by msgspec on decode) ------------------------------------
 NsTime = Annotated[int, Meta(ge=0, le=2**63 - 1, description="integer ns since the scenario epoch")]
-SatName = Annotated[str, Meta(pattern=r"^sat_[1-9][0-9]$", description="sat_PS, plane P, slot S")]
+SatName = Annotated[str, Meta(pattern=SAT_NAME_PATTERN, description="sat_PS or sat_PPPP_SSSS (msgs_json/names.py)")]
 StationName = Annotated[str, Meta(pattern=r"^gs_[A-Za-z0-9_]{1,32}$")]
-NodeName = Annotated[str, Meta(pattern=r"^(sat_[1-9][0-9]|gs_[A-Za-z0-9_]{1,32})$")]
+NodeName = Annotated[str, Meta(pattern=rf"(?:{SAT_NAME_PATTERN})|(?:^gs_[A-Za-z0-9_]{{1,32}}$)")]
 ParticipantName = Annotated[str, Meta(pattern=r"^[A-Za-z0-9_]{1,64}$")]
 TopicName = Annotated[str, Meta(pattern=r"^(/[A-Za-z0-9_]+)+$", max_length=256)]
 GpIndex = Annotated[int, Meta(ge=0, le=2**31 - 1, description="global ground-point index")]

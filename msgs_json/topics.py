@@ -1,7 +1,7 @@
 """Topic names (DESIGN.md section 4) and which payload each carries.
 
 Names are contracts: build them only with these functions. A satellite's topics live under
-``/<sat>/`` (``sat_PS``). Every lockstep data topic carries a wire envelope (msgs_json/wire.py) on
+``/<sat>/`` (``sat_PS`` or ``sat_PPPP_SSSS``: msgs_json/names.py). Every lockstep data topic carries a wire envelope (msgs_json/wire.py) on
 std_msgs/msg/String; its payload is JSON of the schema ``schema_for(topic)`` names, or raw bytes
 (BPv7 bundles) when ``is_bytes_topic(topic)``. Visualisation topics (``fix_topic(sat)``,
 ``VIZ_MARKERS``, the plotted series ``VIZ_VALUE`` and ``VIZ_IN_FLIGHT``, the TF tree ``TF`` and
@@ -16,6 +16,7 @@ from __future__ import annotations
 import re
 
 from msgs_json import schemas as S
+from msgs_json.names import SAT_NAME_PATTERN, is_sat_name
 from msgs_json.schemas import SCHEMA_VERSION
 
 __all__ = [
@@ -62,17 +63,11 @@ TF = "/tf"  # tf2_msgs/msg/TFMessage: earth -> each satellite's orbit frame
 TF_STATIC = "/tf_static"  # tf2_msgs/msg/TFMessage: earth -> each ground station (ENU)
 DIAGNOSTICS = "/diagnostics"  # diagnostic_msgs/msg/DiagnosticArray: live counters of ROS runs
 
-_SAT_RE = re.compile(r"^sat_[1-9][0-9]$")
-
-
-def is_sat_name(name: str) -> bool:
-    """True for a satellite's name (``sat_PS``), the first part of its topics."""
-    return isinstance(name, str) and _SAT_RE.match(name) is not None
 
 
 def _sat(sat: str, leaf: str) -> str:
-    if not isinstance(sat, str) or not _SAT_RE.match(sat):
-        raise ValueError(f"topic for {sat!r}: satellite names are sat_PS (e.g. sat_11)")
+    if not is_sat_name(sat):
+        raise ValueError(f"topic for {sat!r}: satellite names are sat_PS or sat_PPPP_SSSS (e.g. sat_11, sat_0012_0020)")
     return f"/{sat}/{leaf}"
 
 
@@ -136,7 +131,7 @@ _PER_SAT: dict[str, object] = {
     "dtn/in": bytes,
     "dtn/status": S.TransmissionFailed,
 }
-_SAT_TOPIC_RE = re.compile(r"^/(sat_[1-9][0-9])/(.+)$")
+_SAT_TOPIC_RE = re.compile(rf"^/({SAT_NAME_PATTERN[1:-1]})/(.+)$")
 
 
 def sat_of_topic(topic: str) -> str | None:

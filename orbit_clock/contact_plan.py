@@ -2,9 +2,10 @@
 
 A contact is directed (``src`` -> ``dst``); a bidirectional link appears as two contacts, as in
 the study's plan (../shared/paper_inputs/contact_plan_3p_8s.csv) and in ION's ``a contact``.
-Node names are ``sat_PS`` for satellites and ``gs_<name>`` for ground stations; the ipn node
-number (RFC 9171 section 4.2.5.1.2) of ``sat_PS`` is ``10*P + S`` and of the i-th ground station
-(0-based, scenario order) is ``100 + i``.
+Node names are the satellites' names (``sat_PS``, or ``sat_PPPP_SSSS`` beyond 9 planes x 9 slots:
+msgs_json/names.py) and ``gs_<name>`` for ground stations; the ipn node number (RFC 9171 section
+4.2.5.1.2) of a satellite is its name's digits (``10*P + S``, ``10000*P + S``) and of the i-th
+ground station (0-based, scenario order) is ``100 + i``.
 
 File formats (the study's CSV, ION, HDTN JSON) are read and written by
 orbit_clock/contact_plan_io.py.
@@ -18,10 +19,12 @@ from __future__ import annotations
 import re
 from dataclasses import dataclass
 
+from msgs_json.names import STATION_NODE_BASE, is_sat_name, sat_from_number, sat_number
+
 __all__ = ["GS_NODE_BASE", "Contact", "ContactPlan", "canonical_node", "node_name", "node_number"]
 
-GS_NODE_BASE = 100
-_SAT_RE = re.compile(r"^(?:sat_|s|Sat|SAT)(\d)(\d)$")
+GS_NODE_BASE = STATION_NODE_BASE
+_STUDY_RE = re.compile(r"^(?:s|Sat|SAT)([1-9])([1-9])$")  # the study's spellings of sat_PS
 
 
 @dataclass(frozen=True, order=True)
@@ -76,33 +79,34 @@ class ContactPlan:
         return [c for c in self.contacts if c.start_s <= t_s < c.end_s]
 
 
-_SAT_NUMBERS: dict[str, int] = {}  # satellite name -> number, filled as names are seen (at most 81)
+_SAT_NUMBERS: dict[str, int] = {}  # satellite name -> number, filled as names are seen
 
 
 def node_number(name: str, ground_stations: list[str] | None = None) -> int:
-    """ipn node number of a node name: sat_PS -> 10P+S; gs_<x> -> 100 + index in ground_stations."""
+    """ipn node number of a node name: a satellite's digits (msgs_json/names.py); gs_<x> -> 100 +
+    index in ground_stations."""
     n = _SAT_NUMBERS.get(name)
     if n is not None:
         return n
-    m = _SAT_RE.match(name)
-    if m:
-        n = _SAT_NUMBERS[name] = 10 * int(m.group(1)) + int(m.group(2))
+    if is_sat_name(name):
+        n = _SAT_NUMBERS[name] = sat_number(name)
         return n
     if name.startswith("gs_") and ground_stations is not None and name in ground_stations:
         return GS_NODE_BASE + ground_stations.index(name)
-    raise ValueError(f"node name {name!r}: not sat_PS, nor a known ground station")
+    raise ValueError(f"node name {name!r}: not a satellite (sat_PS, sat_PPPP_SSSS), nor a known ground station")
 
 
 def node_name(number: int, ground_stations: list[str] | None = None) -> str:
     """Inverse of node_number."""
-    if 11 <= number <= 99 and number % 10:
-        return f"sat_{number}"
+    name = sat_from_number(number)
+    if name is not None:
+        return name
     if ground_stations is not None and 0 <= number - GS_NODE_BASE < len(ground_stations):
         return ground_stations[number - GS_NODE_BASE]
-    raise ValueError(f"ipn node number {number}: not a satellite (11..99) nor a known ground station")
+    raise ValueError(f"ipn node number {number}: not a satellite (11..99, 10001..) nor a known ground station")
 
 
 def canonical_node(name: str) -> str:
     """The study's spellings (s11, Sat11) -> sat_11; other names unchanged."""
-    m = _SAT_RE.match(name)
+    m = _STUDY_RE.match(name)
     return f"sat_{m.group(1)}{m.group(2)}" if m else name

@@ -4,8 +4,9 @@
 - Walker Star: P planes with RAAN spread over 180 deg (spacing 180/P), as the study's 24/3/1
   near-polar constellation (planes at RAAN 0/60/120 deg; Nag et al. 2019, section 5).
 In both, the S = T/P satellites of a plane are 360/S apart in argument of latitude and plane p is
-phased F*360/T deg ahead of plane p-1. Satellites are named ``sat_PS`` (plane P, slot S, from 1),
-in the scenario's ``sat_names`` order (plane-major).
+phased F*360/T deg ahead of plane p-1. Satellites are named by plane and slot (from 1):
+``sat_PS`` up to 9 planes x 9 slots, ``sat_PPPP_SSSS`` beyond (msgs_json/names.py), in the
+scenario's ``sat_names`` order (plane-major).
 
 How we know it is right: tests/unit/test_orbit_propagation.py checks the paper's 24/3/1 values by
 hand (RAAN 0/60/120, 45 deg in-plane spacing, 15 deg inter-plane phase, semi-major axis 6378.137 +
@@ -17,6 +18,7 @@ from __future__ import annotations
 import datetime as _dt
 from dataclasses import dataclass
 
+from msgs_json.names import constellation_limits_error, sat_name
 from orbit_clock.frames import WGS84_A_KM
 
 __all__ = ["WalkerElements", "walker_elements"]
@@ -46,11 +48,12 @@ class WalkerElements:
 
 def walker_elements(*, pattern: str, total_sats: int, planes: int, phasing_f: int, altitude_km: float,
                     inclination_deg: float, raan0_deg: float, epoch: _dt.datetime) -> list[WalkerElements]:
-    """Element sets of a Walker i:T/P/F pattern ('star' or 'delta'), in sat_PS plane-major order."""
+    """Element sets of a Walker i:T/P/F pattern ('star' or 'delta'), plane-major (the names' order)."""
     if pattern not in ("star", "delta"):
         raise ValueError(f"walker pattern {pattern!r}: must be 'star' or 'delta'")
-    if planes < 1 or total_sats % planes:
-        raise ValueError(f"walker {total_sats}/{planes}: satellites do not split evenly into planes")
+    why = constellation_limits_error(total_sats, planes)
+    if why is not None:
+        raise ValueError(f"walker {total_sats}/{planes}: {why}")
     per_plane = total_sats // planes
     spread_deg = 180.0 if pattern == "star" else 360.0
     sma_km = WGS84_A_KM + altitude_km
@@ -59,6 +62,6 @@ def walker_elements(*, pattern: str, total_sats: int, planes: int, phasing_f: in
         raan = (raan0_deg + p * spread_deg / planes) % 360.0
         for s in range(per_plane):
             arglat = (s * 360.0 / per_plane + p * phasing_f * 360.0 / total_sats) % 360.0
-            out.append(WalkerElements(f"sat_{p + 1}{s + 1}", p + 1, s + 1, sma_km, inclination_deg,
-                                      raan, arglat, epoch))
+            out.append(WalkerElements(sat_name(p + 1, s + 1, planes, per_plane), p + 1, s + 1, sma_km,
+                                      inclination_deg, raan, arglat, epoch))
     return out

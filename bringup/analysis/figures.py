@@ -36,6 +36,8 @@ from matplotlib.collections import PolyCollection
 from matplotlib.figure import Figure
 from matplotlib.patches import Patch, Rectangle
 
+from msgs_json.names import is_sat_name, sat_plane_slot
+
 __all__ = [
     "PlotError",
     "figure_contact_timeline",
@@ -82,7 +84,7 @@ def _get(obj: Any, key: str, default: Any = None) -> Any:
 
 
 def _plane_of(name: str) -> str:
-    return name[4] if name.startswith("sat_") and len(name) == 6 else name
+    return str(sat_plane_slot(name)[0]) if is_sat_name(name) else name
 
 
 def _colors(n: int) -> list:
@@ -98,15 +100,15 @@ def figure_ground_tracks(tracks: Mapping[str, tuple[Sequence[float], Sequence[fl
                          title: str = "Ground tracks and regions") -> Figure:
     """Sub-satellite points per satellite and region squares on a plain lat/lon map.
 
-    tracks: sat name -> (lat_deg[], lon_deg[]). Satellites named ``sat_PS`` share a colour per
-    plane P. regions / stations: dicts or objects with name, lat_deg, lon_deg (and size_km for
+    tracks: sat name -> (lat_deg[], lon_deg[]). Satellites (``sat_PS``, ``sat_PPPP_SSSS``) share
+    a colour per plane P. regions / stations: dicts or objects with name, lat_deg, lon_deg (and size_km for
     regions). Tracks are broken where they cross the dateline.
     """
     if not tracks:
         raise PlotError("ground tracks: no satellite tracks given")
     fig = Figure(figsize=(12, 6.2), layout="constrained")
     ax = fig.add_subplot()
-    planes = sorted({_plane_of(n) for n in tracks})
+    planes = sorted({_plane_of(n) for n in tracks}, key=lambda p: (not p.isdigit(), int(p) if p.isdigit() else 0, p))
     pcol = dict(zip(planes, _colors(len(planes)), strict=True))
     labelled = set()
     for name in sorted(tracks):

@@ -13,8 +13,10 @@ from pathlib import Path
 
 from bringup.errors import UserError
 from bringup.scenario.config import KNOWLEDGE_MODELS, Scenario, load_scenario
+from msgs_json.names import MAX_PLANES, MAX_SATS
 
-_OVERRIDES = ("sats", "hours", "seed", "knowledge", "transiency_min", "gp_spacing_km", "joint_planning", "forwarding")
+_OVERRIDES = ("sats", "planes", "hours", "seed", "knowledge", "transiency_min", "gp_spacing_km", "joint_planning",
+              "forwarding")
 
 
 def transiency_arg(text: str) -> float:
@@ -33,7 +35,12 @@ def transiency_arg(text: str) -> float:
 def add_scenario_args(p: argparse.ArgumentParser, *, overrides: bool = True, knowledge: bool = False) -> None:
     p.add_argument("--scenario", default="paper", help="scenario name or TOML path (default: paper)")
     if overrides:
-        p.add_argument("--sats", type=int, default=None, help="number of satellites (default: scenario)")
+        p.add_argument("--sats", type=int, default=None,
+                       help=f"number of satellites, 1..{MAX_SATS}; named sat_PS up to 9 planes x 9, "
+                            f"sat_PPPP_SSSS beyond (default: scenario)")
+        p.add_argument("--planes", type=int, default=None,
+                       help=f"orbital planes, 1..{MAX_PLANES}, dividing the satellites evenly (default: the "
+                            f"scenario's, or the largest below it that divides --sats)")
         p.add_argument("--hours", type=float, default=None, help="horizon [h] (default: scenario)")
         p.add_argument("--seed", type=int, default=None, help="seed (default: scenario)")
     if knowledge:
@@ -60,11 +67,18 @@ def add_knowledge_args(p: argparse.ArgumentParser) -> None:
                         "list (multicast) or one per recipient (unicast, the study simulator's) (default: scenario)")
 
 
-def scenario_from_args(args: argparse.Namespace) -> Scenario:
-    sc = load_scenario(args.scenario)
+def overrides_of(args: argparse.Namespace) -> dict:
+    """The scenario overrides given on the command line, as ``Scenario.with_overrides`` keywords
+    (None: not given)."""
     kw = {k: getattr(args, k, None) for k in _OVERRIDES if k != "joint_planning"}
     planning = getattr(args, "planning", None)
     kw["joint_planning"] = None if planning is None else planning == "joint"
+    return kw
+
+
+def scenario_from_args(args: argparse.Namespace) -> Scenario:
+    sc = load_scenario(args.scenario)
+    kw = overrides_of(args)
     if kw["gp_spacing_km"] is not None and not kw["gp_spacing_km"] > 0:
         raise UserError(f"--gp-spacing-km {kw['gp_spacing_km']}: must be > 0")
     if any(v is not None for v in kw.values()):

@@ -24,7 +24,7 @@ from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
 from bringup.analysis.report import ReportBuilder, RunMeta, report_from_bag
 from bringup.analysis.report_md import write_report_md
-from bringup.cli.common import add_scenario_args, scenario_from_args
+from bringup.cli.common import add_scenario_args, overrides_of, scenario_from_args
 from bringup.engine.local import run_local
 from bringup.engine.ros.factory import FACTORY, PREPARE
 from bringup.engine.ros.launcher import launch
@@ -219,7 +219,7 @@ def _run_ros(world, world_path: Path, args, meta, bag_dir: Path, out: Path, rout
     # on the start: a slow one (cold caches, a loaded machine) is waited for and named, never fatal
     spec = RunSpec(factory=FACTORY, prepare=PREPARE, startup_timeout_s=None,
                    roles=roles_for(world, args.mode), scenario=str(Path(sc.source_path).resolve()),
-                   overrides={"sats": args.sats, "hours": args.hours, "seed": args.seed}, mode=args.mode,
+                   overrides=overrides_of(args), mode=args.mode,
                    real_time_factor=args.real_time_factor, bag_dir=str(bag_dir.resolve()),
                    max_restarts=args.restart, restart_wait_s=120.0 if args.restart else 0.0,
                    state_dir=str((out / "state").resolve()) if args.restart else None,

@@ -17,6 +17,9 @@ from typing import Annotated, List, Literal
 
 import msgspec
 
+from msgs_json.names import MAX_PLANES, MAX_SATS, MAX_STATIONS, constellation_limits_error
+from msgs_json.names import sat_names as _sat_names
+
 __all__ = [
     "ScenarioError",
     "Scenario",
@@ -54,8 +57,8 @@ class ScenarioMeta(_S, kw_only=True):
 
 class ConstellationCfg(_S, kw_only=True):
     pattern: Literal["star", "delta"] = "star"
-    total_sats: Annotated[int, msgspec.Meta(ge=1, le=99)]
-    planes: Annotated[int, msgspec.Meta(ge=1, le=9)]
+    total_sats: Annotated[int, msgspec.Meta(ge=1, le=MAX_SATS)]
+    planes: Annotated[int, msgspec.Meta(ge=1, le=MAX_PLANES)]
     phasing_f: Annotated[int, msgspec.Meta(ge=0)] = 1
     altitude_km: Annotated[float, msgspec.Meta(gt=150, lt=40000)]
     inclination_deg: Annotated[float, msgspec.Meta(ge=0, le=180)]
@@ -151,7 +154,7 @@ class Station(_S, kw_only=True):
 class GroundCfg(_S, kw_only=True):
     min_elevation_deg: Annotated[float, msgspec.Meta(ge=0, lt=90)] = 10.0
     rate_bps: Pos = 1.0e6
-    stations: list[Station] = []
+    stations: Annotated[list[Station], msgspec.Meta(max_length=MAX_STATIONS)] = []
 
 
 class Scenario(_S, kw_only=True):
@@ -197,16 +200,18 @@ class Scenario(_S, kw_only=True):
         return sat_names(self.constellation.planes, self.constellation.sats_per_plane)
 
     def with_overrides(self, *, sats: int | None = None, hours: float | None = None,
-                       seed: int | None = None, knowledge: str | None = None,
+                       seed: int | None = None, planes: int | None = None, knowledge: str | None = None,
                        transiency_min: float | None = None, gp_spacing_km: float | None = None,
                        joint_planning: bool | None = None, viz_period_s: float | None = None,
                        forwarding: str | None = None) -> "Scenario":
-        """A copy with the CLI overrides applied (``--sats``, ``--hours``, ``--seed``,
+        """A copy with the CLI overrides applied (``--sats``, ``--planes``, ``--hours``, ``--seed``,
         ``--knowledge``, ``--transiency-min``, ``--gp-spacing-km``, ``--planning``, ``--viz-period-s``,
         ``--forwarding``).
 
-        ``sats`` keeps the number of planes when it divides evenly, else uses one plane per
-        ``ceil(sats / sats_per_plane)``; the result is validated like a file.
+        ``sats`` without ``planes`` keeps the number of planes when it divides evenly, else takes
+        the largest number of planes below it that does; ``planes`` sets it (``phasing_f`` is kept
+        when it is still in 0..planes-1, else set to 1 % planes). The result is validated like a
+        file: sizes beyond the limits (msgs_json/names.py) are one line naming the key.
         """
         raw = msgspec.to_builtins(self)
         raw.pop("source_path", None)
@@ -216,14 +221,19 @@ class Scenario(_S, kw_only=True):
                               ("isl", "forwarding", forwarding)):
             if v is not None:
                 raw[table][key] = float(v) if isinstance(v, int) and not isinstance(v, bool) else v
+        c = raw["constellation"]
+        if planes is not None:
+            c["planes"] = planes
+            if planes >= 1 and not 0 <= c["phasing_f"] < max(planes, 2):
+                c["phasing_f"] = 1 % planes
         if sats is not None:
-            c = raw["constellation"]
-            planes = c["planes"]
-            if sats % planes != 0:
-                planes = max(1, min(planes, sats))
-                while sats % planes:
-                    planes -= 1
-            c["total_sats"], c["planes"] = sats, planes
+            c["total_sats"] = sats
+            p = c["planes"]
+            if planes is None and sats >= 1 and sats % p != 0:
+                p = max(1, min(p, sats))
+                while sats % p:
+                    p -= 1
+                c["planes"] = p
         if hours is not None:
             raw["scenario"]["horizon_s"] = float(hours) * 3600.0
         if seed is not None:
@@ -232,8 +242,9 @@ class Scenario(_S, kw_only=True):
 
 
 def sat_names(planes: int, per_plane: int) -> list[str]:
-    """Satellite names ``sat_PS`` (plane P 1.., slot S 1..), as the study's Sat11..Sat38."""
-    return [f"sat_{p}{s}" for p in range(1, planes + 1) for s in range(1, per_plane + 1)]
+    """Satellite names in plane-major order: ``sat_PS`` (plane P 1.., slot S 1..), as the study's
+    Sat11..Sat38, up to 9 x 9; ``sat_PPPP_SSSS`` beyond (msgs_json/names.py)."""
+    return _sat_names(planes, per_plane)
 
 
 def scenario_path(name_or_path: str | Path) -> Path:
@@ -317,10 +328,9 @@ def _cross_checks(sc: Scenario, where: str) -> None:
     except ValueError as exc:
         bad("scenario.epoch_utc", f"{exc} (got {sc.scenario.epoch_utc!r})")
     c = sc.constellation
-    if c.total_sats % c.planes:
-        bad("constellation.total_sats", f"{c.total_sats} satellites do not split evenly into {c.planes} planes")
-    if c.sats_per_plane > 9:
-        bad("constellation.total_sats", f"at most 9 satellites per plane (names sat_PS), got {c.sats_per_plane}")
+    why = constellation_limits_error(c.total_sats, c.planes)
+    if why is not None:
+        bad("constellation.total_sats", why)
     if c.phasing_f >= c.planes and c.planes > 1:
         bad("constellation.phasing_f", f"must be in 0..P-1 = 0..{c.planes - 1}, got {c.phasing_f}")
     v = sc.value

@@ -98,7 +98,7 @@ class RunSpec(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
             return None
 
         sc = load_scenario(self.scenario)
-        ov = {k: self.overrides.get(k) for k in ("sats", "hours", "seed")}
+        ov = {k: self.overrides.get(k) for k in ("sats", "planes", "hours", "seed")}
         if self.seed is not None:
             ov["seed"] = self.seed
         if any(v is not None for v in ov.values()):
