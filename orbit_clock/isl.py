@@ -9,7 +9,12 @@ ellipsoid onto the sphere of radius a, and the segment must clear the sphere of 
 
 Windows are found on a coarse grid (default 10 s) and each edge is refined by bisection with SGP4
 to ``tol_s`` (default 1 ms, orbit_clock.windows); a window shorter than the coarse step can be missed (bench/bench_orbit.py
-compares with a 1 s brute-force grid). Each window becomes two directed contacts (A->B, B->A) with
+compares with a 1 s brute-force grid). Only the pairs and times that can be within range are
+sampled: a k-d tree (scipy) finds, every 6 grid samples, the pairs within range plus how far two
+satellites can close in half that span; the other samples are out of range (their margin is
+negative), so the runs are those of the full grid. The work grows with the pairs near each other
+(physics: a fixed fraction of the constellation in view of each satellite), not with all pairs
+at all times; ``prune=False`` samples everything (the oracle of the fast path). Each window becomes two directed contacts (A->B, B->A) with
 rate ``scenario.isl.rate_bps`` and ``range_light_s`` = the mean range over the window (21 samples,
 evenly spaced, ends included) divided by c. CGR takes range constant over a contact, so the mean is
 used; in-plane neighbours of the paper's constellation keep a near-constant 5.43e3 km, cross-plane
@@ -19,16 +24,19 @@ How we know it is right (tests/unit/test_orbit_isl.py): ``los_clear`` against an
 segment-sphere intersection (quadratic roots) on random geometry (hypothesis); windows against a 1 s
 brute-force grid; symmetry (A->B and B->A identical); hand cases (antipodal satellites blocked,
 in-plane neighbours of the paper constellation in contact the whole horizon).
+tests/unit/test_scale_plans.py: the plans of 96 and 240 satellites against a brute-force line of
+sight at random instants; tests/unit/test_speed_paths.py: the pruned search equals the full one.
 """
 
 from __future__ import annotations
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from orbit_clock.contact_plan import Contact, ContactPlan
 from orbit_clock.frames import C_KM_S, WGS84_A_KM, WGS84_B_KM
 from orbit_clock.propagation import Constellation, build_constellation
-from orbit_clock.windows import mean_range_km, time_grid, true_runs, windows_from_margin
+from orbit_clock.windows import mean_range_km, refine_runs, time_grid, true_runs, windows_from_margin
 
 __all__ = [
     "isl_contact_plan",
@@ -59,27 +67,37 @@ def los_clear(p1_km, p2_km, grazing_height_km: float = 80.0) -> np.ndarray:
 
 
 def isl_windows(constellation: Constellation, t0_s: float, t1_s: float, *, grazing_height_km: float = 80.0,
-                max_range_km: float = 6000.0, step_s: float = 10.0, tol_s: float = 1e-3, refine: bool = True):
-    """Undirected ISL windows: (i, j, start_s, end_s) arrays with i < j satellite indices.
+                max_range_km: float = 6000.0, step_s: float = 10.0, tol_s: float = 1e-3, refine: bool = True,
+                prune: bool = True):
+    """Undirected ISL windows: (i, j, start_s, end_s) arrays with i < j satellite indices, ordered by
+    pair (i, then j), then time.
 
     ``refine=False`` gives the bare grid (edges at the samples): the brute-force reference.
+    ``prune`` (with ``refine``): sample only the pairs and times that can be within ``max_range_km``
+    (:func:`_candidate_segments`); the same windows as ``prune=False``, which samples every pair at
+    every grid time (tests/unit/test_speed_paths.py compares the two).
     """
     n = len(constellation)
     I, J = np.triu_indices(n, k=1)
     t = time_grid(t0_s, t1_s, step_s)
     r = constellation.positions_ecef_km(t)
-    margin = np.empty((I.size, t.size))
-    chunk = max(1, 4_000_000 // max(1, I.size))
-    for c0 in range(0, t.size, chunk):
-        a, b = r[I, c0:c0 + chunk], r[J, c0:c0 + chunk]
-        rng = np.linalg.norm(a - b, axis=-1)
-        margin[:, c0:c0 + chunk] = np.minimum(los_clearance_km(a, b, grazing_height_km), max_range_km - rng)
 
     def margin_at(idx, tt):
         a = constellation.positions_ecef_km_at(I[idx], tt)
         b = constellation.positions_ecef_km_at(J[idx], tt)
         return np.minimum(los_clearance_km(a, b, grazing_height_km), max_range_km - np.linalg.norm(a - b, axis=-1))
 
+    if refine and prune and I.size:
+        segs = _candidate_segments(constellation, t, r, max_range_km)
+        if segs is not None:
+            si, ks, ke = _runs_in_segments(r, I, J, *segs, grazing_height_km, max_range_km)
+            st, en = refine_runs(t, si, ks, ke, margin_at, tol_s)
+            return I[si], J[si], st, en
+    margin = np.empty((I.size, t.size))
+    chunk = max(1, 4_000_000 // max(1, I.size))
+    for c0 in range(0, t.size, chunk):
+        a, b = r[I, c0:c0 + chunk], r[J, c0:c0 + chunk]
+        margin[:, c0:c0 + chunk] = _margin(a, b, grazing_height_km, max_range_km)
     if refine:
         k, st, en = windows_from_margin(t, margin, margin_at, tol_s)
     else:
@@ -88,6 +106,84 @@ def isl_windows(constellation: Constellation, t0_s: float, t1_s: float, *, grazi
         _, ks, ke = true_runs(margin > 0)
         st, en = t[ks], t[ke - 1]
     return I[k], J[k], st, en
+
+
+def _margin(a: np.ndarray, b: np.ndarray, grazing_height_km: float, max_range_km: float) -> np.ndarray:
+    """min(line-of-sight clearance, max range - range) [km] of position pairs a, b (..., 3)."""
+    rng = np.linalg.norm(a - b, axis=-1)
+    return np.minimum(los_clearance_km(a, b, grazing_height_km), max_range_km - rng)
+
+
+# Grid samples per pruning block: the pair distance is looked up at every _BLOCK-th sample
+_BLOCK = 6
+
+
+def _candidate_segments(constellation: Constellation, t: np.ndarray, r: np.ndarray, max_range_km: float):
+    """Spans of grid samples where a pair can be within ``max_range_km``: (pair, first, last) int
+    arrays, pair = index into ``np.triu_indices(n, 1)``, samples first..last inclusive; None when
+    pruning cannot drop anything (an unbounded range).
+
+    The grid is cut into blocks of ``_BLOCK`` samples. A pair within range at some time of a block
+    is, at the nearer of the block's two end samples, within range + v_rel * (half the block's
+    span), where v_rel bounds how fast a distance between two satellites changes: twice the largest
+    Earth-fixed speed at those samples (SGP4 velocities) plus 10 %, plus 0.5 km/s. The pairs that
+    close at each end sample come from a k-d tree (scipy ``cKDTree.query_pairs``), so the work grows
+    with the pairs near each other, not with all pairs. A block is a candidate for a pair found at
+    either of its ends; consecutive candidate blocks form one span. Samples outside the spans are out
+    of range, so their margin is negative: the runs of positive margin are those of the spans.
+    """
+    n, n_t = r.shape[0], t.size
+    ends = np.unique(np.append(np.arange(0, n_t, _BLOCK), n_t - 1))  # block b: samples ends[b]..ends[b+1]
+    n_blocks = ends.size - 1
+    if n_blocks < 1 or not np.isfinite(max_range_km):
+        return None
+    _r, v = constellation.states_ecef(t[ends])
+    v_rel = 2.0 * float(np.max(np.linalg.norm(v, axis=-1))) * 1.1 + 0.5
+    half_span_s = 0.5 * float(np.max(np.diff(t[ends])))
+    reach = max_range_km + v_rel * half_span_s
+    if reach >= 2.0 * float(np.max(np.linalg.norm(r[:, ends], axis=-1))):
+        return None  # every pair is always a candidate
+    cand = np.zeros((n * (n - 1) // 2, n_blocks), dtype=bool)
+    for k, e in enumerate(ends):
+        ij = cKDTree(r[:, e, :]).query_pairs(reach, output_type="ndarray")
+        if ij.size == 0:
+            continue
+        i, j = ij.min(axis=1).astype(np.int64), ij.max(axis=1).astype(np.int64)
+        p = i * n - i * (i + 1) // 2 + (j - i - 1)
+        if k < n_blocks:
+            cand[p, k] = True
+        if k > 0:
+            cand[p, k - 1] = True
+    pair, b0, b1 = true_runs(cand)  # spans of candidate blocks b0 .. b1 - 1
+    return pair, ends[b0], ends[b1]
+
+
+def _runs_in_segments(r: np.ndarray, I: np.ndarray, J: np.ndarray, pair: np.ndarray, first: np.ndarray,
+                      last: np.ndarray, grazing_height_km: float, max_range_km: float, chunk: int = 1_000_000):
+    """Runs of positive margin (pair, first inside sample, sample after) of the spans of
+    :func:`_candidate_segments`, as :func:`orbit_clock.windows.true_runs` gives them on the full
+    grid (ordered by pair, then time)."""
+    length = last - first + 1
+    m = int(length.sum())
+    seg_of = np.repeat(np.arange(pair.size), length)
+    offset = np.arange(m) - np.repeat(np.cumsum(length) - length, length)
+    k = first[seg_of] + offset  # grid sample of each evaluation
+    inside = np.empty(m, dtype=bool)
+    for c0 in range(0, m, chunk):
+        sl = slice(c0, c0 + chunk)
+        p = pair[seg_of[sl]]
+        inside[sl] = _margin(r[I[p], k[sl]], r[J[p], k[sl]], grazing_height_km, max_range_km) > 0
+    seg_start = np.zeros(m, dtype=bool)
+    seg_start[np.cumsum(length) - length] = True
+    prev = np.concatenate([[False], inside[:-1]]) & ~seg_start
+    nxt_start = np.concatenate([seg_start[1:], [True]])
+    nxt = np.concatenate([inside[1:], [False]]) & ~nxt_start
+    s_idx = np.flatnonzero(inside & ~prev)
+    e_idx = np.flatnonzero(inside & ~nxt)
+    si = pair[seg_of[s_idx]]
+    ks, ke = k[s_idx], k[e_idx] + 1
+    order = np.lexsort((ks, si))
+    return si[order], ks[order], ke[order]
 
 
 def isl_contact_plan(scenario, constellation: Constellation | None = None, *, step_s: float = 10.0,

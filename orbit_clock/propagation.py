@@ -129,8 +129,12 @@ class Constellation:
             if np.any(err):
                 raise PropagationError(f"SGP4 error {int(err[err != 0][0])} for {self.names[i]}")
             return teme_to_ecef(r, theta)
-        for i in np.unique(sat_idx):
-            m = sat_idx == i
+        # one group of positions per satellite, in their given order (a stable sort: O(n log n),
+        # where one mask per satellite would be O(n * satellites))
+        order = np.argsort(sat_idx, kind="stable")
+        cuts = np.flatnonzero(np.diff(sat_idx[order])) + 1
+        for m in np.split(order, cuts) if order.size else ():
+            i = int(sat_idx[m[0]])
             err, r, _ = self.satrecs[i].sgp4_array(jd[m], fr[m])
             if np.any(err):
                 raise PropagationError(f"SGP4 error {int(err[err != 0][0])} for {self.names[i]}")

@@ -9,6 +9,8 @@ steps once:
 * :func:`windows_from_margin` - windows where a margin is > 0, each edge refined by bisection on the
   margin evaluated at scattered times (ISL line of sight and range, station elevation); the access
   search places its edges by linear interpolation instead (orbit_clock.access);
+  :func:`refine_runs` is its bisection alone, for searches that find the runs themselves (the
+  pruned ISL search samples only the pairs and times that can be in range);
 * :func:`mean_range_km` - the mean distance over each window (evenly spaced samples, ends
   included), which a contact plan turns into a constant light time (CGR takes range constant over a
   contact).
@@ -26,7 +28,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-__all__ = ["mean_range_km", "time_grid", "true_runs", "windows_from_margin"]
+__all__ = ["mean_range_km", "refine_runs", "time_grid", "true_runs", "windows_from_margin"]
 
 
 def time_grid(t0_s: float, t1_s: float, step_s: float) -> np.ndarray:
@@ -54,9 +56,18 @@ def windows_from_margin(t_s: np.ndarray, margin: np.ndarray,
     margin at scattered points (same-length 1-D arrays). Returns (series_idx, start_s, end_s);
     a window open at the first/last sample starts/ends there.
     """
-    n_t = margin.shape[1]
     si, ks, ke = true_runs(margin > 0)
-    ei = si
+    start, end = refine_runs(t_s, si, ks, ke, margin_at, tol_s)
+    return si, start, end
+
+
+def refine_runs(t_s: np.ndarray, si: np.ndarray, ks: np.ndarray, ke: np.ndarray,
+                margin_at: Callable[[np.ndarray, np.ndarray], np.ndarray], tol_s: float = 1e-3):
+    """(start_s, end_s) of runs of positive margin found on the grid ``t_s``: run k of series si[k]
+    covers samples ks[k] .. ke[k] - 1 (:func:`true_runs`); each edge inside the grid is refined by
+    bisection on ``margin_at`` to ``tol_s``, an edge at the grid's first/last sample stays there.
+    The bisection of every edge runs together (the same steps whatever else is refined with it)."""
+    n_t = t_s.size
     start = t_s[ks].astype(float)
     end = t_s[ke - 1].astype(float)
 
@@ -72,8 +83,8 @@ def windows_from_margin(t_s: np.ndarray, margin: np.ndarray,
     m = ks > 0
     start[m] = bisect(si[m], t_s[ks[m] - 1], t_s[ks[m]], lo_inside=False)
     m = ke < n_t
-    end[m] = bisect(ei[m], t_s[ke[m] - 1], t_s[ke[m]], lo_inside=True)
-    return si, start, end
+    end[m] = bisect(si[m], t_s[ke[m] - 1], t_s[ke[m]], lo_inside=True)
+    return start, end
 
 
 def mean_range_km(pos_a_km_at: Callable[[np.ndarray], np.ndarray],

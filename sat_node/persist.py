@@ -12,7 +12,8 @@ nothing happened: no observation executed twice, none lost, no accepted bundle l
   about them, transmissions not yet settled). It is one pickle, so objects
   shared between the satellite and its agent (a transmission and its held record) stay shared.
   The shared read-only inputs (world, scenario, belief noise, contact graph, store connection,
-  agent config) are rebuilt from the world pickle by the new process, not saved.
+  agent config) and the agent's query buffers (all zero between queries) are rebuilt from the
+  world pickle by the new process, not saved.
 
 The host (bringup/engine/ros/host.py) writes the snapshot into the bundle store's own SQLite file in the
 same transaction as the step's store writes (:func:`persistent_connection`; bringup/engine/checkpoint.py),
@@ -36,7 +37,7 @@ from sat_node.dtn.store import StoredBundle
 __all__ = ["persistent_connection", "restore", "snapshot"]
 
 _SAT_SHARED = ("world", "sc", "belief", "agent", "port")
-_AGENT_SHARED = ("graph", "store", "config", "on_event", "_out_starts")
+_AGENT_SHARED = ("graph", "store", "config", "on_event", "_out_starts", "_backlog_buf", "_excluded_buf")
 _PORT_SHARED = ("agent",)
 
 

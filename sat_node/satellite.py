@@ -118,7 +118,8 @@ class SatelliteLogic:
                 i.send_order, i.hop_tolerance_s, ttl_s_by_priority={1: i.ttl_p1_s, 3: i.ttl_p2_3_s, 15: i.ttl_p4_15_s},
                 bundle_bits=i.bundle_bits, settle_delay_s=None, forwarding=i.forwarding)
             store = BundleStore(store_path) if store_path else None
-            self.agent = new_agent(name, world.isl_plan, cfg, store=store)
+            # one contact graph per process, shared by its satellites (World.isl_graph)
+            self.agent = new_agent(name, world.isl_graph(cfg.hop_limit), cfg, store=store)
             self.port = DtnPort(name, self.agent)
         self.rejected_by_reason: dict[str, int] = {}
 

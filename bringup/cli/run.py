@@ -183,7 +183,8 @@ def _run_local(world, args, meta, bag_dir: Path, out: Path, router_kw, *, show: 
         batches.finish()  # after the participants' finish, before the stores close
         runtime = {"wall_s": res.wall_s, "real_time_factor": res.real_time_factor, "steps": res.steps,
                    "envelopes": sum(res.counts_by_topic.values()),
-                   "rejected_messages": sum(getattr(p, "rejected", 0) for p in parts)}
+                   "rejected_messages": sum(getattr(p, "rejected", 0) for p in parts),
+                   "cgr_queries": sum(getattr(getattr(p, "agent", None), "cgr_queries", 0) for p in parts)}
         rec.write_envelope(Envelope(sc.horizon_ns, "run", 1, "/run/meta",
                                     json.dumps({"meta": meta.__dict__, "runtime": runtime})))
         # while the recorder finishes the bag and the report, the satellites' stores close: SQLite

@@ -34,6 +34,7 @@ from orbit_clock import (
 from orbit_clock.access import RegionPrefilter
 from orbit_clock.contact_plan import ContactPlan
 from sat_node.acs import SlewModel
+from sat_node.dtn.cgr import ContactGraph
 from sat_node.scheduler.planner import Planner, PlannerSettings
 
 __all__ = ["OrbitContext", "World", "scenario_key"]
@@ -127,6 +128,7 @@ class World:
     def __getstate__(self):
         st = dict(self.__dict__)
         st.pop("_planner", None)
+        st.pop("_graphs", None)
         ctx = self.ctx
         st["ctx"] = {"gps": ctx.gps, "osse": ctx.osse, "slew": ctx.slew}
         return st
@@ -190,6 +192,16 @@ class World:
         if p is None:
             p = self.__dict__["_planner"] = self.ctx.planner()
         return p
+
+    def isl_graph(self, max_hops: int | None = None) -> ContactGraph:
+        """The ISL plan as a contact graph for CGR (sat_node/dtn/cgr.py), routes of at most
+        ``max_hops`` hops: built once per process on first use and shared by every satellite's
+        bundle agent in it (its scratch arrays are reused query by query), not pickled."""
+        graphs = self.__dict__.setdefault("_graphs", {})
+        g = graphs.get(max_hops)
+        if g is None:
+            g = graphs[max_hops] = ContactGraph(self.isl_plan, max_hops)
+        return g
 
     def gp_region_name(self, gp: int) -> str:
         return str(self.ctx.gps.region_names[self.region_of_gp(gp)])

@@ -218,8 +218,8 @@ class BundleAgent:
                  keep_events: bool = True):
         self.node = node
         self.number = node_number(node)
-        self.graph = plan if isinstance(plan, ContactGraph) else ContactGraph(plan)
         self.config = config or AgentConfig()
+        self.graph = plan if isinstance(plan, ContactGraph) else ContactGraph(plan, self.config.hop_limit)
         self.store = store
         self.on_event = on_event
         self.events: list[BundleEvent] = [] if keep_events else None
@@ -235,11 +235,15 @@ class BundleAgent:
         self._route_memo: tuple = (-1, -1, {})  # (t_ns, version, {routing key: (Route | None, deadline_s)})
         self._expiry_heap: list = []
         self._out_starts = self.graph.out_starts.get(node, np.zeros(0))
+        n_contacts = len(self.graph.contacts)
+        self._backlog_buf = np.zeros(n_contacts, dtype=np.float64)  # all 0 between queries (_route)
+        self._excluded_buf = np.zeros(n_contacts, dtype=np.bool_)  # all False between queries
         self.radio_free_ns = 0
         sd = self.config.settle_delay_s
         self._settle_ns = None if sd is None else int(round(sd * 1e9))
         self._settle_at = _NEVER  # when the oldest transmission in flight is settled (O(1) check per copy heard)
         self.last_received: Bundle | None = None  # what the last receive() decoded (None: nothing)
+        self.cgr_queries = 0  # route searches run (memo hits aside): a measure of the routing work
         self._seq = 0 if store is None else store.get_meta("seq")
         if store is not None:
             self._resume()
@@ -457,21 +461,32 @@ class BundleAgent:
             if (r is not None and r.arrival_s <= deadline_s) or (r is None and deadline_s <= d):
                 h.route_memo = (t_ns, self._version, len(h.excluded), r)
                 return r
+        # the per-contact inputs live in this agent's buffers, set for this query and cleared after
+        # it (a fresh array per query would cost O(contacts) each: the graph is the constellation's)
         fb = None
+        fb_set = []
         if self._parked:
-            fb = self.graph._no_backlog.copy()
+            fb = self._backlog_buf
             p = h.priority
             for c, byp in self._parked.items():
                 x = sum(byp[: p + 1])
                 if x > 0:
                     fb[c] = x
+                    fb_set.append(c)
         excluded = None
         if h.excluded:
-            excluded = np.zeros(len(self.graph.contacts), dtype=np.bool_)
+            excluded = self._excluded_buf
             excluded[list(h.excluded)] = True
-        r = self.graph.route(self.node, h.dest, t_ns / _NS, h.bits, deadline_s=deadline_s,
-                             excluded=excluded, excluded_nodes=(h.excluded_node,) if h.excluded_node else (),
-                             first_backlog_bits=fb, hop_tolerance_s=self.config.hop_tolerance_s)
+        self.cgr_queries += 1
+        try:
+            r = self.graph.route(self.node, h.dest, t_ns / _NS, h.bits, deadline_s=deadline_s,
+                                 excluded=excluded, excluded_nodes=(h.excluded_node,) if h.excluded_node else (),
+                                 first_backlog_bits=fb, hop_tolerance_s=self.config.hop_tolerance_s)
+        finally:
+            if fb_set:
+                fb[fb_set] = 0.0
+            if excluded is not None:
+                excluded[list(h.excluded)] = False
         h.route_memo = (t_ns, self._version, len(h.excluded), r)
         shared[2][key] = (r, deadline_s)
         return r

@@ -24,7 +24,9 @@ count (tests/unit/test_cgr_random.py), properties (arrival never before contact 
 time + transmission time; no node repeated).
 
 The kernel is numba (cache=True) over flat arrays; :class:`ContactGraph` builds them and checks the
-route it returns (contiguous, time-feasible) before handing it out.
+route it returns (contiguous, time-feasible) before handing it out. Its scratch arrays (labels per
+contact and hop count) are reused query by query, so one graph serves every agent of a process;
+``max_hops`` bounds the routes searched (the agents' hop limit), and with it those arrays.
 """
 
 from __future__ import annotations
@@ -184,7 +186,9 @@ class ContactGraph:
     """Flat arrays of a contact plan and the CGR queries over it. One per plan; shareable between
     agents (queries do not modify it; residual volumes are passed in by each agent)."""
 
-    def __init__(self, plan: ContactPlan):
+    def __init__(self, plan: ContactPlan, max_hops: int | None = None):
+        """``max_hops``: the longest route searched (default: every simple path, nodes - 1 hops);
+        a bundle agent's hop limit (RFC 9171 hop-count block) is the natural bound."""
         self.plan = plan
         self.contacts = list(plan.contacts)
         self.node_names = plan.nodes
@@ -214,6 +218,11 @@ class ContactGraph:
         self._node_masks: dict[tuple, np.ndarray] = {}  # excluded node names -> mask (never written)
         self._no_backlog = np.zeros(n, dtype=np.float64)
         H = len(self.node_names)  # a simple path has at most n_nodes - 1 hops
+        if max_hops is not None:
+            if max_hops < 1:
+                raise ValueError(f"contact graph: max_hops must be >= 1, got {max_hops}")
+            H = min(H, int(max_hops))
+        self.max_hops = H
         self._arr = np.full((n, H + 1), INF)
         self._pred = np.full((n, H + 1), -1, dtype=np.int64)
         self._stamp = np.zeros(n, dtype=np.int64)

@@ -119,8 +119,8 @@ class MulticastAgent:
                  keep_events: bool = True):
         self.node = node
         self.number = node_number(node)
-        self.graph = plan if isinstance(plan, ContactGraph) else ContactGraph(plan)
         self.config = config or AgentConfig()
+        self.graph = plan if isinstance(plan, ContactGraph) else ContactGraph(plan, self.config.hop_limit)
         if not self.config.bundle_bits:
             raise ValueError(f"{node}: multicast forwarding needs a nominal bundle size (AgentConfig.bundle_bits)")
         self.store = store
@@ -139,6 +139,10 @@ class MulticastAgent:
         self._parked_bits: dict[int, list] = {}  # contact -> bits waiting for it, by priority
         self._expiry: list = []  # (deadline_ns, bid, recipient number)
         self._out_starts = self.graph.out_starts.get(node, np.zeros(0))
+        n_contacts = len(self.graph.contacts)
+        self._backlog_buf = np.zeros(n_contacts, dtype=np.float64)  # all 0 between queries (_route)
+        self._excluded_buf = np.zeros(n_contacts, dtype=np.bool_)  # all False between queries
+        self.cgr_queries = 0  # route searches run: a measure of the routing work
         self.radio_free_ns = 0
         sd = self.config.settle_delay_s
         self._settle_ns = None if sd is None else int(round(sd * 1e9))
@@ -376,20 +380,31 @@ class MulticastAgent:
         h.parked = {}
 
     def _route(self, h: _MHeld, r: _Rcpt, s: int, bits: int):
+        # per-contact inputs in this agent's buffers, set for this query and cleared after it (a fresh
+        # array per query costs O(contacts): the graph is the constellation's, shared by the process)
         fb = None
+        fb_set = []
         if self._parked_bits:
-            fb = self.graph._no_backlog.copy()
+            fb = self._backlog_buf
             for c, byp in self._parked_bits.items():
                 x = sum(byp[: r.priority + 1])
                 if x > 0:
                     fb[c] = x
+                    fb_set.append(c)
         excluded = None
         if h.excluded:
-            excluded = np.zeros(len(self.graph.contacts), dtype=np.bool_)
+            excluded = self._excluded_buf
             excluded[list(h.excluded)] = True
-        return self.graph.route(self.node, r.name, s / _NS, bits, deadline_s=r.deadline_ns / _NS, excluded=excluded,
-                                excluded_nodes=(r.from_node,) if r.from_node else (), first_backlog_bits=fb,
-                                hop_tolerance_s=self.config.hop_tolerance_s)
+        self.cgr_queries += 1
+        try:
+            return self.graph.route(self.node, r.name, s / _NS, bits, deadline_s=r.deadline_ns / _NS,
+                                    excluded=excluded, excluded_nodes=(r.from_node,) if r.from_node else (),
+                                    first_backlog_bits=fb, hop_tolerance_s=self.config.hop_tolerance_s)
+        finally:
+            if fb_set:
+                fb[fb_set] = 0.0
+            if excluded is not None:
+                excluded[list(h.excluded)] = False
 
     def _next_decision_ns(self) -> int | None:
         while self._wake and self._stale(self._wake[0]):

@@ -455,6 +455,29 @@ def test_one_satellite_positions_equal_the_mixed_path():
     for i in (0, 5, len(c) - 1):
         one = c.positions_ecef_km_at(np.full(t.size, i), t)  # the one-satellite path
         other = (i + 1) % len(c)
-        mixed = c.positions_ecef_km_at(np.r_[np.full(t.size, i), other], np.r_[t, 1.0])  # np.unique path
+        mixed = c.positions_ecef_km_at(np.r_[np.full(t.size, i), other], np.r_[t, 1.0])  # the grouped path
         assert np.array_equal(one, mixed[:t.size])  # bit for bit
         assert np.array_equal(c.positions_ecef_km_at(np.array([i]), t[2:3]), one[2:3])
+
+
+def test_pruned_isl_windows_equal_every_pair_at_every_sample(paper_scenario):
+    """orbit_clock/isl.py: sampling only the pairs and times a k-d tree finds within reach gives the
+    windows of the plain search (every pair at every grid sample), bit for bit - and samples less."""
+    import numpy as np
+
+    from orbit_clock import build_constellation
+    from orbit_clock.isl import _candidate_segments, isl_windows
+    from orbit_clock.windows import time_grid
+
+    for sats, planes, hours in ((24, 3, 6.0), (96, 6, 2.0), (60, 60, 1.0)):
+        sc = paper_scenario.with_overrides(sats=sats, planes=planes, hours=hours)
+        c = build_constellation(sc)
+        h = sc.scenario.horizon_s
+        fast = isl_windows(c, 0.0, h, prune=True)
+        plain = isl_windows(c, 0.0, h, prune=False)
+        assert len(fast[0]) > 50
+        assert all(np.array_equal(x, y) for x, y in zip(fast, plain, strict=True))
+        t = time_grid(0.0, h, 10.0)
+        _pair, first, last = _candidate_segments(c, t, c.positions_ecef_km(t), sc.isl.max_range_km)
+        if sats >= 96:
+            assert (last - first + 1).sum() < 0.6 * sats * (sats - 1) / 2 * t.size
