@@ -41,7 +41,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "bench-scheduler": ("bench_scheduler",
                         "benchmark the onboard DP scheduler: runtime over the horizon and value against the MILP optimum"),
     "dtn": ("dtn",
-            "run the DTN alone (BPv7 agents, CGR, ISL link model) on a contact plan and traffic; print dtn.* figures"),
+            "run the DTN alone (BPv7 agents, CGR, the ISL medium) on a contact plan and traffic; print dtn.* figures"),
     "report": ("report", "rebuild report.json from a run's MCAP bag alone"),
     "replay": ("replay",
                "republish a recorded bag (raw CDR, with /clock) onto a live ROS 2 graph at a chosen rate"),

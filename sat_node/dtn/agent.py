@@ -51,7 +51,7 @@ without custody transfer), so a process killed mid-transmission still has the bu
 still come).
 
 How we know it is right: hand-stepped agents on drawn plans (tests/unit/test_agent.py: delivery
-times, priority order, parking until a contact opens, TTL, integrity, failures), the discrete-event
+times, priority order, parking until a contact opens, TTL, integrity, failures), the
 DTN-alone runs' hand-worked latencies and conservation (tests/unit/test_dtn_alone.py), SIGKILL mid-air
 (tests/unit/test_store.py), and the study's whole runs against the per-bundle lower bound.
 """

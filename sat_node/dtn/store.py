@@ -4,7 +4,7 @@ Each accepted bundle is one row (id, encoded bytes, priority, destination, expir
 the bundle is dropped or when its transmission has ended (not when it starts: a process killed
 mid-transmission keeps it). A process killed and restarted opens the same file and gets every bundle
 back (:meth:`BundleStore.load_all`), so the agent re-routes them. ``path=None`` keeps the store in
-memory (the DTN-only discrete-event runs, where persistence buys nothing).
+memory (the DTN-alone runs of ``constellation dtn``, where persistence buys nothing).
 
 Durability guarantee (what a kill can cost): the unit is the lockstep step.
 
