@@ -91,32 +91,21 @@ def store_forward_bound_mean(plan: ContactPlan, traffic: list[TrafficItem], bund
         return None
     if per_observation:
         return _per_observation_bound(plan, traffic, bundle_bits, ttl_s_by_priority)
-    names = plan.nodes
-    idx = {n: i for i, n in enumerate(names)}
-    start = np.array([c.start_s for c in plan.contacts])
-    end = np.array([c.end_s for c in plan.contacts])
-    src = np.array([idx[c.src] for c in plan.contacts])
-    dst = np.array([idx[c.dst] for c in plan.contacts])
+    known = set(plan.nodes)
     tx_min = bundle_bits / max(c.rate_bps for c in plan.contacts)
     light_min = min(c.range_light_s for c in plan.contacts)
     rate_by_src: dict[str, float] = {}
     for c in plan.contacts:
         rate_by_src[c.src] = max(rate_by_src.get(c.src, 0.0), c.rate_bps)
-    hops_cache: dict[tuple[float, float, str], list[int]] = {}
+    hops = _hops_within_ttl(plan, traffic, ttl_s_by_priority)
     radio_free: dict[str, float] = {}
     total, count = 0.0, 0
-    for item in sorted(traffic, key=lambda it: it.t_s):  # the radio serves in creation order (stable)
+    for item, h in sorted(zip(traffic, hops), key=lambda x: x[0].t_s):  # the radio serves in creation order
         rate = rate_by_src.get(item.source)
-        if not rate or item.dest not in idx:
+        if not rate or item.dest not in known:
             continue
         leave = max(item.t_s, radio_free.get(item.source, 0.0)) + bundle_bits / rate
         radio_free[item.source] = leave
-        ttl = ttl_s_for_priority(item.priority, ttl_s_by_priority)
-        key = (item.t_s, ttl, item.source)
-        if key not in hops_cache:
-            hops_cache[key] = _fewest_hops(idx[item.source], len(names), src, dst,
-                                           (start < item.t_s + ttl) & (end > item.t_s))
-        h = hops_cache[key][idx[item.dest]]
         if h < 0:  # no contact path within the TTL: no policy delivers it
             continue
         total += (leave - item.t_s) + h * light_min + (h - 1) * tx_min
