@@ -21,6 +21,8 @@ def _fmt(v, nd=3):
 
 def report_md(rep: dict, plots: list[Path] = (), base: Path | None = None) -> str:
     v, c, o, d, r = rep["value"], rep["coverage"], rep["observations"], rep.get("dtn", {}), rep.get("runtime", {})
+    k, f = rep.get("knowledge") or {}, rep.get("osse") or {}
+    age = k.get("info_age_s") or {}
     lines = [
         f"# Run report: {rep['scenario']} / {rep['mode']} / {rep['engine']} engine",
         "",
@@ -32,6 +34,12 @@ def report_md(rep: dict, plots: list[Path] = (), base: Path | None = None) -> st
         f"| GPs observed | {c['gp_observed']} / {c['gp_total']} ({_fmt((c['gp_observed_fraction'] or 0) * 100, 1)} %) |",
         f"| observations | {o['count']} ({o['duplicates_15min']} within 15 min of another) |",
         f"| assumed vs recorded value error (mean) | {_fmt((v['assumed_error_mean'] or 0) * 100, 1)} % |",
+        f"| looks per GP / value from first looks | {_fmt(c.get('looks_per_gp'), 2)} / "
+        f"{_fmt((v.get('first_look_share') or 0) * 100, 1)} % |",
+        f"| knowledge model; information age mean / median / p90 [s] | {k.get('model') or '-'}; "
+        f"{_fmt(age.get('mean'), 0)} / {_fmt(age.get('median'), 0)} / {_fmt(age.get('p90'), 0)} |",
+        f"| field: rank correlation at 15 / 60 min; transiency [min] | {_fmt(f.get('rank_corr_15min'), 2)} / "
+        f"{_fmt(f.get('rank_corr_60min'), 2)}; {_fmt(f.get('transiency_min'), 1)} |",
         f"| bundles created / delivered | {_fmt(d.get('bundles_created'))} / {_fmt(d.get('bundles_delivered'))} |",
         f"| delivery ratio | {_fmt(d.get('delivery_ratio'))} |",
         f"| latency mean / median / p95 [s] | {_fmt((d.get('latency_s') or {}).get('mean'), 1)} / "
