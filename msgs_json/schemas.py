@@ -184,7 +184,8 @@ class ScheduleItem(msgspec.Struct, kw_only=True, frozen=True, forbid_unknown_fie
 
 
 class Schedule(_Msg, kw_only=True, frozen=True):
-    """A satellite's current plan (items in strictly increasing time), its version and inputs' cut-off."""
+    """A satellite's current plan, its version and inputs' cut-off. Items in increasing time; one
+    image may cover several GPs (the non-agile footprint): items at one time come in increasing GP."""
 
     sat: SatName
     version: Count
@@ -199,8 +200,8 @@ class Schedule(_Msg, kw_only=True, frozen=True):
         if self.cutoff_ns > self.planned_ns:
             raise ValueError("cutoff_ns must not be after planned_ns")
         for a, b in zip(self.items, self.items[1:]):
-            if b.t_ns <= a.t_ns:
-                raise ValueError("items must be in strictly increasing t_ns")
+            if b.t_ns < a.t_ns or (b.t_ns == a.t_ns and b.gp <= a.gp):
+                raise ValueError("items must be in increasing t_ns (at one t_ns: in increasing gp)")
 
 
 class Observation(_Msg, kw_only=True, frozen=True):

@@ -96,6 +96,7 @@ class SatelliteLogic:
         self.plan_version = 0
         self.target_km: np.ndarray | None = None  # what the boresight points at (None: nadir)
         self.last_obs_ns = -1
+        self.last_obs_gp = -1  # GP of the last observation (one image may cover several, non-agile)
         self.replan_ns = int(round(sc.scheduler.replan_period_s * _NS))
         self.next_replan_ns: int | None = None
         self.scheduler_cpu_s = 0.0
@@ -324,7 +325,8 @@ class SatelliteLogic:
         osse = self.world.osse
         while self.plan and self.plan[0].t_ns <= t_ns:
             it = self.plan.pop(0)
-            if it.t_ns <= self.last_obs_ns:
+            # already past; GPs of one image (the non-agile footprint covers several) come in id order
+            if it.t_ns < self.last_obs_ns or (it.t_ns == self.last_obs_ns and it.gp <= self.last_obs_gp):
                 continue
             recorded = float(osse.value_at(np.array([it.gp]), np.array([it.t_ns / _NS]))[0])
             # what the satellite infers from its image: the recorded value through its own noise
@@ -333,6 +335,7 @@ class SatelliteLogic:
             angle = self._slew_angle(it.t_ns, target)
             self.target_km = target
             self.last_obs_ns = it.t_ns
+            self.last_obs_gp = it.gp
             obs = S.Observation(sat=self.name, gp=it.gp, t_ns=it.t_ns, assumed_value=max(0.0, it.value),
                                 recorded_value=recorded, schedule_version=it.version,
                                 info_ns=None if it.info_ns is None else min(it.info_ns, it.t_ns))

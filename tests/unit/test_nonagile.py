@@ -53,3 +53,23 @@ def test_repeat_under_footprint_is_worth_zero():
 def test_bad_footprint():
     with pytest.raises(ValueError, match="footprint_km"):
         solve_nonagile(_problem(gp_ecef(np.array([0.0]), np.array([0.0]))), 0.0)
+
+
+def test_one_image_covers_several_gps_and_each_is_observed():
+    """At the Nyquist grid a nadir footprint covers neighbouring GPs at once: the plan's items share a
+    time (in GP order, msgs_json Schedule allows it) and the satellite observes each once."""
+    from bringup.scenario.config import load_scenario
+    from bringup.scenario.world import World
+    from msgs_json import codec
+    from sat_node.satellite import SatelliteLogic, _Item
+
+    world = World.build(load_scenario("paper").with_overrides(sats=3, hours=0.5))
+    sat = SatelliteLogic(world, world.sat_names[0], "nonagile", dtn=False)
+    t = 120 * 10**9
+    sat.plan = [_Item(5, t, 10.0, 1), _Item(6, t, 11.0, 1), _Item(9, t + 10**9, 12.0, 1)]
+    emits = sat._execute(t)
+    obs = [codec.decode(e.topic, e.data) for e in emits if e.topic.endswith("/observations")]
+    assert [(o.gp, o.t_ns) for o in obs] == [(5, t), (6, t)]
+    sat.plan = [_Item(6, t, 11.0, 2), _Item(9, t + 10**9, 12.0, 2)]  # a replayed item is not observed twice
+    emits = sat._execute(t + 10**9)
+    assert [codec.decode(e.topic, e.data).gp for e in emits if e.topic.endswith("/observations")] == [9]
