@@ -1,7 +1,8 @@
 """`constellation run`: one whole run of a scenario, recorded and reported (DESIGN.md section 6).
 
 ``--engine ros`` (default): the clock, the router / ground station and one OS process per satellite
-over DDS (bringup/engine/ros/launcher.py), recording every topic into ``OUT/bag``. ``--engine local``: the same
+(or per ``--sats-per-process K`` satellites) over DDS (bringup/engine/ros/launcher.py), recording
+every topic into ``OUT/bag``. ``--engine local``: the same
 node logic in this process (bringup/engine/local.py), recording the same topics. Either way the run
 ends with ``OUT/report.json`` (rebuilt from the bag, bringup/analysis/report.py), ``OUT/report.md`` and
 ``OUT/plots/*.png``, and a non-zero exit with a one-line message if anything failed.
@@ -32,7 +33,14 @@ from bringup.engine.ros.run_spec import RunSpec
 from bringup.engine.store_batches import StoreBatches
 from bringup.errors import UserError
 from bringup.recording.recorder_process import Recorder
-from bringup.scenario.participants import all_participants, create_stores, roles_for
+from bringup.scenario.participants import (
+    AUTO_SAT_PROCESSES,
+    all_participants,
+    create_stores,
+    process_groups,
+    roles_for,
+    sats_per_process_auto,
+)
 from bringup.scenario.world import World
 from dtn_router.router import ROUTER_NAME
 from msgs_json.envelope import Envelope
@@ -60,6 +68,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--viz-period-s", type=float, default=None, metavar="S",
                    help="sim seconds between visualisation frames: the bag's fixes, markers and /tf, and the ros "
                         "engine's live topics (default: the scenario's [viz] period_s, 60)")
+    p.add_argument("--sats-per-process", default="auto", metavar="K|auto",
+                   help="ros engine: satellites hosted by one OS process (one executor, one node each); "
+                        f"auto: 1 up to {AUTO_SAT_PROCESSES} satellites (and with --restart), else as few "
+                        f"as keep {AUTO_SAT_PROCESSES} satellite processes (default auto)")
     p.add_argument("--restart", type=int, default=0, metavar="N",
                    help="ros engine: restart a crashed process (satellite, router, ground or the clock) up to "
                         "N times; every process checkpoints each step and resumes from it (default 0: a crash "
@@ -78,6 +90,26 @@ def parse_cut(text: str) -> tuple[str, str, float, float]:
     return a, b, t1, t2
 
 
+def sats_per_process(args: argparse.Namespace, n_sats: int) -> int:
+    """``--sats-per-process`` as a number (auto: participants.sats_per_process_auto, or 1 with
+    ``--restart``); one-line UserError when it is not a number >= 1, or above 1 with ``--restart``
+    (a host checkpoints its step in one participant's store)."""
+    text = str(getattr(args, "sats_per_process", "auto"))
+    if text == "auto":
+        k = 1 if getattr(args, "restart", 0) else sats_per_process_auto(n_sats)
+    else:
+        try:
+            k = int(text)
+        except ValueError:
+            raise UserError(f"--sats-per-process {text!r}: expected a number >= 1 or 'auto'") from None
+        if k < 1:
+            raise UserError(f"--sats-per-process {text!r}: expected a number >= 1 or 'auto'")
+    if k > 1 and getattr(args, "restart", 0):
+        raise UserError(f"--restart with {k} satellites per process: a process checkpoints its step in one "
+                        "satellite's bundle store, so restarts need --sats-per-process 1")
+    return k
+
+
 def run(args: argparse.Namespace) -> int:
     sc = scenario_from_args(args)
     if args.viz_period_s is not None:
@@ -91,6 +123,7 @@ def run(args: argparse.Namespace) -> int:
     if bag_dir.exists():
         shutil.rmtree(bag_dir)
     cuts = [parse_cut(c) for c in args.cut]
+    per_process = sats_per_process(args, len(sc.sat_names)) if args.engine == "ros" else 1
     for a, b, _, _ in cuts:
         for n in (a, b):
             if n not in sc.sat_names:
@@ -98,7 +131,8 @@ def run(args: argparse.Namespace) -> int:
     def say(*a) -> None:
         print(*a, file=sys.stderr)
     say(f"run: {sc.name}, {sc.constellation.total_sats} satellites, {sc.scenario.horizon_s / 3600:g} h, "
-        f"mode {args.mode}, engine {args.engine} -> {out}")
+        f"mode {args.mode}, engine {args.engine}"
+        + (f" ({per_process} satellites per process)" if per_process > 1 else "") + f" -> {out}")
     t0 = time.perf_counter()
     stores_ready = None
     if args.engine == "local":  # the ros engine's satellites make their own, in their processes
@@ -116,7 +150,8 @@ def run(args: argparse.Namespace) -> int:
         stores_ready()  # (before the recorder forks: no other thread runs then)
         runtime, rep = _run_local(world, args, meta, bag_dir, out, router_kw, show=not args.no_progress)
     else:
-        runtime = _run_ros(world, world_path, args, meta, bag_dir, out, router_kw, show=not args.no_progress)
+        runtime = _run_ros(world, world_path, args, meta, bag_dir, out, router_kw, show=not args.no_progress,
+                           per_process=per_process)
     return _finish(out, bag_dir, runtime, world, args, say, rep=rep)
 
 
@@ -210,8 +245,10 @@ def _close_all(parts: list) -> None:
             f.result()
 
 
-def _run_ros(world, world_path: Path, args, meta, bag_dir: Path, out: Path, router_kw, *, show: bool) -> dict:
+def _run_ros(world, world_path: Path, args, meta, bag_dir: Path, out: Path, router_kw, *, show: bool,
+             per_process: int = 1) -> dict:
     sc = world.scenario
+    groups = process_groups(roles_for(world, args.mode), world.sat_names, per_process)
     store_dir = out / "store"
     if store_dir.exists():
         shutil.rmtree(store_dir)
@@ -219,7 +256,8 @@ def _run_ros(world, world_path: Path, args, meta, bag_dir: Path, out: Path, rout
     # the satellites' numba kernels compiled once before the processes start (prepare), and no bound
     # on the start: a slow one (cold caches, a loaded machine) is waited for and named, never fatal
     spec = RunSpec(factory=FACTORY, prepare=PREPARE, startup_timeout_s=None,
-                   roles=roles_for(world, args.mode), scenario=str(Path(sc.source_path).resolve()),
+                   roles=list(groups), groups={g: m for g, m in groups.items() if m != [g]},
+                   scenario=str(Path(sc.source_path).resolve()),
                    overrides=overrides_of(args), mode=args.mode,
                    real_time_factor=args.real_time_factor, bag_dir=str(bag_dir.resolve()),
                    max_restarts=args.restart, restart_wait_s=120.0 if args.restart else 0.0,

@@ -6,13 +6,15 @@ ISL medium; distributed mode only), ``ground`` (the ground segment; centralized 
 router and the announcer share one truth ISL plan: the world's, with the run's faults
 (``router_kw``: ``cuts``, ``extra_delay_s``; orbit_clock/contact_faults.py).
 ``make_participant(world, role, mode)`` makes one; the ROS engine's processes call it through
-their run spec's factory (bringup/engine/ros/factory.py), one role each; ``all_participants(world,
+their run spec's factory (bringup/engine/ros/factory.py), one role each, or several satellites each
+(``process_groups``: ``constellation run --sats-per-process K``); ``all_participants(world,
 mode)`` gives the same participants, in the same order, for the local engine. Both build the
 satellites from the same World pickle, so every process sees identical inputs.
 
-Checked by tests/unit/test_ground_segment.py and tests/unit/test_contact_announcer.py (who is
-made for each mode) and tests/system/test_engines_equal.py (the same participants under both
-engines).
+Checked by tests/unit/test_ground_segment.py, tests/unit/test_contact_announcer.py (who is
+made for each mode), tests/unit/test_process_groups.py (satellites grouped into processes) and
+tests/system/test_engines_equal.py (the same participants under both engines, one or four
+satellites per process).
 """
 
 from __future__ import annotations
@@ -29,7 +31,8 @@ from orbit_clock.contact_faults import truth_plan
 from sat_node.dtn.store import BundleStore
 from sat_node.satellite import SatelliteLogic
 
-__all__ = ["MODES", "all_participants", "kernels_for", "make_participant", "roles_for"]
+__all__ = ["AUTO_SAT_PROCESSES", "MODES", "all_participants", "kernels_for", "make_participant", "process_groups",
+           "roles_for", "sats_per_process_auto"]
 
 MODES = ("distributed", "centralized", "nonagile")
 ROUTER_ROLE = "router"
@@ -48,6 +51,42 @@ def roles_for(world_or_sats, mode: str) -> list[str]:
         roles.append(GROUND_ROLE)
     roles.append(CONTACTS_ROLE)
     return roles
+
+
+# Satellites per process when the run does not say (``--sats-per-process auto``): at most this many
+# satellite processes (one each up to this many satellites, as the paper's 24)
+AUTO_SAT_PROCESSES = 24
+
+
+def sats_per_process_auto(n_sats: int) -> int:
+    """Satellites per process for ``auto``: 1 up to :data:`AUTO_SAT_PROCESSES` satellites, then
+    as few as keep the satellite processes at that many."""
+    return max(1, -(-int(n_sats) // AUTO_SAT_PROCESSES))
+
+
+def process_groups(roles: list[str], sats: list[str], per_process: int) -> dict[str, list[str]]:
+    """Which participants each OS process of the ROS engine hosts: process role -> participant roles.
+
+    With ``per_process`` 1 every role is its own process (named by it). Above 1 the satellites go
+    ``per_process`` at a time, in their order, into processes ``sats_01``, ``sats_02``, ... (the
+    number padded to the count's width), and every other role (router, ground, contacts) stays alone.
+    One process runs its participants one after the other in one executor (the ROS 2 component
+    container pattern, bringup/engine/ros/host.py); the engine contract makes the results the same
+    however the participants are spread (tests/system/test_engines_equal.py)."""
+    if per_process < 1:
+        raise UserError(f"--sats-per-process must be >= 1, got {per_process}")
+    if per_process == 1:
+        return {r: [r] for r in roles}
+    sat_set = set(sats)
+    in_order = [r for r in roles if r in sat_set]
+    chunks = [in_order[i:i + per_process] for i in range(0, len(in_order), per_process)]
+    width = len(str(len(chunks)))
+    out = {f"sats_{k + 1:0{width}d}": c for k, c in enumerate(chunks)}
+    clash = [r for r in roles if r not in sat_set and r in out]
+    if clash:
+        raise UserError(f"role {clash[0]!r} is also the name of a satellite process group")
+    out.update({r: [r] for r in roles if r not in sat_set})
+    return out
 
 
 def kernels_for(mode: str, role: str | None) -> tuple[str, ...]:

@@ -4,7 +4,7 @@ Reduced paper scenario (12 satellites in 3 planes, 1 h: enough for DTN traffic t
 Oracles:
 * equivalence - the local engine (one process, in-memory bus) is the reference: the ROS run (14
   processes over DDS) must give identical observations (sat, gp, t_ns) and bundle deliveries
-  (bundle id, receiver, t_ns);
+  (bundle id, receiver, t_ns), and so must a ROS run with 4 satellites per process;
 * the bag opens with the ``mcap`` reader and with ``rosbags`` (independent readers), has /clock and
   every satellite's topics; ``constellation report BAG`` equals report.json (runtime aside);
 * physics of the medium - every copy on /sat_YY/dtn/in matches a transmission on /sat_XX/dtn/out
@@ -26,9 +26,9 @@ pytestmark = [pytest.mark.system, pytest.mark.ros]
 SATS, HOURS = 12, 1.0
 
 
-def _run(engine: str, out: Path) -> Path:
+def _run(engine: str, out: Path, *extra: str) -> Path:
     cmd = [sys.executable, "-m", "bringup.cli", "run", "--engine", engine, "--sats", str(SATS), "--hours",
-           str(HOURS), "--out", str(out), "--no-plots", "--no-progress"]
+           str(HOURS), "--out", str(out), "--no-plots", "--no-progress", *extra]
     r = subprocess.run(cmd, capture_output=True, text=True, timeout=600, check=False)
     assert r.returncode == 0, r.stderr[-3000:]
     return out
@@ -37,7 +37,8 @@ def _run(engine: str, out: Path) -> Path:
 @pytest.fixture(scope="module")
 def runs(tmp_path_factory):
     base = tmp_path_factory.mktemp("engines")
-    return {"local": _run("local", base / "local"), "ros": _run("ros", base / "ros")}
+    return {"local": _run("local", base / "local"), "ros": _run("ros", base / "ros"),
+            "ros4": _run("ros", base / "ros4", "--sats-per-process", "4")}
 
 
 def _observations(bag: Path):
@@ -59,6 +60,17 @@ def test_ros_engine_equals_local_engine(runs):
     del_l, del_r = _deliveries(runs["local"] / "bag"), _deliveries(runs["ros"] / "bag")
     assert len(del_l) > 10, "the reduced scenario must carry DTN traffic"
     assert del_r == del_l
+
+
+def test_satellites_grouped_in_processes_equal_one_per_process(runs):
+    """--sats-per-process 4: three processes of four satellites give the runs above."""
+    assert _observations(runs["ros4"] / "bag") == _observations(runs["ros"] / "bag")
+    assert _deliveries(runs["ros4"] / "bag") == _deliveries(runs["ros"] / "bag")
+    assert sorted(p.name for p in (runs["ros4"] / "logs").glob("sats_*.log")) == ["sats_1.log", "sats_2.log",
+                                                                                 "sats_3.log"]
+    rep, rep1 = (json.loads((runs[k] / "report.json").read_text()) for k in ("ros4", "ros"))
+    rep.pop("runtime"), rep1.pop("runtime")
+    assert rep == rep1
 
 
 @pytest.mark.parametrize("engine", ["local", "ros"])

@@ -2,9 +2,10 @@
 
 A run spec (bringup/engine/ros/run_spec.py) names the factory every node process calls as
 ``"module:function"``; for a scenario run it is ``FACTORY`` here: ``build(spec, role)`` loads the
-world pickle the launcher wrote (``spec.extra["world"]``) and returns the one participant ``role``
-hosts, made by bringup/scenario/participants.py exactly as the local engine makes it, so both
-engines run the same participants from the same inputs (tests/system/test_engines_equal.py).
+world pickle the launcher wrote (``spec.extra["world"]``) and returns the participants process
+``role`` hosts (one, or several satellites: ``spec.groups``), made by
+bringup/scenario/participants.py exactly as the local engine makes them, so both engines run the
+same participants from the same inputs (tests/system/test_engines_equal.py).
 
 ``PREPARE`` is the same runs' prepare hook: ``prepare(spec, role)`` compiles (cold numba cache) or
 loads the numba kernels the role's participants use (bringup/scenario/participants.py kernels_for,
@@ -30,18 +31,22 @@ PREPARE = "bringup.engine.ros.factory:prepare"
 
 
 def build(spec: RunSpec, role: str) -> list:
-    """The participants ``role`` hosts (one each)."""
+    """The participants process ``role`` hosts (``spec.members(role)``: one, or a group of
+    satellites), in that order, built from one world (one contact graph for all of them)."""
     path = spec.extra.get("world")
     if not path:
         raise UserError("run spec: extra.world (path of the world pickle) is missing")
     world = World.load(Path(path), spec.extra.get("world_key"))
     store_dir = spec.extra.get("store_dir")
-    return [make_participant(world, role, spec.mode, store_dir=Path(store_dir) if store_dir else None,
-                             router_kw=spec.extra.get("router"))]
+    return [make_participant(world, r, spec.mode, store_dir=Path(store_dir) if store_dir else None,
+                             router_kw=spec.extra.get("router")) for r in spec.members(role)]
 
 
 def prepare(spec: RunSpec, role: str | None) -> dict[str, float]:
-    """The numba kernels ``role`` uses (None: the whole run's), compiled or loaded in this process;
-    returns the seconds each kernel group took."""
-    which = kernels_for(spec.mode, role)
+    """The numba kernels the participants of process ``role`` use (None: the whole run's), compiled
+    or loaded in this process; returns the seconds each kernel group took."""
+    if role is None:
+        which = kernels_for(spec.mode, None)
+    else:
+        which = tuple(dict.fromkeys(k for r in spec.members(role) for k in kernels_for(spec.mode, r)))
     return warm_up(which) if which else {}

@@ -2,9 +2,10 @@
 
 ``constellation node --run-spec FILE --role ROLE`` reads it (bringup/cli/node.py); the launcher
 (bringup/engine/ros/launcher.py) writes it. It names the scenario (path or name, with overrides), mode, seed,
-the roles (one OS process each, besides the ``clock`` role) and a participant factory as a dotted
-path ``"module:function"``; ``function(spec, role) -> list[Participant]`` returns the participants
-one role hosts, so tests can plug in toy participants.
+the roles (one OS process each, besides the ``clock`` role; ``groups`` may give a process several
+participant roles) and a participant factory as a dotted path ``"module:function"``;
+``function(spec, role) -> list[Participant]`` returns the participants one process role hosts, so
+tests can plug in toy participants.
 An optional ``prepare`` hook (same form) readies what processes need before they report ready
 (the scenario's: bringup/scenario/participants.py prepare, the satellites' numba kernels).
 
@@ -60,7 +61,14 @@ class RunSpec(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
     state_dir: str | None = None
     bag_dir: str | None = None
     progress_period_s: float = 0.5
+    # process role -> the participant roles it hosts (given to the factory one by one); a process
+    # role not listed hosts itself
+    groups: dict[str, list[str]] = {}
     extra: dict[str, Any] = {}
+
+    def members(self, role: str) -> list[str]:
+        """The participant roles process ``role`` hosts."""
+        return list(self.groups.get(role, [role]))
 
     def to_file(self, path: Path) -> None:
         path.write_bytes(msgspec.json.format(msgspec.json.encode(self), indent=2))
@@ -89,6 +97,12 @@ class RunSpec(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
             raise UserError(f"{where}: 'real_time_factor' must be > 0")
         if self.startup_timeout_s is not None and not self.startup_timeout_s > 0:
             raise UserError(f"{where}: 'startup_timeout_s' must be > 0 or null")
+        unknown = [g for g in self.groups if g not in self.roles]
+        if unknown:
+            raise UserError(f"{where}: 'groups' names {unknown[0]!r}, which is not one of the roles")
+        hosted = [m for g in self.groups.values() for m in g]
+        if len(set(hosted)) != len(hosted) or any(not g for g in self.groups.values()):
+            raise UserError(f"{where}: 'groups' must list each participant once, in non-empty groups")
         if self.prepare is not None and ":" not in self.prepare:
             raise UserError(f"{where}: 'prepare' must be 'module:function', got {self.prepare!r}")
 
