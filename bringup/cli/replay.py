@@ -2,9 +2,18 @@
 
 Every recorded message is published as its raw CDR bytes (rclpy ``Publisher.publish(bytes)``) on
 its topic and type, in log-time order, paced at ``--rate`` x the recorded sim time (``--rate 0``:
-as fast as possible). The bag's own ``/clock`` is republished with it; a bag without ``/clock``
-gets one synthesised from the log times (like ``ros2 bag play --clock``), so nodes with
-``use_sim_time`` follow the replay.
+as fast as possible). Each topic is offered with the QoS the bag recorded for it (metadata.yaml's
+``offered_qos_profiles``), chosen as rosbag2's player does (rosbag2_storage ``Rosbag2QoS::
+adapt_offer_to_recorded_offers``): when every recorded offer of the topic agrees on the policies
+that decide compatibility (reliability, durability, deadline, liveliness and its lease), that
+profile; when they disagree (with a warning) or none was recorded, rosbag2's default offer
+(reliable, volatile, keep last 10). History and depth are the recorded offer's too (they take no part
+in matching; the envelopes' keep-all means a fast replay to a slow subscriber loses none).
+So ``/clock`` goes out best effort (as rclpy's TimeSource subscribes), ``/tf_static``
+transient local, the envelope topics reliable, volatile, keep-all (bringup/recording/bag.py
+``topic_qos``; converted by bringup/engine/ros/qos.py). The bag's own ``/clock`` is republished
+with it; a bag without ``/clock`` gets one synthesised from the log times (like ``ros2 bag play
+--clock``), so nodes with ``use_sim_time`` follow the replay.
 
 Network safety (ROS2_NOTES.md): the process runs with ``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST``
 and the domain from ``--domain-id`` or ``ROS_DOMAIN_ID`` (default 0); the project's FastDDS profile
@@ -14,13 +23,16 @@ subscribers before the first message; at the end every publisher waits until its
 samples are acknowledged, so nothing is lost when the process exits.
 
 Oracle: tests/ros/test_replay.py replays a small bag to a subscriber in an isolated rclpy Context
-on a leased domain and checks every message arrives byte-identical, in order, with /clock.
+on a leased domain and checks every message arrives byte-identical, in order, with /clock, and that
+the graph reports the replayer's publishers with the reliability and durability metadata.yaml
+records (read with PyYAML); the choice between disagreeing offers is checked on its own.
 """
 
 from __future__ import annotations
 
 import importlib
 import os
+import sys
 import time
 from pathlib import Path
 
@@ -28,10 +40,10 @@ import rclpy
 from rclpy.context import Context
 from rclpy.duration import Duration
 from rclpy.executors import ExternalShutdownException
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
+from bringup.engine.ros.qos import qos_profile
 from bringup.errors import UserError
-from bringup.recording.bag import CLOCK_TYPE, BagReader, clock_cdr
+from bringup.recording.bag import CLOCK_TYPE, BagReader, clock_cdr, make_qos, topic_qos
 
 
 def add_arguments(p) -> None:
@@ -44,6 +56,23 @@ def add_arguments(p) -> None:
                    help="before starting, wait until every topic has N matched subscribers")
     p.add_argument("--wait-timeout", type=float, default=10.0, help="[s] for --wait-subscribers (default 10)")
     p.add_argument("--quiet", action="store_true", help="no summary line")
+
+
+_ROSBAG2_DEFAULT = make_qos(depth=10)  # rosbag2's default publisher offer: reliable, volatile, keep last 10
+
+
+def _compat(q) -> tuple:
+    return (q.reliability, q.durability, q.deadline, q.liveliness, q.liveliness_lease_duration)
+
+
+def replay_qos(topic: str, offers: list):
+    """The rclpy QoS to replay ``topic`` with, from its recorded offers (module docstring)."""
+    if offers and all(_compat(q) == _compat(offers[0]) for q in offers):
+        return qos_profile(offers[0])
+    if offers:
+        print(f"replay: warning: the recorded offers on {topic} disagree; offering rosbag2's default "
+              "(reliable, volatile, keep last 10)", file=sys.stderr)
+    return qos_profile(_ROSBAG2_DEFAULT)
 
 
 def _msg_class(msgtype: str):
@@ -88,10 +117,10 @@ def run(args) -> int:
     classes = {topic: _msg_class(mt) for topic, mt in types.items()}
     if synth_clock:
         classes["/clock"] = _msg_class(CLOCK_TYPE)
-
-
-    qos = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1000, reliability=ReliabilityPolicy.RELIABLE,
-                     durability=DurabilityPolicy.VOLATILE)
+    offered = reader.offered_qos()
+    qos = {topic: replay_qos(topic, offered.get(topic, [])) for topic in classes}
+    if synth_clock:
+        qos["/clock"] = qos_profile(topic_qos("/clock", CLOCK_TYPE))
     ctx = Context()
     rclpy.init(context=ctx, domain_id=domain)
     node = None
@@ -99,7 +128,7 @@ def run(args) -> int:
     wall0 = time.monotonic()
     try:
         node = rclpy.create_node("bag_replay", context=ctx)
-        pubs = {topic: node.create_publisher(cls, topic, qos) for topic, cls in classes.items()}
+        pubs = {topic: node.create_publisher(cls, topic, qos[topic]) for topic, cls in classes.items()}
         if args.wait_subscribers > 0:
             deadline = time.monotonic() + args.wait_timeout
             while not all(p.get_subscription_count() >= args.wait_subscribers for p in pubs.values()):

@@ -46,6 +46,7 @@ Reader API::
 
     with BagReader(path) as bag:               # UserError (one line) if missing/truncated/not a bag
         bag.topics() -> list[TopicStats(topic, msgtype, count)]; bag.start_ns, bag.end_ns, bag.count
+        bag.offered_qos() -> {topic: [rosbags Qos, ...]} (metadata.yaml's offered_qos_profiles)
         bag.messages(topics=None) -> iter of RawMessage(topic, msgtype, log_time_ns, cdr)
         bag.envelopes(topics=None) -> iter of Envelope (String topics carrying wire envelopes)
         bag.typed(topics=None) -> iter of (topic, log_time_ns, rosbags message object)
@@ -543,6 +544,13 @@ class BagReader:
         for c in self._r.connections:
             out[(c.topic, c.msgtype)] = out.get((c.topic, c.msgtype), 0) + int(c.msgcount)
         return [TopicStats(t, m, n) for (t, m), n in sorted(out.items())]
+
+    def offered_qos(self) -> dict[str, list[Qos]]:
+        """Each topic's recorded ``offered_qos_profiles`` (metadata.yaml), one list per topic."""
+        out: dict[str, list[Qos]] = {}
+        for c in self._r.connections:
+            out.setdefault(c.topic, []).extend(getattr(c.ext, "offered_qos_profiles", None) or [])
+        return out
 
     def messages(self, topics: Iterable[str] | None = None) -> Iterator[RawMessage]:
         """Raw CDR in log-time order; ``log_time_ns`` is t_ns (the log time less the epoch)."""

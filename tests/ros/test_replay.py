@@ -1,7 +1,12 @@
-"""`constellation replay`: a small bag republished onto a live graph reaches a subscriber intact.
+"""`constellation replay`: a small bag republished onto a live graph reaches a subscriber intact,
+offered with the QoS the bag recorded.
 
 The subscriber lives in an isolated rclpy Context on a leased ROS_DOMAIN_ID (loopback discovery);
 the replayer is the real CLI in a subprocess. We wait on a condition with a deadline, never sleep.
+Oracle for the QoS: the bag's own metadata.yaml (offered_qos_profiles, read with PyYAML, not with
+our reader) against what the graph reports for the replayer's publishers (get_publishers_info_by_topic:
+reliability and durability; DDS discovery does not carry the history, which ``ros2 topic info -v``
+shows as UNKNOWN too).
 """
 
 from __future__ import annotations
@@ -9,6 +14,7 @@ from __future__ import annotations
 import subprocess
 import sys
 import threading
+import time
 
 import pytest
 
@@ -69,6 +75,7 @@ def test_replay_delivers_every_message_and_clock(tmp_path, with_clock):
         ex = SingleThreadedExecutor(context=ctx)
         ex.add_node(node)
         qos = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)
+        clock_qos = QoSProfile(depth=1000, reliability=ReliabilityPolicy.BEST_EFFORT)
         for topic, mt in types.items():
             pkg, kind, name = mt.split("/")
             cls = getattr(__import__(f"{pkg}.{kind}", fromlist=[name]), name)
@@ -78,7 +85,8 @@ def test_replay_delivers_every_message_and_clock(tmp_path, with_clock):
                     got[topic].append(bytes(raw))
                     cond.notify_all()
 
-            node.create_subscription(cls, topic, cb, qos, raw=True)
+            # /clock is offered best effort (what the bag recorded): a reliable reader would not match it
+            node.create_subscription(cls, topic, cb, clock_qos if topic == "/clock" else qos, raw=True)
         spin = threading.Thread(target=ex.spin, daemon=True)
         spin.start()
         try:
@@ -108,3 +116,93 @@ def test_replay_missing_bag_is_one_line_error(tmp_path):
     proc = subprocess.run([sys.executable, "-m", "bringup.cli", "replay", str(tmp_path / "nope")],
                           capture_output=True, text=True, timeout=60, check=False)
     assert proc.returncode == 2 and "not found" in proc.stderr and proc.stderr.strip().count("\n") == 0
+
+
+def test_replay_offers_the_recorded_qos(tmp_path):
+    import rclpy
+    import yaml
+    from rclpy.context import Context
+    from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+
+    from bringup.engine.ros.launcher import child_env, lease_domain_id
+    from bringup.recording.bag import BagWriter
+    from bringup.recording.viz_frames import TF_TYPE, station_tf, tf_cdr
+    from msgs_json.envelope import Envelope
+
+    class St:
+        name, lat_deg, lon_deg, alt_m = "svalbard", 78.2298, 15.4078, 500.0
+
+    bag = tmp_path / "bag"
+    with BagWriter(bag) as w:
+        for k in range(4):
+            w.write_clock(k * S)
+            w.write_envelope(Envelope(k * S, "sat_11", k, "/sat_11/observations", "{}"))
+        w.write_raw("/tf_static", TF_TYPE, tf_cdr(station_tf([St], 0)), 0)
+    meta = yaml.safe_load((bag / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
+    recorded = {}
+    for t in meta["topics_with_message_count"]:
+        tm = t["topic_metadata"]
+        q = tm["offered_qos_profiles"]
+        recorded[tm["name"]] = (yaml.safe_load(q) if isinstance(q, str) else q)[0]
+    want_rel = {"reliable": ReliabilityPolicy.RELIABLE, "best_effort": ReliabilityPolicy.BEST_EFFORT}
+    want_dur = {"transient_local": DurabilityPolicy.TRANSIENT_LOCAL, "volatile": DurabilityPolicy.VOLATILE}
+    assert {n: (q["reliability"], q["durability"], q["history"]) for n, q in recorded.items()} == {
+        "/clock": ("best_effort", "volatile", "keep_last"), "/sat_11/observations": ("reliable", "volatile", "keep_all"),
+        "/tf_static": ("reliable", "transient_local", "keep_last")}
+
+    with lease_domain_id() as lease:
+        ctx = Context()
+        rclpy.init(context=ctx, domain_id=lease.domain_id)
+        node = rclpy.create_node("qos_listener", context=ctx)
+        proc = None
+        try:
+            from rosgraph_msgs.msg import Clock
+            from std_msgs.msg import String
+            from tf2_msgs.msg import TFMessage
+
+            for topic, cls in (("/clock", Clock), ("/sat_11/observations", String), ("/tf_static", TFMessage)):
+                node.create_subscription(cls, topic, lambda m: None,
+                                         QoSProfile(depth=10, reliability=ReliabilityPolicy.BEST_EFFORT))
+            # a slow replay with a long wait for subscribers: the publishers stay on the graph meanwhile
+            proc = subprocess.Popen(
+                [sys.executable, "-m", "bringup.cli", "replay", str(bag), "--rate", "0.5",
+                 "--domain-id", str(lease.domain_id), "--wait-subscribers", "1", "--wait-timeout", "60"],
+                env=child_env(lease.domain_id), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+            seen = {}
+            deadline = time.monotonic() + 60
+            while len(seen) < 3 and time.monotonic() < deadline and proc.poll() is None:
+                for topic in recorded:
+                    infos = [i for i in node.get_publishers_info_by_topic(topic) if i.node_name == "bag_replay"]
+                    if infos:
+                        seen[topic] = infos[0].qos_profile
+                time.sleep(0.05)
+            assert set(seen) == set(recorded), (seen, proc.poll())
+            for topic, q in recorded.items():
+                assert seen[topic].reliability == want_rel[q["reliability"]], topic
+                assert seen[topic].durability == want_dur[q["durability"]], topic
+            assert proc.wait(timeout=60) == 0, proc.stderr.read()[-2000:]
+        finally:
+            if proc is not None and proc.poll() is None:
+                proc.kill()
+            node.destroy_node()
+            rclpy.try_shutdown(context=ctx)
+
+
+def test_replay_qos_agreeing_offers_kept_disagreeing_fall_back(capsys):
+    from rclpy.qos import DurabilityPolicy, HistoryPolicy, ReliabilityPolicy
+
+    from bringup.cli.replay import replay_qos
+    from bringup.recording.bag import make_qos
+
+    tl = make_qos(depth=1, transient_local=True)
+    q = replay_qos("/tf_static", [tl, tl])
+    assert (q.reliability, q.durability, q.history, q.depth) == (
+        ReliabilityPolicy.RELIABLE, DurabilityPolicy.TRANSIENT_LOCAL, HistoryPolicy.KEEP_LAST, 1)
+    assert capsys.readouterr().err == ""
+    # two publishers recorded with different durability: rosbag2's default offer, and a warning naming the topic
+    q = replay_qos("/x", [tl, make_qos(depth=5)])
+    assert (q.reliability, q.durability, q.history, q.depth) == (
+        ReliabilityPolicy.RELIABLE, DurabilityPolicy.VOLATILE, HistoryPolicy.KEEP_LAST, 10)
+    assert "/x" in capsys.readouterr().err
+    # nothing recorded (an older bag): the default, silently
+    assert replay_qos("/y", []).depth == 10 and capsys.readouterr().err == ""
