@@ -32,7 +32,8 @@ horizon); skyfield ``find_events`` with the elevation mask equivalent to the off
 on every pass to within 2 s (passes whose peak is within 1 deg of the mask are excluded: there the
 edges are ill-conditioned); the brute-force 1 s grid over every GP (``access_windows_bruteforce``)
 finds the same windows; invariants (ordered, non-overlapping per (sat, gp), inside the horizon,
-eta <= limit inside).
+eta <= limit inside). Every observation a whole run executes is within the field of regard, by an
+off-nadir angle recomputed with sgp4 and WGS-84 written out in tests/system/test_observation_physics.py.
 """
 
 from __future__ import annotations

@@ -13,7 +13,10 @@ How we know it is right (tests/unit/test_acs.py): the polynomial against the pap
 hand-computed angles (0, 10, 90 deg); the angle against an independent formula
 (``atan2(|u x v|, u.v)`` against our ``arccos`` with clipping); ``max_angle_deg`` is the inverse of
 ``time_s`` (``time_s(max_angle_deg(t)) == t`` to 1e-9 s, and monotone); a coefficient set that is
-not increasing on [0, 180] deg is refused with a ValueError naming the key.
+not increasing on [0, 180] deg is refused with a ValueError naming the key. In whole runs
+(tests/system/test_observation_physics.py): consecutive executed observations of each satellite are
+at least the paper's slew time apart, for the angle recomputed with sgp4 and WGS-84 written out in
+the test.
 
 Not modelled: attitude dynamics (the fit already includes them), settling jitter, wheel momentum.
 """

@@ -30,8 +30,9 @@ emitted stamped with their start times, so no figure depends on the step length.
 
 How we know it is right: the engine-equivalence system test (local vs ROS, identical traces,
 tests/system/test_engines_equal.py); its plans are the planner's plans for what it knows
-(tests/unit/test_planner.py); hostile or malformed messages are rejected and counted
-(tests/faults/test_faults_hostile.py).
+(tests/unit/test_planner.py); what it executes obeys the field of regard and the slew model, by
+geometry recomputed independently of the project's code (tests/system/test_observation_physics.py);
+hostile or malformed messages are rejected and counted (tests/faults/test_faults_hostile.py).
 
 Transmission status: the ISL medium (dtn_router) reports a transmission that did not get through
 (contact ended mid-transmission, e.g. an ISL cut; no contact; radio busy) on ``/sat_XX/dtn/status``;
