@@ -31,7 +31,8 @@ deviation of (belief/absval - 1) within 3 standard errors of sigma_s; :func:`pri
 binary search) equal to the pairwise definition on random histories with observations exactly on the
 grid times and on grid times +- revisit_zero_s, on unsorted and repeated times; :class:`ValueLedger`
 (the true value of executed observations, one at a time) equal to :func:`true_value` evaluated on
-each observation's history.
+each observation's history. The report's value of a bag of nine observations equals Eq. 1 worked
+out by hand (tests/unit/test_report_value.py).
 
 Not done: a spatial-diversity term (value for observing GPs far from recent observations).
 """

@@ -31,7 +31,9 @@ Definitions:
   the pass came from), and how many duplicate observations (same GP within ``revisit_zero_s``) the
   later satellite made of GPs whose news it did not have when planning ("late news").
 
-Oracle: the consensus figures on a hand-worked pair of passes (tests/faults/test_faults_link.py);
+Oracle: the value, duplicate, first-look, assumed-error and coverage figures of a bag of nine
+observations worked out by hand (tests/unit/test_report_value.py); the consensus figures on a
+hand-worked pair of passes (tests/faults/test_faults_link.py);
 the report built beside the run equals ``build_report`` over the same envelopes
 (tests/unit/test_record_process.py), and the report rebuilt from a run's bag equals the run's own,
 on both engines (tests/system/test_engines_equal.py).
