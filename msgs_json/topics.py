@@ -7,8 +7,11 @@ std_msgs/msg/String; its payload is JSON of the schema ``schema_for(topic)`` nam
 ``VIZ_MARKERS``, the plotted series ``VIZ_VALUE`` and ``VIZ_IN_FLIGHT``, the TF tree ``TF`` and
 ``TF_STATIC``), ``/clock`` and the live ``DIAGNOSTICS`` are their own ROS types, not envelopes.
 
-Oracle: tests/unit/test_msgs_json.py checks every builder's name maps back to the right schema and
-that unknown names map to nothing.
+A per-satellite topic moved by the ROS engine's namespaces (``/fleet/sat_11/schedule``) still maps to
+its schema (:func:`design_topic`), so a bag of such a run reads and reports like any other.
+
+Oracle: tests/unit/test_msgs_json.py checks every builder's name maps back to the right schema, that
+unknown names map to nothing, and that pushed names map like DESIGN.md's.
 """
 
 from __future__ import annotations
@@ -40,6 +43,7 @@ __all__ = [
     "dtn_in_topic",
     "dtn_out_topic",
     "dtn_status_topic",
+    "design_topic",
     "fix_topic",
     "is_bytes_topic",
     "is_known_topic",
@@ -134,9 +138,23 @@ _PER_SAT: dict[str, object] = {
 _SAT_TOPIC_RE = re.compile(rf"^/({SAT_NAME_PATTERN[1:-1]})/(.+)$")
 
 
-def sat_of_topic(topic: str) -> str | None:
-    """The satellite a per-satellite topic belongs to, else None."""
+def design_topic(topic: str) -> str:
+    """DESIGN.md's name of a per-satellite topic seen under a pushed or remapped namespace (the ROS
+    engine's ``--namespace`` / ``__ns`` remaps keep its ``/<sat>/<leaf>`` end):
+    ``/fleet/sat_11/schedule`` -> ``/sat_11/schedule``; any other name unchanged."""
     m = _SAT_TOPIC_RE.match(topic)
+    if m and m.group(2) in _PER_SAT:
+        return topic
+    parts = topic.split("/")
+    for i in range(2, len(parts) - 1):
+        if is_sat_name(parts[i]) and "/".join(parts[i + 1:]) in _PER_SAT:
+            return "/" + "/".join(parts[i:])
+    return topic
+
+
+def sat_of_topic(topic: str) -> str | None:
+    """The satellite a per-satellite topic belongs to (under any namespace: :func:`design_topic`), else None."""
+    m = _SAT_TOPIC_RE.match(design_topic(topic))
     return m.group(1) if m and m.group(2) in _PER_SAT else None
 
 
@@ -145,6 +163,14 @@ def _lookup(topic: str) -> object | None:
     if t is not None:
         return t
     m = _SAT_TOPIC_RE.match(topic)
+    if m is not None:
+        t = _PER_SAT.get(m.group(2))
+        if t is not None:
+            return t
+    d = design_topic(topic)
+    if d == topic:
+        return None
+    m = _SAT_TOPIC_RE.match(d)
     return _PER_SAT.get(m.group(2)) if m else None
 
 

@@ -141,6 +141,15 @@ def test_topics_map_to_schemas():
     assert T.schema_for("/sat_1/schedule") is None and T.schema_for("/sat_11/schedule/x") is None
     assert T.sat_of_topic("/sat_23/observations") == "sat_23" and T.sat_of_topic("/ground/uplink") is None
     assert T.fix_topic("sat_12") == "/sat_12/fix"
+    # per-satellite topics moved by a namespace push or remap keep their schema
+    assert T.design_topic("/fleet/a/sat_11/schedule") == "/sat_11/schedule"
+    assert T.schema_for("/fleet/a/sat_11/schedule") is S.Schedule
+    assert T.is_bytes_topic("/moved/sat_12/dtn/out") and T.sat_of_topic("/moved/sat_12/dtn/out") == "sat_12"
+    assert T.design_topic("/fleet/orbit/contacts") == "/fleet/orbit/contacts"
+    assert T.schema_for("/fleet/sat_11/fix") is None and T.schema_for("/x/sat_1/schedule") is None
+    assert T.design_topic("/sat_11/sat_12/schedule") == "/sat_12/schedule"
+    assert T.schema_for("/fleet/sat_0001_0012/schedule") is S.Schedule  # names beyond 9 x 9 (msgs_json/names.py)
+    assert T.sat_of_topic("/fleet/sat_0001_0012/dtn/in") == "sat_0001_0012"
     for bad in ("sat_1", "sat_01", "Sat11", "", None):
         with pytest.raises(ValueError):
             T.schedule_topic(bad)  # type: ignore[arg-type]
