@@ -19,8 +19,9 @@ modelled (the study's link budget does not either).
 
 How we know it is right: tests/unit/test_link.py on drawn plans (copies to every node in view,
 arrival = end + light time, a contact ending mid-transmission fails, a cut contact fails), and
-tests/unit/test_speed_paths.py (open_contacts, which skips contacts that started more than the
-longest contact ago, equals the full scan on a random plan).
+tests/unit/test_speed_paths.py (open_contacts, which checks a sender's long contacts one by one and
+skips short ones that started more than its longest short contact ago, equals the full scan on a
+random plan).
 """
 
 from __future__ import annotations
@@ -50,27 +51,45 @@ class LinkOutcome:
     failed: dict = field(default_factory=dict)  # next hop -> reason, for each that missed it
 
 
+# a contact longer than this [s] is checked by open_contacts whenever its sender transmits
+_LONG_S = 3600.0
+
+
 class LinkModel:
     def __init__(self, truth: ContactPlan):
         self.truth = truth
         self._by_src: dict[str, list[Contact]] = {}
         for c in truth.contacts:
             self._by_src.setdefault(c.src, []).append(c)
-        self._starts = {s: [c.start_s for c in cs] for s, cs in self._by_src.items()}
-        # contacts that started more than the longest contact (+1 s against rounding) before t have
-        # ended by t: open_contacts scans only the starts after that
-        self._span_s = max((c.end_s - c.start_s for c in truth.contacts), default=0.0) + 1.0
+        # open_contacts: per sender, the contacts longer than _LONG_S (few: neighbours in view for
+        # hours, e.g. in-plane ones) are checked one by one; the others are found by start time: one
+        # that started more than the sender's longest short contact (+1 s against rounding) before t
+        # has ended by t, so only the starts after that are scanned
+        self._short: dict[str, tuple[list, list, list[int], float]] = {}
+        self._long: dict[str, list[tuple[int, Contact]]] = {}
+        for s, cs in self._by_src.items():
+            short = [(i, c) for i, c in enumerate(cs) if c.end_s - c.start_s <= _LONG_S]
+            self._short[s] = ([c for _i, c in short], [c.start_s for _i, c in short], [i for i, _c in short],
+                              max((c.end_s - c.start_s for _i, c in short), default=0.0) + 1.0)
+            self._long[s] = [(i, c) for i, c in enumerate(cs) if c.end_s - c.start_s > _LONG_S]
         self._busy_until_ns: dict[str, int] = {}
         self.counters = {"tx": 0, "ok": 0, "no_contact": 0, "contact_ended": 0, "radio_busy": 0, "copies": 0}
         self.air_ns: dict[str, int] = {}  # sender -> time on air [ns] (every transmission that went out)
         self.bits_sent: dict[str, int] = {}  # sender -> bits put on air
 
     def open_contacts(self, sender: str, t_s: float) -> list[Contact]:
-        cs = self._by_src.get(sender, [])
-        starts = self._starts.get(sender, [])
+        """The sender's contacts open at ``t_s`` (start <= t_s < end), in the plan's order."""
+        short = self._short.get(sender)
+        if short is None:
+            return []
+        cs, starts, idx, span_s = short
         k = bisect.bisect_right(starts, t_s)
-        lo = bisect.bisect_left(starts, t_s - self._span_s, 0, k)
-        return [c for c in cs[lo:k] if c.end_s > t_s]
+        lo = bisect.bisect_left(starts, t_s - span_s, 0, k)
+        found = [(idx[j], cs[j]) for j in range(lo, k) if cs[j].end_s > t_s]
+        longs = [(i, c) for i, c in self._long[sender] if c.start_s <= t_s < c.end_s]
+        if longs:
+            found = sorted(found + longs, key=lambda x: x[0])
+        return [c for _i, c in found]
 
     def transmit(self, sender: str, next_hop, start_ns: int, bits: int) -> LinkOutcome:
         """One transmission to ``next_hop`` (a node name, or a sequence of them for a multicast one)."""

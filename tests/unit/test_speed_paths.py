@@ -257,7 +257,8 @@ def test_open_contacts_window_equals_full_scan():
     for _ in range(400):
         s = rng.uniform(0, 20000)
         a, b = rng.sample(["sat_11", "sat_12", "sat_13", "sat_14"], 2)
-        cs.append(Contact(s, s + rng.choice([1.0, rng.uniform(1, 3000)]), a, b, 1e4, 0.01))
+        cs.append(Contact(s, s + rng.choice([1.0, rng.uniform(1, 3000), rng.uniform(3000, 21600), 3600.0]),
+                          a, b, 1e4, 0.01))
     lm = LinkModel(ContactPlan(cs))
     for _ in range(3000):
         t = rng.choice([rng.uniform(-10, 24000), rng.choice(cs).start_s, rng.choice(cs).end_s])
@@ -481,3 +482,4 @@ def test_pruned_isl_windows_equal_every_pair_at_every_sample(paper_scenario):
         _pair, first, last = _candidate_segments(c, t, c.positions_ecef_km(t), sc.isl.max_range_km)
         if sats >= 96:
             assert (last - first + 1).sum() < 0.6 * sats * (sats - 1) / 2 * t.size
+
