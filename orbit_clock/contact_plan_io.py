@@ -37,6 +37,13 @@ absolute ``yyyy/mm/dd-hh:mm:ss`` or ``+N`` relative times, integers read like ``
 in seconds since ``epoch_utc`` (default: the file's first ``@`` reference time); HDTN fields must be
 integers (a field HDTN would read as 0 is an error naming the contact and the field).
 
+Every plan read is checked before use (:func:`checked_contacts`): numbers finite, 0 <= start < end
+<= :data:`MAX_PLAN_TIME_S`, 1 <= rate <= 1e15 bit/s, 0 <= light time <= :data:`MAX_LIGHT_S`; the
+same directed link listed twice with the same window and figures is one contact (merged, and said
+through ``on_duplicate``, or refused when no such callback is given), and two different windows of
+one directed link that overlap are refused (CGR would count the link's capacity twice). Files are
+read as UTF-8 text, at most :data:`MAX_PLAN_BYTES` (msgs_json/text_input.py).
+
 How we know it is right: tests/unit/test_contact_plan_io.py (every format written and read back
 within the rounding rules; the study's plan; every line we write checked against a mirror of
 ionadmin's grammar and of HDTN's ptree reads, HDTN's own example plans' field types included).
@@ -54,10 +61,12 @@ from dataclasses import dataclass, field
 from datetime import UTC, datetime
 from pathlib import Path
 
+from msgs_json.text_input import TextInputError, read_text
 from orbit_clock.contact_plan import Contact, ContactPlan, canonical_node, node_name, node_number
 
-__all__ = ["CONTACT_PLAN_FORMATS", "ContactPlanError", "Written", "guess_format", "parse_contact_plan",
-           "read_contact_plan", "whole_second_contacts", "write_contact_plan"]
+__all__ = ["CONTACT_PLAN_FORMATS", "MAX_LIGHT_S", "MAX_PLAN_BYTES", "MAX_PLAN_TIME_S", "ContactPlanError",
+           "Written", "checked_contacts", "guess_format", "parse_contact_plan", "read_contact_plan",
+           "whole_second_contacts", "write_contact_plan"]
 
 CONTACT_PLAN_FORMATS = ("csv", "ion", "hdtn-json")
 # ionadmin's time stamp (ici/library/ion.c timestampInFormat / timestampOutFormat)
@@ -65,6 +74,13 @@ _ION_TS = "%Y/%m/%d-%H:%M:%S"
 _ION_TS_RE = re.compile(r"^(\d{1,4})/(\d{1,2})/(\d{1,2})-(\d{1,2}):(\d{1,2}):(\d{1,2})")
 # ION keeps times as POSIX seconds up to MAX_POSIX_TIME (19 January 2038); HDTN reads times as int
 _INT32_MAX = 2**31 - 1
+# Bounds of a plan we read: times within half of the engines' int64-nanosecond clock (a time plus a
+# light time plus a queue never overflows it; ~146 years), light times up to 1e6 s (11.6 days: the
+# farthest spacecraft is under one light day away), rates 1 bit/s (ION's least, 1 byte/s, is 8) to 1 Pb/s
+MAX_PLAN_TIME_S = 2**62 / 1e9
+MAX_LIGHT_S = 1e6
+_MIN_RATE_BPS, _MAX_RATE_BPS = 1.0, 1e15
+MAX_PLAN_BYTES = 512 * 2**20
 
 
 class ContactPlanError(ValueError):
@@ -94,23 +110,25 @@ def guess_format(path) -> str:
 
 
 def read_contact_plan(path, fmt: str | None = None, *, rate_bps: float | None = None,
-                      ground_stations: list[str] | None = None, epoch_utc: datetime | None = None) -> ContactPlan:
+                      ground_stations: list[str] | None = None, epoch_utc: datetime | None = None,
+                      on_duplicate=None) -> ContactPlan:
     """Read a contact plan file (format from ``fmt`` or the suffix). ``rate_bps`` fills a CSV
     without a rate column (and overrides nothing else); ``epoch_utc``: the instant ION times are
-    counted from (default: the file's first ``@`` reference time)."""
+    counted from (default: the file's first ``@`` reference time); ``on_duplicate(line)``: told of
+    each contact listed twice, which is merged (None: a duplicate is an error)."""
     path = Path(path)
     fmt = fmt or guess_format(path)
     try:
-        text = path.read_text(encoding="utf-8")
-    except OSError as exc:
-        raise ContactPlanError(f"{path}: cannot read contact plan: {exc.strerror or exc}") from None
+        text = read_text(path, "contact plan", MAX_PLAN_BYTES)
+    except TextInputError as exc:
+        raise ContactPlanError(str(exc)) from None
     return parse_contact_plan(text, fmt, rate_bps=rate_bps, ground_stations=ground_stations, where=str(path),
-                              epoch_utc=epoch_utc)
+                              epoch_utc=epoch_utc, on_duplicate=on_duplicate)
 
 
 def parse_contact_plan(text: str, fmt: str, *, rate_bps: float | None = None,
                        ground_stations: list[str] | None = None, where: str = "<text>",
-                       epoch_utc: datetime | None = None) -> ContactPlan:
+                       epoch_utc: datetime | None = None, on_duplicate=None) -> ContactPlan:
     if fmt == "csv":
         contacts = _parse_csv(text, rate_bps, where)
     elif fmt == "ion":
@@ -120,11 +138,51 @@ def parse_contact_plan(text: str, fmt: str, *, rate_bps: float | None = None,
     else:
         raise ContactPlanError(f"{where}: unknown contact plan format {fmt!r} "
                                f"(one of {', '.join(CONTACT_PLAN_FORMATS)})")
-    for c in contacts:
-        if not (c.end_s > c.start_s >= 0.0) or c.rate_bps <= 0 or c.range_light_s < 0:
-            raise ContactPlanError(f"{where}: bad contact {c.src}->{c.dst} [{c.start_s}, {c.end_s}] "
-                                   f"rate {c.rate_bps} range {c.range_light_s}")
-    return ContactPlan(contacts)
+    return ContactPlan(checked_contacts(contacts, where, on_duplicate))
+
+
+def _describe(c: Contact) -> str:
+    return f"{c.src}->{c.dst} [{c.start_s:g}, {c.end_s:g}] s"
+
+
+def checked_contacts(contacts: list[Contact], where: str, on_duplicate=None) -> list[Contact]:
+    """``contacts`` within the bounds (module docstring), exact duplicates merged (each told to
+    ``on_duplicate``, or an error without it); ContactPlanError naming the first bad contact."""
+    for i, c in enumerate(contacts, start=1):
+        nums = (c.start_s, c.end_s, c.rate_bps, c.range_light_s)
+        if not all(isinstance(x, (int, float)) and math.isfinite(x) for x in nums):
+            raise ContactPlanError(f"{where}: contact {i} ({c.src}->{c.dst}): start, end, rate and range must be "
+                                   f"finite numbers, got {nums}")
+        if not 0.0 <= c.start_s < c.end_s <= MAX_PLAN_TIME_S:
+            raise ContactPlanError(f"{where}: contact {i} {_describe(c)}: need 0 <= start < end <= "
+                                   f"{MAX_PLAN_TIME_S:.3g} s")
+        if not _MIN_RATE_BPS <= c.rate_bps <= _MAX_RATE_BPS:
+            raise ContactPlanError(f"{where}: contact {i} {_describe(c)}: rate {c.rate_bps:g} bit/s outside "
+                                   f"{_MIN_RATE_BPS:g}..{_MAX_RATE_BPS:g}")
+        if not 0.0 <= c.range_light_s <= MAX_LIGHT_S:
+            raise ContactPlanError(f"{where}: contact {i} {_describe(c)}: one-way light time {c.range_light_s:g} s "
+                                   f"outside 0..{MAX_LIGHT_S:g}")
+        if c.src == c.dst:
+            raise ContactPlanError(f"{where}: contact {i} {_describe(c)}: a node's contact with itself")
+    out: list[Contact] = []
+    last: dict[tuple[str, str], Contact] = {}
+    dups = 0
+    for c in sorted(contacts, key=lambda c: (c.src, c.dst, c.start_s, c.end_s, c.rate_bps, c.range_light_s)):
+        prev = last.get((c.src, c.dst))
+        if prev is not None and c.start_s < prev.end_s:
+            if c == prev:
+                dups += 1
+                continue
+            raise ContactPlanError(f"{where}: contacts {_describe(prev)} and {_describe(c)} overlap: one directed "
+                                   "link has one window at a time (CGR would count its capacity twice)")
+        last[(c.src, c.dst)] = c
+        out.append(c)
+    if dups:
+        line = f"{where}: {dups} contacts listed twice (same link, window, rate and range): each counted once"
+        if on_duplicate is None:
+            raise ContactPlanError(line.replace("each counted once", "remove the copies"))
+        on_duplicate(line)
+    return out
 
 
 def _parse_csv(text: str, rate_bps, where) -> list[Contact]:
@@ -265,7 +323,7 @@ def _parse_hdtn(text: str, gs, where) -> list[Contact]:
         rows = doc["contacts"]
         if not isinstance(rows, list):
             raise TypeError("'contacts' is not a list")
-    except (ValueError, KeyError, TypeError) as exc:
+    except (ValueError, KeyError, TypeError, RecursionError) as exc:
         raise ContactPlanError(f"{where}: not an HDTN JSON contact plan: {exc}") from None
     out = []
     for i, r in enumerate(rows):

@@ -24,6 +24,15 @@ Definitions:
 * osse.rank_corr_15min, osse.rank_corr_60min, osse.transiency_min - the truth field's rank
   statistics (ground_station/osse_stats.py), from the run's metadata.
 * dtn.* - sat_node/dtn/stats.py over the bundle events (first delivery per bundle counts).
+* partial, horizon_reached_s - a report of a run that reached its horizon (the bag holds the run's
+  closing /run/meta record and its file is complete) has ``partial`` false and
+  ``horizon_reached_s`` = ``horizon_s``; one rebuilt from a bag that ends early (the run failed or
+  a process was killed; bringup/recording/bag_reader.py recovers a cut file) has ``partial`` true, the
+  last sim time the bag holds, and a ``recording`` section saying what was recovered and lost.
+* messages_rejected_in_report, report_rejections - payloads the report does not count: ones that
+  do not decode, and observations outside the run (a GP index not below the scenario's ``n_gp``, a
+  time after the horizon, a recorded value outside the OSSE's VALUE_MIN..VALUE_MAX
+  (ground_station/osse.py), a ``sat`` other than its topic's), by reason.
 * consensus.* - ISL-delayed implicit consensus (Nag et al. section 4), see
   :func:`consensus_figures`: for each pair of successive passes of different satellites over a
   region, whether the earlier satellite's observations reached the later one (bundle delivered)
@@ -33,7 +42,8 @@ Definitions:
 
 Oracle: the value, duplicate, first-look, assumed-error and coverage figures of a bag of nine
 observations worked out by hand (tests/unit/test_report_value.py); the consensus figures on a
-hand-worked pair of passes (tests/faults/test_faults_link.py);
+hand-worked pair of passes (tests/faults/test_faults_link.py); out-of-range payloads and partial bags
+in tests/faults/test_hostile_inputs.py and tests/faults/test_recorder_kill.py;
 the report built beside the run equals ``build_report`` over the same envelopes
 (tests/unit/test_record_process.py), and the report rebuilt from a run's bag equals the run's own,
 on both engines (tests/system/test_engines_equal.py).
@@ -42,13 +52,15 @@ on both engines (tests/system/test_engines_equal.py).
 from __future__ import annotations
 
 import json
+import math
 from collections import defaultdict
-from dataclasses import dataclass
+from dataclasses import MISSING, dataclass, fields
 
 import numpy as np
 
 from bringup.errors import UserError
 from bringup.recording.bag import BagReader
+from ground_station.osse import VALUE_MAX, VALUE_MIN
 from msgs_json import codec
 from msgs_json import schemas as S
 from msgs_json.envelope import Envelope
@@ -88,7 +100,31 @@ class RunMeta:
 
     @classmethod
     def from_json(cls, text: str) -> RunMeta:
-        return cls(**json.loads(text))
+        return cls.from_dict(json.loads(text))
+
+    @classmethod
+    def from_dict(cls, d) -> RunMeta:
+        """A RunMeta from a /run/meta record's ``meta`` mapping; ValueError naming the bad key
+        (unknown keys are ignored: a later writer may add some)."""
+        if not isinstance(d, dict):
+            raise ValueError(f"'meta' is {type(d).__name__}, not an object")
+        kw = {}
+        for f in fields(cls):
+            if f.name not in d:
+                if f.default is not MISSING:
+                    continue
+                raise ValueError(f"meta.{f.name} is missing")
+            v = d[f.name]
+            want = {"str": str, "int": int, "float": float}[f.type]
+            ok = (type(v) is int) if want is int else (
+                type(v) in (int, float) and math.isfinite(v)) if want is float else isinstance(v, str)
+            if not ok:
+                raise ValueError(f"meta.{f.name} = {v!r} is not a {'finite number' if want is float else f.type}")
+            kw[f.name] = v
+        if kw["horizon_s"] <= 0 or kw["n_sats"] < 1 or kw["n_gp"] < 0 or kw["seed"] < 0 or kw.get("revisit_zero_s", 0) < 0:
+            raise ValueError(f"meta out of range: horizon_s {kw['horizon_s']}, n_sats {kw['n_sats']}, "
+                             f"n_gp {kw['n_gp']}, seed {kw['seed']}")
+        return cls(**kw)
 
 
 _KIND = {"created": "created", "forwarded": "forwarded", "delivered": "delivered", "dropped": "dropped",
@@ -131,12 +167,17 @@ class ReportBuilder:
         self.planned: dict[tuple[str, int], int] = {}
         self.created: dict[str, tuple] = {}
         self.delivered: dict[str, tuple[str, int]] = {}
+        self.rejected: dict[str, int] = defaultdict(int)  # reason -> payloads not counted
 
     def add(self, env) -> None:
         t = env.topic
         try:
             if t.endswith("/observations"):
-                self.obs.append(codec.decode(t, env.data))
+                o = codec.decode(t, env.data)
+                if t != f"/{o.sat}/observations":
+                    self.rejected["observation.sat_not_its_topic"] += 1
+                    return
+                self.obs.append(o)
             elif t.endswith("/dtn/events"):
                 m = codec.decode(t, env.data)
                 self.events.append(_bundle_event(m))
@@ -156,14 +197,41 @@ class ReportBuilder:
                 self.cpu_by_planner["ground"] += codec.decode(t, env.data).schedule.solve_cpu_s
         except ValueError:
             self.bad += 1
+            self.rejected["undecodable"] += 1
 
-    def build(self, meta: RunMeta, runtime: dict | None = None) -> dict:
-        """The report of everything added so far."""
-        obs, events, counters, cpu_by_planner = self.obs, self.events, self.counters, self.cpu_by_planner
+    def _in_run(self, meta: RunMeta) -> tuple[list, dict[str, int]]:
+        """The observations that can belong to this run, and how many others by reason."""
+        horizon_ns = int(round(meta.horizon_s * _NS))
+        keep, out = [], defaultdict(int)
+        for o in self.obs:
+            if not o.gp < meta.n_gp:
+                out["observation.gp_out_of_range"] += 1
+            elif o.t_ns > horizon_ns:
+                out["observation.after_horizon"] += 1
+            elif not VALUE_MIN <= o.recorded_value <= VALUE_MAX:
+                out["observation.recorded_value_out_of_range"] += 1
+            elif not math.isfinite(o.assumed_value):
+                out["observation.assumed_value_not_finite"] += 1
+            else:
+                keep.append(o)
+        return keep, out
+
+    def build(self, meta: RunMeta, runtime: dict | None = None, *, reached_s: float | None = None,
+              recording: dict | None = None) -> dict:
+        """The report of everything added so far. ``reached_s``: the run ended early, at this sim
+        time (``partial``); ``recording``: what the bag's reader found (recovered, lost, warnings)."""
+        obs, rejected = self._in_run(meta)
+        for k, v in self.rejected.items():
+            rejected[k] += v
+        events, counters, cpu_by_planner = self.events, self.counters, self.cpu_by_planner
         rep: dict = {
             "scenario": meta.scenario, "mode": meta.mode, "engine": meta.engine, "seed": meta.seed,
             "horizon_s": meta.horizon_s, "n_sats": meta.n_sats,
+            "partial": reached_s is not None,
+            "horizon_reached_s": meta.horizon_s if reached_s is None else reached_s,
         }
+        if recording:
+            rep["recording"] = recording
         rep.update(_value_figures(obs, meta))
         rep["knowledge"] = _knowledge_figures(obs, meta)
         rep["osse"] = dict(meta.osse or {})
@@ -189,7 +257,8 @@ class ReportBuilder:
                     if k.startswith(("rejected.", "tx_failed.", "agent.dropped.", "agent.discarded.", "host.")):
                         rej[k] += v
             rep["dtn"]["rejections"] = dict(sorted(rej.items()))
-        rep["messages_rejected_in_report"] = self.bad
+        rep["messages_rejected_in_report"] = sum(rejected.values())
+        rep["report_rejections"] = dict(sorted(rejected.items()))
         rt = dict(runtime or {})
         rt["scheduler_cpu_s_per_sat"] = (sum(cpu_by_planner.values()) / meta.n_sats) if meta.n_sats else None
         rep["runtime"] = rt
@@ -400,18 +469,56 @@ def flatten(rep: dict, prefix: str = "") -> dict:
     return out
 
 
-def report_from_bag(bag_path) -> dict:
-    """Rebuild report.json from a bag alone (metadata from its /run/meta record)."""
+def report_from_bag(bag_path, *, warn=None) -> dict:
+    """Rebuild report.json from a bag alone (metadata from its /run/meta records). A bag that ends
+    before the run's closing /run/meta record, or whose file was cut, gives a ``partial`` report.
+    ``warn(line)``: called with each thing the bag's reader read past (metadata.yaml disagreeing
+    with the .mcap, a cut file, payloads not counted)."""
     with BagReader(bag_path) as bag:
         names = [t.topic for t in bag.topics()]
         if "/run/meta" not in names:
+            if not bag.complete:
+                raise UserError(f"bag {bag.path}: {bag.recovery}; no /run/meta record survived: "
+                                "not enough left to rebuild a report")
             raise UserError(f"{bag_path}: no /run/meta record: not a bag written by `constellation run`")
         meta = None
         runtime = {}
+        closed = False
         for env in bag.envelopes(["/run/meta"]):
-            d = json.loads(env.data)
-            meta = RunMeta(**d["meta"])
-            runtime = d.get("runtime", runtime)
+            try:
+                d = json.loads(env.data)
+                if not isinstance(d, dict):
+                    raise ValueError("not a JSON object")
+                m = RunMeta.from_dict(d.get("meta"))
+                rt = d.get("runtime", None)
+                if rt is not None and not isinstance(rt, dict):
+                    raise ValueError(f"'runtime' is {type(rt).__name__}, not an object")
+            except ValueError as exc:
+                raise UserError(f"bag {bag.path}: /run/meta record at t = {env.t_ns} ns: "
+                                f"{' '.join(str(exc).split())[:200]}") from None
+            if meta is not None and m != meta:
+                raise UserError(f"bag {bag.path}: /run/meta records disagree ({meta} then {m} at t = {env.t_ns} ns)")
+            meta = m
+            if rt is not None:
+                runtime, closed = rt, True
         wanted = [t for t in names if t.endswith(REPORT_TOPIC_SUFFIXES)]
         envs: list[Envelope] = list(bag.envelopes(wanted))
-    return build_report(envs, meta, runtime)
+        recording = None
+        if bag.warnings or not bag.complete:
+            recording = {"complete": bag.complete, "recovery": bag.recovery, "warnings": list(bag.warnings)}
+        partial = not closed or bag.lost_data
+        reached = bag.end_ns / _NS if partial else None
+        for line in ([bag.recovery] if bag.recovery else []) + list(bag.warnings):
+            if warn is not None:
+                warn(f"bag {bag.path}: {line}")
+    b = ReportBuilder()
+    for env in envs:
+        b.add(env)
+    rep = b.build(meta, runtime, reached_s=reached, recording=recording)
+    if partial and warn is not None:
+        warn(f"partial report: the run reached t = {reached:g} s of its {meta.horizon_s:g} s horizon "
+             f"({'no closing /run/meta record' if not closed else 'data lost from the bag'})")
+    if rep["messages_rejected_in_report"] and warn is not None:
+        warn(f"{rep['messages_rejected_in_report']} payloads not counted: "
+             + ", ".join(f"{k} {v}" for k, v in rep["report_rejections"].items()))
+    return rep

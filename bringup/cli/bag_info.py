@@ -4,12 +4,17 @@ Reads the bag with bringup/recording/bag.py (rosbags; no rclpy). Times are sim t
 scenario epoch, also shown in seconds; the epoch (the bag's clock: its log times and /clock are
 epoch + t, UTC) is shown with them. ``--json`` prints the same as one JSON object.
 
-Checked by tests/unit/test_recording.py (test_bag_info_command).
+The numbers are the ``.mcap`` file's own (bringup/recording/bag_reader.py): a metadata.yaml that
+disagrees is named in a ``warning:`` line on stderr, and a file its writer never closed is read as
+far as it goes, with a ``complete: no`` line saying what was recovered and what was lost.
+
+Checked by tests/unit/test_recording.py (test_bag_info_command) and tests/unit/test_bag_recovery.py.
 """
 
 from __future__ import annotations
 
 import json
+import sys
 from pathlib import Path
 
 from bringup.recording.bag import BagReader, epoch_custom_data
@@ -21,11 +26,15 @@ def add_arguments(p) -> None:
 
 
 def bag_summary(path: Path) -> dict:
-    """{path, messages, epoch_ns, epoch_utc, start_ns, end_ns, duration_s, topics: [{topic, type, count}]}."""
+    """{path, complete, recovery, warnings, messages, epoch_ns, epoch_utc, start_ns, end_ns,
+    duration_s, topics: [{topic, type, count}]}."""
     with BagReader(path) as r:
         topics = [{"topic": t.topic, "type": t.msgtype, "count": t.count} for t in r.topics()]
         return {
             "path": str(r.path),
+            "complete": r.complete,
+            "recovery": r.recovery,
+            "warnings": list(r.warnings),
             "messages": r.count,
             "epoch_ns": r.epoch_ns,
             "epoch_utc": epoch_custom_data(r.epoch_ns).get("epoch_utc", "1970-01-01T00:00:00Z"),
@@ -38,10 +47,14 @@ def bag_summary(path: Path) -> dict:
 
 def run(args) -> int:
     s = bag_summary(args.bag)
+    for line in s["warnings"] + ([s["recovery"]] if s["recovery"] else []):
+        print(f"constellation bag-info: warning: bag {s['path']}: {line}", file=sys.stderr)
     if args.json:
         print(json.dumps(s, indent=2))
         return 0
     print(f"bag:       {s['path']}")
+    if not s["complete"]:
+        print(f"complete:  no - {s['recovery']}")
     print(f"messages:  {s['messages']}")
     print(f"epoch:     {s['epoch_utc']} (log times and /clock: epoch + t, UTC)")
     print(f"start:     {s['start_ns'] / 1e9:.3f} s ({s['start_ns']} ns since epoch)")

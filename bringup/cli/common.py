@@ -17,6 +17,7 @@ from msgs_json.names import MAX_PLANES, MAX_SATS
 
 _OVERRIDES = ("sats", "planes", "hours", "seed", "knowledge", "transiency_min", "gp_spacing_km", "joint_planning",
               "forwarding")
+from bringup.scenario.limits import check_run_size
 
 
 def transiency_arg(text: str) -> float:
@@ -77,12 +78,15 @@ def overrides_of(args: argparse.Namespace) -> dict:
 
 
 def scenario_from_args(args: argparse.Namespace) -> Scenario:
+    """The scenario with the command line's overrides, refused when it would not fit in memory
+    (bringup/scenario/limits.py: the estimate is named)."""
     sc = load_scenario(args.scenario)
     kw = overrides_of(args)
     if kw["gp_spacing_km"] is not None and not kw["gp_spacing_km"] > 0:
         raise UserError(f"--gp-spacing-km {kw['gp_spacing_km']}: must be > 0")
     if any(v is not None for v in kw.values()):
         sc = sc.with_overrides(**kw)
+    check_run_size(sc)
     return sc
 
 

@@ -26,6 +26,7 @@ from bringup.analysis import compare as C
 from bringup.analysis.figure5 import bundle_rows_from_bag, figure5_data, figure5_summary, plot_figure5
 from bringup.analysis.report import true_values
 from bringup.cli.common import add_knowledge_args, scenario_from_args
+from bringup.cli.run_folder import RunFolder, json_text, write_text_atomic
 from bringup.errors import UserError
 from bringup.recording.bag import BagReader
 from bringup.scenario.world import World
@@ -53,9 +54,15 @@ def run(args: argparse.Namespace) -> int:
     args.seed = None
     sc = scenario_from_args(args)  # validates scenario and overrides before any run starts
     seeds = [sc.scenario.seed + k for k in range(args.seeds)]
-    out = Path(args.out or Path("runs") / f"compare-{sc.name}")
-    out.mkdir(parents=True, exist_ok=True)
+    # (each run's folder <mode>-s<seed> is a run folder of its own: its run clears it, keeping its cache)
+    with RunFolder(args.out or Path("runs") / f"compare-{sc.name}",
+                   outputs=("compare.json", "compare.md", "plots")) as folder:
+        _compare(args, sc, seeds, folder.path)
+        folder.done()
+    return 0
 
+
+def _compare(args, sc, seeds: list[int], out: Path) -> None:
     def say(*a) -> None:
         print(*a, file=sys.stderr)
 
@@ -80,14 +87,14 @@ def run(args: argparse.Namespace) -> int:
     extra_plots = []
     if not args.no_plots:
         extra_plots = _plots(out, seeds[0], res, sc, args)
-    (out / "compare.json").write_text(json.dumps(res, indent=2, sort_keys=True) + "\n")
+    write_text_atomic(out / "compare.json", json_text(res, indent=2, sort_keys=True) + "\n")
     title = (f"# Compare: {sc.name}, {sc.constellation.total_sats} satellites, {sc.scenario.horizon_s / 3600:g} h, "
              f"seeds {seeds}, engine {args.engine}, knowledge {sc.value.knowledge}, transiency "
              f"{sc.value.transiency_min:g} min (0: slow)")
     md = [title, "",
           C.table_markdown(res), "", C.ratios_markdown(res), ""]
     md += [f"![{p.stem}](plots/{p.name})" for p in extra_plots]
-    (out / "compare.md").write_text("\n".join(md) + "\n")
+    write_text_atomic(out / "compare.md", "\n".join(md) + "\n")
     if args.json:
         print(json.dumps(res, sort_keys=True))
     else:
@@ -95,7 +102,6 @@ def run(args: argparse.Namespace) -> int:
         print()
         print(C.ratios_markdown(res))
         print(f"\n-> {out / 'compare.json'}, {out / 'compare.md'}")
-    return 0
 
 
 def _plots(out: Path, seed: int, res: dict, sc, args) -> list[Path]:

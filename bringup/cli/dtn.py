@@ -2,19 +2,27 @@
 traffic table, on the engine of a whole run (bringup/analysis/dtn_alone.py), and print the dtn.*
 figures with the latency bounds (bringup/analysis/dtn_bounds.py).
 
-Checked by tests/unit/test_dtn_alone.py (the command's JSON on the study's inputs and drawn plans).
+Inputs are checked before the run (orbit_clock/contact_plan_io.py, sat_node/dtn/traffic.py): bounds,
+duplicates (merged with a ``warning:`` line), unknown nodes named; ``--json`` is strict JSON (a
+figure that is not a finite number is null).
+
+Checked by tests/unit/test_dtn_alone.py (the command's JSON on the study's inputs and drawn plans)
+and tests/faults/test_hostile_inputs.py (bad plans, traffic and flags; duplicated rows give the
+figures of the table without them).
 """
 
 from __future__ import annotations
 
 import argparse
-import json
+import sys
 import time
 from pathlib import Path
 
 from bringup.analysis.dtn_alone import run_dtn
 from bringup.analysis.dtn_bounds import floor_mean, latency_lower_bounds, store_forward_bound_mean
+from bringup.cli.run_folder import json_text
 from bringup.errors import UserError
+from orbit_clock.contact_plan import node_number
 from orbit_clock.contact_plan_io import ContactPlanError, read_contact_plan
 from sat_node.dtn.agent import AgentConfig
 from sat_node.dtn.traffic import TrafficError, read_traffic
@@ -48,28 +56,62 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--no-lower-bound", action="store_true", help="skip the latency lower bounds")
 
 
+_MAX_TTL_S = 10 * 365.25 * 86400  # ten years: any longer is a typo (the study's longest is 3000 s)
+
+
 def _parse_ttl(text: str) -> dict[int, float]:
     try:
         out = {int(k): float(v) for k, v in (part.split(":") for part in text.split(","))}
     except ValueError:
         raise UserError(f"--ttl-s {text!r}: expected 'maxprio:seconds,...' e.g. 1:900,3:1800,15:3000") from None
-    if not out or max(out) < 15 or any(v <= 0 for v in out.values()):
-        raise UserError(f"--ttl-s {text!r}: must cover priority 15 with positive TTLs")
+    if not out or max(out) < 15 or any(not 0 < v <= _MAX_TTL_S for v in out.values()) or min(out) < 1:
+        raise UserError(f"--ttl-s {text!r}: must cover priorities 1..15 with TTLs in 0..{_MAX_TTL_S:.3g} s")
     return out
+
+
+def _check_args(args: argparse.Namespace) -> None:
+    if not 1 <= args.rate_bps <= 1e15:
+        raise UserError(f"--rate-bps {args.rate_bps:g}: must be in 1..1e15 bit/s")
+    if not 1 <= args.bundle_bits <= 2**32:
+        raise UserError(f"--bundle-bits {args.bundle_bits}: must be in 1..{2**32} (4 Gbit)")
+    if args.hop_tolerance_s > _MAX_TTL_S:  # (a negative one: AgentConfig's own error)
+        raise UserError(f"--hop-tolerance-s {args.hop_tolerance_s:g}: must be at most {_MAX_TTL_S:.3g} s")
+    if args.dump_bundles is not None and args.dump_bundles.exists() and not args.dump_bundles.is_dir():
+        raise UserError(f"--dump-bundles {args.dump_bundles}: is a file, not a folder")
+
+
+def _check_nodes(plan, traffic, args) -> None:
+    """Every node has an ipn node number (the agents name each other by it), and every traffic
+    node is in the plan: unknown ones named."""
+    bad = []
+    for n in plan.nodes:
+        try:
+            node_number(n, [m for m in plan.nodes if m.startswith("gs_")])
+        except ValueError:
+            bad.append(n)
+    if bad:
+        raise UserError(f"{args.contact_plan}: nodes {bad[:5]} are neither satellites (sat_PS) nor ground "
+                        "stations (gs_<name>)")
+    nodes = set(plan.nodes)
+    for what, names in (("sources", {t.source for t in traffic}), ("destinations", {t.dest for t in traffic})):
+        unknown = sorted(names - nodes)
+        if unknown:
+            raise UserError(f"{args.traffic}: {what} {unknown[:5]} have no contact in {args.contact_plan}")
 
 
 def run(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
-    if args.rate_bps <= 0 or args.bundle_bits <= 0:
-        raise UserError("--rate-bps and --bundle-bits must be positive")
+    _check_args(args)
+
+    def warn(line: str) -> None:
+        print(f"constellation dtn: warning: {line}", file=sys.stderr)
+
     try:
-        plan = read_contact_plan(args.contact_plan, args.plan_format, rate_bps=args.rate_bps)
-        traffic = read_traffic(args.traffic)
+        plan = read_contact_plan(args.contact_plan, args.plan_format, rate_bps=args.rate_bps, on_duplicate=warn)
+        traffic = read_traffic(args.traffic, on_duplicate=warn)
     except (ContactPlanError, TrafficError) as exc:
         raise UserError(str(exc)) from None
-    unknown = sorted({t.source for t in traffic} - set(plan.nodes))
-    if unknown:
-        raise UserError(f"{args.traffic}: sources {unknown[:5]} have no contact in {args.contact_plan}")
+    _check_nodes(plan, traffic, args)
     ttl = _parse_ttl(args.ttl_s)
     try:
         config = AgentConfig.for_policy(args.queue, args.hop_tolerance_s, ttl_s_by_priority=ttl,
@@ -93,7 +135,7 @@ def run(args: argparse.Namespace) -> int:
     report["dtn.sim_wall_s"] = run_.wall_s
     report["runtime.wall_s"] = time.perf_counter() - t0
     if args.json:
-        print(json.dumps(report, indent=1, sort_keys=True))
+        print(json_text(report, indent=1, sort_keys=True))
     else:
         _print_table(report)
     return 0

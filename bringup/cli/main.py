@@ -8,9 +8,12 @@ Each subcommand lives in its own module ``bringup/cli/<name>.py`` exposing::
 The registry below names every subcommand of the contract with its help line. One whose module is missing still shows
 in the help and fails loudly when called. Errors the user can fix (bad scenario, missing bag, bad
 file) are raised as :class:`bringup.errors.UserError` (or ScenarioError) and printed as one line
-``constellation <cmd>: error: ...`` with exit code 2, no traceback.
+``constellation <cmd>: error: ...`` with exit code 2, no traceback; so are a number option that is
+not finite (``--hours inf``: checked here for every command), an OSError (a full disk, an unwritable
+folder: :func:`bringup.errors.os_error_line` names it and the file) and running out of memory.
 
-Checked by tests/unit/test_cli_exit.py (exit codes, one-line errors, the fast exit) and
+Checked by tests/unit/test_cli_exit.py (exit codes, one-line errors, the fast exit),
+tests/faults/test_hostile_inputs.py (every class of bad input: one line, exit 2) and
 tests/unit/test_docker_files.py (every compose service's command parses).
 """
 
@@ -19,11 +22,12 @@ from __future__ import annotations
 import argparse
 import atexit
 import importlib
+import math
 import os
 import sys
 from collections.abc import Iterable
 
-from bringup.errors import UserError
+from bringup.errors import UserError, os_error_line
 from bringup.scenario.config import ScenarioError
 
 # subcommand name -> (module under bringup.cli, one line for `constellation --help`). Only the
@@ -100,6 +104,25 @@ def _not_implemented(name: str):
 _fast_exit = False  # the last command that returned 0 said it left no file open (FAST_EXIT)
 
 
+_PACKAGES = ("bringup", "msgs_json", "orbit_clock", "sat_node", "dtn_router", "ground_station")
+
+
+def _project_error(exc: BaseException) -> bool:
+    """An error class the project defines (a ValueError subclass raised for bad input), not a
+    ValueError of Python or a library (a bug: its traceback is kept)."""
+    return type(exc).__module__.split(".")[0] in _PACKAGES
+
+
+def _non_finite(args: argparse.Namespace) -> str | None:
+    """The first option holding a number that is not finite (nan, inf: float() accepts them, no
+    command can use them), as one phrase; None if all are finite."""
+    for k, v in vars(args).items():
+        for x in (v if isinstance(v, (list, tuple)) else [v]):
+            if isinstance(x, float) and not math.isfinite(x):
+                return f"--{k.replace('_', '-')} {x}: must be a finite number"
+    return None
+
+
 def main(argv: list[str] | None = None) -> int:
     global _fast_exit
     _fast_exit = False
@@ -109,6 +132,10 @@ def main(argv: list[str] | None = None) -> int:
     if not getattr(args, "command", None):
         parser.print_help()
         return 2
+    bad = _non_finite(args)
+    if bad:
+        print(f"constellation {args.command}: error: {bad}", file=sys.stderr)
+        return 2
     try:
         code = int(args._run(args) or 0)
         _fast_exit = code == 0 and getattr(args, "_fast_exit", False)
@@ -116,11 +143,24 @@ def main(argv: list[str] | None = None) -> int:
     except (UserError, ScenarioError) as exc:
         print(f"constellation {args.command}: error: {exc}", file=sys.stderr)
         return 2
+    except ValueError as exc:
+        if not _project_error(exc):
+            raise
+        # the project's own errors about its inputs (OsseError, SlewModelError, ContactPlanError,
+        # PropagationError, ...): ValueErrors whose message names what is wrong and where
+        print(f"constellation {args.command}: error: {' '.join(str(exc).split())}", file=sys.stderr)
+        return 2
     except KeyboardInterrupt:
         print(f"constellation {args.command}: interrupted", file=sys.stderr)
         return 130
     except BrokenPipeError:
         return 0
+    except OSError as exc:  # a full disk, an unwritable folder: named, with the file
+        print(f"constellation {args.command}: error: {os_error_line(exc)}", file=sys.stderr)
+        return 2
+    except MemoryError:
+        print(f"constellation {args.command}: error: out of memory", file=sys.stderr)
+        return 2
 
 
 def entry() -> None:

@@ -18,13 +18,13 @@ tests/system/test_engines_equal.py.
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 import time
 from pathlib import Path
 
 from bringup.analysis.report import report_from_bag
-from bringup.analysis.report_md import write_report_md
+from bringup.analysis.report_md import report_md
+from bringup.cli.run_folder import json_text, write_text_atomic
 from bringup.engine.ros.clock_node import run_clock
 from bringup.engine.ros.host import run_host
 from bringup.engine.ros.run_spec import CLOCK_ROLE, RunSpec, load_factory
@@ -46,9 +46,9 @@ def _write_report(spec: RunSpec, rc: int) -> None:
 
 
     out = Path(spec.extra["report_dir"])
-    rep = report_from_bag(Path(spec.bag_dir))
-    (out / "report.json").write_text(json.dumps(rep, indent=2, sort_keys=True) + "\n")
-    write_report_md(out / "report.md", rep, [])
+    rep = report_from_bag(Path(spec.bag_dir), warn=lambda line: print(f"clock: warning: {line}", file=sys.stderr))
+    write_text_atomic(out / "report.md", report_md(rep, [], base=out))
+    write_text_atomic(out / "report.json", json_text(rep, indent=2, sort_keys=True) + "\n")
 
 
 def run(args: argparse.Namespace) -> int:

@@ -1,16 +1,24 @@
 """`constellation report BAG`: rebuild report.json from a run's bag alone.
 
+The bag's ``.mcap`` is read as far as it goes (a cut one too: bringup/recording/bag_reader.py); what
+the reader read past (metadata.yaml disagreeing with the file, a cut file, payloads not counted) is
+printed as ``warning:`` lines on stderr, and a run that did not reach its horizon gives a report
+with ``partial: true``. ``--out`` is written whole or not at all (a temporary file renamed).
+
 Checked by tests/system/test_engines_equal.py and tests/unit/test_cli_exit.py (the report
-rebuilt from the bag equals the run's report.json).
+rebuilt from the bag equals the run's report.json), tests/unit/test_bag_recovery.py (partial and
+foreign-metadata bags) and tests/faults/test_hostile_inputs.py.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import sys
 from pathlib import Path
 
 from bringup.analysis.report import report_from_bag
+from bringup.cli.run_folder import write_text_atomic
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -19,10 +27,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    rep = report_from_bag(args.bag)
-    text = json.dumps(rep, indent=2, sort_keys=True) + "\n"
+    rep = report_from_bag(args.bag, warn=lambda line: print(f"constellation report: warning: {line}",
+                                                            file=sys.stderr))
+    text = json.dumps(rep, indent=2, sort_keys=True, allow_nan=False) + "\n"
     if args.out:
-        args.out.write_text(text)
+        write_text_atomic(args.out, text)
     else:
         print(text, end="")
     return 0

@@ -15,7 +15,9 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import shutil
+import sqlite3
 import sys
 import time
 from concurrent.futures import ThreadPoolExecutor
@@ -24,8 +26,9 @@ from pathlib import Path
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
 from bringup.analysis.report import ReportBuilder, RunMeta, report_from_bag
-from bringup.analysis.report_md import write_report_md
+from bringup.analysis.report_md import report_md
 from bringup.cli.common import add_scenario_args, overrides_of, scenario_from_args
+from bringup.cli.run_folder import RunFolder, json_text, write_text_atomic
 from bringup.engine.local import run_local
 from bringup.engine.ros.factory import FACTORY, PREPARE
 from bringup.engine.ros.launcher import launch
@@ -51,6 +54,8 @@ from msgs_json.envelope import Envelope
 FAST_EXIT = True
 
 _NS = 1_000_000_000
+MAX_ISL_DELAY_S = 86_400.0  # one day of extra one-way delay: beyond any TTL, still a number
+MAX_RESTARTS = 1000
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -111,23 +116,49 @@ def sats_per_process(args: argparse.Namespace, n_sats: int) -> int:
 
 
 def run(args: argparse.Namespace) -> int:
+    if args.real_time_factor is not None and not args.real_time_factor > 0:
+        raise UserError(f"--real-time-factor {args.real_time_factor}: must be > 0")
+    if not 0 <= args.isl_delay_s <= MAX_ISL_DELAY_S:
+        raise UserError(f"--isl-delay-s {args.isl_delay_s}: must be in 0..{MAX_ISL_DELAY_S:g} s")
+    if not 0 <= args.restart <= MAX_RESTARTS:
+        raise UserError(f"--restart {args.restart}: must be in 0..{MAX_RESTARTS}")
     sc = scenario_from_args(args)
     if args.viz_period_s is not None:
         if not 0 < args.viz_period_s <= 86400:
             raise UserError(f"--viz-period-s {args.viz_period_s:g}: expected 0 < S <= 86400")
         sc = sc.with_overrides(viz_period_s=args.viz_period_s)
-    out = args.out or Path("runs") / f"{sc.name}-{args.mode}"
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    bag_dir = out / "bag"
-    if bag_dir.exists():
-        shutil.rmtree(bag_dir)
     cuts = [parse_cut(c) for c in args.cut]
     per_process = sats_per_process(args, len(sc.sat_names)) if args.engine == "ros" else 1
     for a, b, _, _ in cuts:
         for n in (a, b):
             if n not in sc.sat_names:
                 raise UserError(f"--cut: {n!r} is not a satellite of the scenario ({sc.sat_names[0]}..)")
+    # made absolute here, against the folder the user ran the command in (the ROS engine's
+    # processes run in the repository's folder)
+    with RunFolder(args.out or Path("runs") / f"{sc.name}-{args.mode}") as folder:
+        out = folder.path
+        bag_dir = out / "bag"
+        try:
+            try:
+                return _run(sc, cuts, out, bag_dir, args, folder, per_process)
+            except sqlite3.Error as exc:  # a satellite's bundle store (sat_node/dtn/store.py)
+                raise UserError(f"a satellite's SQLite store in {out / 'store'} failed: {exc}"
+                                + _space_note(out)) from None
+        except BaseException as exc:
+            _leave_partial_report(folder, bag_dir, exc)
+            raise
+
+
+def _space_note(out: Path) -> str:
+    """' (no space left on device: N KiB free)' when the run folder's file system is (nearly) full."""
+    try:
+        free = shutil.disk_usage(out).free
+    except OSError:
+        return ""
+    return f" (no space left on device: {free // 1024} KiB free)" if free < 2**20 else ""
+
+
+def _run(sc, cuts, out: Path, bag_dir: Path, args, folder: RunFolder, per_process: int) -> int:
     def say(*a) -> None:
         print(*a, file=sys.stderr)
     say(f"run: {sc.name}, {sc.constellation.total_sats} satellites, {sc.scenario.horizon_s / 3600:g} h, "
@@ -152,7 +183,30 @@ def run(args: argparse.Namespace) -> int:
     else:
         runtime = _run_ros(world, world_path, args, meta, bag_dir, out, router_kw, show=not args.no_progress,
                            per_process=per_process)
-    return _finish(out, bag_dir, runtime, world, args, say, rep=rep)
+    code = _finish(out, bag_dir, runtime, world, args, say, rep=rep)
+    folder.done()
+    return code
+
+
+def _leave_partial_report(folder: RunFolder, bag_dir: Path, exc: BaseException) -> None:
+    """The run failed: if its bag holds anything, leave a report of it marked ``partial`` (never
+    the report of another run: RunFolder removed those), and say so."""
+    if not bag_dir.exists():
+        return
+    notes: list[str] = []
+    try:
+        rep = report_from_bag(bag_dir, warn=notes.append)
+    except (UserError, OSError, ValueError):
+        return
+    rep["partial"] = True
+    rep["run_error"] = " ".join(str(exc).split())[:500] or type(exc).__name__
+    try:
+        write_text_atomic(folder.path / "report.json", json_text(rep, indent=2, sort_keys=True) + "\n")
+    except OSError:
+        return
+    folder.mark_partial_report()
+    print(f"run: the run failed; {folder.path / 'report.json'} is a partial report of what the bag holds "
+          f"(t = {rep['horizon_reached_s']:g} s of {rep['horizon_s']:g} s)", file=sys.stderr)
 
 
 def _progress_display(show: bool, horizon_ns: int):
@@ -300,19 +354,26 @@ def _run_ros(world, world_path: Path, args, meta, bag_dir: Path, out: Path, rout
 
 
 def _finish(out: Path, bag_dir: Path, runtime: dict, world, args, say, *, rep: dict | None = None) -> int:
+    """Plots, report.md, then report.json (last: its presence means the others are there), each
+    written whole (a temporary name renamed)."""
     if rep is None:  # (the local engine's recorder built it from what it wrote, as report BAG does)
-        rep = report_from_bag(bag_dir)
+        rep = report_from_bag(bag_dir, warn=lambda line: say(f"run: warning: {line}"))
     rep["runtime"].update({k: v for k, v in runtime.items() if k not in rep["runtime"]})
     rep["runtime"].update({"wall_s": runtime.get("wall_s"), "real_time_factor": runtime.get("real_time_factor")})
-    (out / "report.json").write_text(json.dumps(rep, indent=2, sort_keys=True) + "\n")
     plots = []
     if not args.no_plots:
         # here, not at the top: matplotlib costs ~0.27 s to import (python -X importtime), paid
         # only when plots are made (not with --no-plots, as the tests and sweeps run)
         from bringup.analysis.run_figures import run_plots
 
-        plots = run_plots(out, bag_dir, world, rep)
-    write_report_md(out / "report.md", rep, plots)
+        stage = out / f".staging-{os.getpid()}"
+        shutil.rmtree(stage, ignore_errors=True)
+        made = run_plots(stage, bag_dir, world, rep)
+        (stage / "plots").rename(out / "plots")
+        shutil.rmtree(stage, ignore_errors=True)
+        plots = [out / "plots" / p.name for p in made]
+    write_text_atomic(out / "report.md", report_md(rep, plots, base=out))
+    write_text_atomic(out / "report.json", json_text(rep, indent=2, sort_keys=True) + "\n")
     v = rep["value"]
     d = rep["dtn"]
     say(f"run: done in {runtime.get('wall_s', 0):.1f} s "

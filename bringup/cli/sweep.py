@@ -27,6 +27,7 @@ from pathlib import Path
 
 from bringup.analysis.compare import get_path, mean_ci95, run_in_process, scenario_variant
 from bringup.cli.common import add_knowledge_args, scenario_from_args
+from bringup.cli.run_folder import RunFolder, json_text, write_text_atomic
 from bringup.errors import UserError
 
 PARAMS = ("replan_period_s", "isl_rate_bps", "sats_per_plane", "n_stations")
@@ -104,9 +105,10 @@ def run(args: argparse.Namespace) -> int:
            "seed": sc.scenario.seed, "rows": rows}
     md = table_markdown(res)
     if args.out:
-        args.out.mkdir(parents=True, exist_ok=True)
-        (args.out / "sweep.json").write_text(json.dumps(res, indent=2) + "\n")
-        (args.out / "sweep.md").write_text(md + "\n")
+        with RunFolder(args.out, outputs=("sweep.json", "sweep.md")) as folder:
+            write_text_atomic(folder.path / "sweep.md", md + "\n")
+            write_text_atomic(folder.path / "sweep.json", json_text(res, indent=2) + "\n")
+            folder.done()
     print(json.dumps(res) if args.json else md)
     return 0
 

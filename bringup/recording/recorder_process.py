@@ -16,8 +16,12 @@ a BagWriter of its own, so the file is the one the parent would have written its
 decoded as they arrive; at ``finish`` the child builds the report and sends it back.
 
 Failure handling:
-* the child fails (disk full, bad path, ...): it sends the error and exits; the parent raises
-  ``RecorderError`` naming it at its next batch or at ``finish``;
+* the child fails (disk full, bad path, ...): it sends the error (an OSError as "no space left on
+  device writing <file>") and exits; the parent raises ``RecorderError`` naming it at its next batch
+  or at ``finish``;
+* the child is killed (SIGKILL, the OOM killer): the parent's next batch or ``finish`` raises
+  ``RecorderError`` naming the signal; the bag holds every chunk closed before (bag.py, "Crash
+  safety"; tests/faults/test_recorder_kill.py);
 * Ctrl-C: the child ignores SIGINT, the parent's ``close`` (also on an exception) tells it to close
   the bag, so the bag is complete and readable up to the last step handed over;
 * the parent dies: the child reads end-of-file, closes the bag and exits.
@@ -37,7 +41,7 @@ import pickle
 import signal
 from pathlib import Path
 
-from bringup.errors import UserError
+from bringup.errors import UserError, os_error_line
 from bringup.recording.bag import BagWriter
 from bringup.recording.metrics_feed import MetricsFeed
 from bringup.recording.viz_feed import VizFeed
@@ -114,7 +118,7 @@ class Recorder:
                 raise
         try:
             reply = self._conn.recv()
-        except EOFError:
+        except (EOFError, OSError):  # the child is gone (killed: ConnectionResetError)
             reply = None
         self._join()
         if not reply or reply[0] != "ok":
@@ -146,7 +150,11 @@ class Recorder:
         if not self._ops:
             return
         ops, self._ops, self._n = self._ops, [], 0
-        if self._conn.poll():  # the child only speaks first when it failed
+        try:
+            spoke = self._conn.poll()  # the child only speaks first when it failed
+        except OSError:
+            spoke = True
+        if spoke:
             raise RecorderError(self._failure(self._recv_quiet()))
         self._send(b"O" + marshal.dumps(ops))
 
@@ -165,9 +173,17 @@ class Recorder:
     def _failure(self, reply, exc: Exception | None = None) -> str:
         if reply and reply[0] == "error":
             return f"recorder for {self.bag_dir} failed: {reply[1]}"
+        self._proc.join(timeout=5.0)
         code = self._proc.exitcode
-        return (f"recorder for {self.bag_dir} stopped without a reply (exit code {code}"
-                + (f", {type(exc).__name__}: {exc}" if exc else "") + ")")
+        if code is not None and code < 0:
+            try:
+                how = f"was killed by {signal.Signals(-code).name}"
+            except ValueError:
+                how = f"was killed by signal {-code}"
+        else:
+            how = f"stopped without a reply (exit code {code})"
+        return (f"recorder process for {self.bag_dir} {how}: the bag holds what it wrote up to its last closed "
+                "chunk (constellation bag-info / report read it)")
 
     def _join_quietly(self) -> None:
         try:
@@ -235,6 +251,9 @@ def _child_main(conn, parent_conn, bag_dir: str, world, report) -> None:
                                 builder.add(env)
                             if w[1]:
                                 metrics.observe(env)
+    except OSError as exc:  # a full disk, a vanished folder: named with the file
+        line = os_error_line(exc)
+        reply = ("error", line if exc.filename else f"{line} writing {Path(bag_dir) / (Path(bag_dir).name + '.mcap')}")
     except BaseException as exc:  # noqa: BLE001 - reported to the parent, which raises it
         reply = ("error", f"{type(exc).__name__}: {exc}")
     try:

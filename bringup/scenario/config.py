@@ -11,6 +11,7 @@ ScenarioError naming that key.
 from __future__ import annotations
 
 import datetime as _dt
+import math
 import tomllib
 from pathlib import Path
 from typing import Annotated, List, Literal
@@ -19,6 +20,7 @@ import msgspec
 
 from msgs_json.names import MAX_PLANES, MAX_SATS, MAX_STATIONS, constellation_limits_error
 from msgs_json.names import sat_names as _sat_names
+from msgs_json.text_input import TextInputError, read_text
 
 __all__ = [
     "ScenarioError",
@@ -30,6 +32,7 @@ __all__ = [
 ]
 
 SCENARIO_DIR = Path(__file__).resolve().parent / "toml"
+MAX_SCENARIO_BYTES = 16 * 2 ** 20  # a scenario is a page of TOML (1000 stations: ~100 KiB)
 
 Pos = Annotated[float, msgspec.Meta(gt=0)]
 NonNeg = Annotated[float, msgspec.Meta(ge=0)]
@@ -262,14 +265,16 @@ def scenario_path(name_or_path: str | Path) -> Path:
 def load_scenario(name_or_path: str | Path) -> Scenario:
     """Load and validate a scenario; raises ScenarioError with a one-line message."""
     path = scenario_path(name_or_path)
+    if path.is_dir():
+        raise ScenarioError(f"{path}: is a folder, not a scenario file")
     try:
-        text = path.read_text(encoding="utf-8")
-    except OSError as exc:
-        raise ScenarioError(f"{path}: cannot read: {exc.strerror or exc}") from None
+        text = read_text(path, "scenario", MAX_SCENARIO_BYTES)
+    except TextInputError as exc:
+        raise ScenarioError(str(exc)) from None
     try:
         raw = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise ScenarioError(f"{path}: not valid TOML: {exc}") from None
+    except (tomllib.TOMLDecodeError, RecursionError) as exc:
+        raise ScenarioError(f"{path}: not valid TOML: {' '.join(str(exc).split())[:300]}") from None
     return _validate(raw, str(path))
 
 
@@ -301,7 +306,27 @@ def _lookup(raw: dict, key: str):
     return cur
 
 
+def _non_finite(raw, key: str = "") -> str | None:
+    """The dotted key of the first number that is not finite (TOML has inf and nan), or None."""
+    if isinstance(raw, float) and not math.isfinite(raw):
+        return key or "<top level>"
+    if isinstance(raw, dict):
+        items = ((f"{key}.{k}" if key else str(k), v) for k, v in raw.items())
+    elif isinstance(raw, list):
+        items = ((f"{key}[{i}]", v) for i, v in enumerate(raw))
+    else:
+        return None
+    for k, v in items:
+        got = _non_finite(v, k)
+        if got is not None:
+            return got
+    return None
+
+
 def _validate(raw: dict, where: str) -> Scenario:
+    bad = _non_finite(raw)
+    if bad is not None:
+        raise ScenarioError(f"{where}: key '{bad}': must be a finite number (got {_lookup(raw, bad)!r})")
     try:
         sc = msgspec.convert(raw, Scenario, strict=True)
     except msgspec.ValidationError as exc:

@@ -22,6 +22,7 @@ import msgspec
 import numpy as np
 
 from bringup.scenario.config import Scenario
+from bringup.scenario.limits import check_run_size
 from ground_station.osse_sources import osse_from_scenario
 from orbit_clock import (
     access_windows,
@@ -62,6 +63,9 @@ class OrbitContext:
 
     @classmethod
     def from_scenario(cls, sc: Scenario) -> OrbitContext:
+        """Refused before anything is allocated when the scenario would not fit in memory
+        (bringup/scenario/limits.py)."""
+        check_run_size(sc)
         gps = ground_points(sc)
         return cls(scenario=sc, constellation=build_constellation(sc), gps=gps,
                    osse=osse_from_scenario(sc, gps), slew=SlewModel.from_scenario(sc))
@@ -143,9 +147,13 @@ class World:
         path = Path(path)
         path.parent.mkdir(parents=True, exist_ok=True)
         tmp = path.with_suffix(".tmp")
-        with open(tmp, "wb") as fh:
-            pickle.dump(self, fh, protocol=pickle.HIGHEST_PROTOCOL)
-        tmp.replace(path)
+        try:
+            with open(tmp, "wb") as fh:
+                pickle.dump(self, fh, protocol=pickle.HIGHEST_PROTOCOL)
+            tmp.replace(path)
+        except OSError as exc:  # (a full disk: named with the file, nothing half-written left)
+            tmp.unlink(missing_ok=True)
+            raise OSError(exc.errno, exc.strerror, str(path)) from None
         return path
 
     @staticmethod

@@ -74,6 +74,16 @@ class BundleStore:
             self.path.parent.mkdir(parents=True, exist_ok=True)
         self._db = sqlite3.connect(":memory:" if self.path is None else str(self.path), isolation_level=None,
                                    check_same_thread=False)
+        try:
+            self._setup()
+        except BaseException:  # (a full disk: the file is not left open by a half-made store)
+            self._db.close()
+            raise
+        self._batch = False
+        self._rows: dict[str, tuple | None] = {}  # batch: bundle id -> row to put, None = delete
+        self._meta: dict[str, int] = {}  # batch: meta key -> value
+
+    def _setup(self) -> None:
         if self.path is not None:
             mode = self._db.execute("PRAGMA journal_mode=WAL").fetchone()[0]
             if mode.lower() != "wal":
@@ -84,9 +94,6 @@ class BundleStore:
                          "priority INTEGER NOT NULL, dest TEXT NOT NULL, expiry_ns INTEGER NOT NULL, "
                          "received_ns INTEGER NOT NULL) WITHOUT ROWID")
         self._db.execute("CREATE TABLE IF NOT EXISTS meta (key TEXT PRIMARY KEY, value INTEGER NOT NULL)")
-        self._batch = False
-        self._rows: dict[str, tuple | None] = {}  # batch: bundle id -> row to put, None = delete
-        self._meta: dict[str, int] = {}  # batch: meta key -> value
 
     @property
     def in_transaction(self) -> bool:

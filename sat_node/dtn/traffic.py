@@ -18,6 +18,12 @@ creation up to it, and the medium hears of every transmission by its end: the ru
 continuous time. A step with an empty inbox before that wakeup would change nothing: the node is
 event-driven (contract rule 1), the engine calls it only for an inbox or at its wakeup.
 
+Reading checks every row (:func:`read_traffic`): finite creation times from 0, priorities -1..15,
+one row per (source, packet_id) - an exact repeat merged with a warning, a differing one refused -
+and at most :data:`MAX_TRAFFIC_BUNDLES` bundles, counted as the file is read, so a huge table is
+refused at the line where it passes the limit instead of hanging the run (the hostile inputs in
+tests/faults/test_hostile_inputs.py).
+
 How we know it is right: the study's README counts (traffic_case4: 7430 bundles; case1: 52413),
 and DTN-alone runs on drawn plans with hand-worked delivery times, checked in
 tests/unit/test_dtn_alone.py.
@@ -26,17 +32,23 @@ tests/unit/test_dtn_alone.py.
 from __future__ import annotations
 
 import csv
+import hashlib
+import math
 from dataclasses import dataclass
 from pathlib import Path
 
 from msgs_json.envelope import Emit, Envelope, StepResult
+from msgs_json.text_input import TextInputError, decode_error_line, open_text
 from orbit_clock.contact_plan import canonical_node
 from sat_node.dtn.agent import BundleAgent
 from sat_node.dtn.port import DtnPort, count_rejection
 
-__all__ = ["TrafficError", "TrafficItem", "TrafficNode", "read_traffic", "traffic_payload"]
+__all__ = ["MAX_TRAFFIC_BUNDLES", "MAX_TRAFFIC_TIME_S", "TrafficError", "TrafficItem", "TrafficNode", "read_traffic",
+           "traffic_payload"]
 
 _NS = 1_000_000_000
+MAX_TRAFFIC_BUNDLES = 1_000_000  # ~1 GiB and hours of simulation; case1 (the study's largest) has 52,413
+MAX_TRAFFIC_TIME_S = 2**62 / 1e9  # half the engines' int64-nanosecond clock (~146 years)
 
 
 class TrafficError(ValueError):
@@ -54,36 +66,74 @@ class TrafficItem:
     row: int
 
 
-def read_traffic(path) -> list[TrafficItem]:
+def read_traffic(path, *, on_duplicate=None, max_bundles: int = MAX_TRAFFIC_BUNDLES) -> list[TrafficItem]:
+    """The table's bundles in creation order (module docstring). Checked as it is read: UTF-8 text,
+    times finite in 0..:data:`MAX_TRAFFIC_TIME_S`, priorities -1..15, destination columns named
+    once, at most ``max_bundles`` bundles (the reading stops there). A row repeated with the same
+    (source, packet_id) is one observation: merged when identical (told to ``on_duplicate``; an error
+    without it), an error when it differs. TrafficError (one line, file and line) otherwise."""
     path = Path(path)
     try:
-        fh = open(path, newline="", encoding="utf-8")
-    except OSError as exc:
-        raise TrafficError(f"{path}: cannot read traffic: {exc.strerror or exc}") from None
-    with fh:
-        reader = csv.reader(fh)
-        header = next(reader, None)
-        if not header or header[:4] != ["source", "time_s", "packet_id", "region"] or len(header) < 5:
-            raise TrafficError(f"{path}: header must start with source,time_s,packet_id,region then one "
-                               f"column per satellite; got {header}")
-        dests = [canonical_node(h.strip()) for h in header[4:]]
-        out = []
-        for line, row in enumerate(reader, start=2):
-            if not row:
-                continue
-            if len(row) != len(header):
-                raise TrafficError(f"{path}:{line}: {len(row)} fields, header has {len(header)}")
-            try:
-                t_s = float(row[1])
-                prios = [int(x) for x in row[4:]]
-            except ValueError:
-                raise TrafficError(f"{path}:{line}: time or a priority is not a number") from None
-            src = canonical_node(row[0].strip())
-            for d, p in sorted(zip(dests, prios), key=lambda x: (x[1], x[0])):
-                if p > 0 and d != src:
-                    if p > 15:
-                        raise TrafficError(f"{path}:{line}: priority {p} for {d} is outside 1..15")
-                    out.append(TrafficItem(t_s, src, d, p, row[2], row[3], line))
+        fh = open_text(path, "traffic table")
+    except TextInputError as exc:
+        raise TrafficError(str(exc)) from None
+    line = 1
+    seen: dict[tuple[str, str], tuple[int, bytes]] = {}  # (source, packet_id) -> (line, digest of the row)
+    dups = 0
+    try:
+        with fh:
+            reader = csv.reader(fh)
+            header = next(reader, None)
+            if not header or header[:4] != ["source", "time_s", "packet_id", "region"] or len(header) < 5:
+                raise TrafficError(f"{path}: header must start with source,time_s,packet_id,region then one "
+                                   f"column per satellite; got {str(header)[:200]}")
+            dests = [canonical_node(h.strip()) for h in header[4:]]
+            twice = sorted({d for d in dests if dests.count(d) > 1})
+            if twice:
+                raise TrafficError(f"{path}: destination columns named twice: {twice[:5]}")
+            out = []
+            for line, row in enumerate(reader, start=2):
+                if not row:
+                    continue
+                if len(row) != len(header):
+                    raise TrafficError(f"{path}:{line}: {len(row)} fields, header has {len(header)}")
+                try:
+                    t_s = float(row[1])
+                    prios = [int(x) for x in row[4:]]
+                except ValueError:
+                    raise TrafficError(f"{path}:{line}: time or a priority is not a number") from None
+                if not (math.isfinite(t_s) and 0.0 <= t_s <= MAX_TRAFFIC_TIME_S):
+                    raise TrafficError(f"{path}:{line}: time_s {row[1]!r} outside 0..{MAX_TRAFFIC_TIME_S:.3g} s")
+                src = canonical_node(row[0].strip())
+                key = (src, row[2])
+                digest = hashlib.blake2b("\x1f".join(row).encode(), digest_size=16).digest()
+                if key in seen:
+                    first, was = seen[key]
+                    if was != digest:
+                        raise TrafficError(f"{path}:{line}: packet {row[2]!r} of {src} was already listed on line "
+                                           f"{first} with other values: one packet, one row")
+                    dups += 1
+                    continue
+                seen[key] = (line, digest)
+                for d, p in sorted(zip(dests, prios), key=lambda x: (x[1], x[0])):
+                    if not -1 <= p <= 15:
+                        raise TrafficError(f"{path}:{line}: priority {p} for {d} is outside -1..15 "
+                                           "(-1: not a destination, 0: the source, 1..15: a bundle)")
+                    if p > 0 and d != src:
+                        out.append(TrafficItem(t_s, src, d, p, row[2], row[3], line))
+                if len(out) > max_bundles or len(seen) > max_bundles:
+                    raise TrafficError(f"{path}:{line}: more than {max_bundles:,} bundles (rows x destinations) by "
+                                       f"this line; a DTN-alone run handles a few hundred bundles per second "
+                                       f"(case4's 7,430 take ~20 s): split the table")
+    except UnicodeDecodeError as exc:
+        raise TrafficError(f"{path}:{line + 1}: " + decode_error_line(exc, "the table").split(": ", 1)[1]) from None
+    except csv.Error as exc:
+        raise TrafficError(f"{path}:{line}: not a CSV table: {exc}") from None
+    if dups:
+        msg = f"{path}: {dups} rows repeat a (source, packet_id) row exactly: each counted once"
+        if on_duplicate is None:
+            raise TrafficError(msg.replace("each counted once", "remove the copies"))
+        on_duplicate(msg)
     out.sort(key=lambda x: (x.t_s, x.row, x.priority, x.dest))
     return out
 

@@ -16,9 +16,8 @@ import msgspec
 import pytest
 from scenario_edit import bad_value as _bad_value
 from scenario_edit import leaves as _leaves
-from scenario_edit import raw_scenario
+from scenario_edit import raw_scenario, to_toml
 from scenario_edit import set_key as _set
-from scenario_edit import to_toml
 
 from bringup.scenario.config import load_scenario
 

@@ -197,18 +197,12 @@ def test_missing_truncated_or_not_a_bag(tmp_path):
     junk = tmp_path / "junk"
     junk.mkdir()
     (junk / "metadata.yaml").write_text("{{{ not yaml")
-    _one_line_user_error(junk, "cannot open")
-    # truncated mcap: keep metadata.yaml, cut the file in half
+    _one_line_user_error(junk, "metadata.yaml is not YAML")
     _write(tmp_path / "bag", _envelopes())
-    shutil.copytree(tmp_path / "bag", tmp_path / "cut")
-    mcap = next((tmp_path / "cut").glob("*.mcap"))
-    data = mcap.read_bytes()
-    mcap.write_bytes(data[: len(data) // 2])
-    _one_line_user_error(tmp_path / "cut", "bag .*cut")
-    # not an mcap at all
+    # not an mcap at all (a cut one is read as far as it goes: tests/unit/test_bag_recovery.py)
     shutil.copytree(tmp_path / "bag", tmp_path / "garbage")
     next((tmp_path / "garbage").glob("*.mcap")).write_bytes(b"hello world" * 100)
-    _one_line_user_error(tmp_path / "garbage", "bag .*garbage")
+    _one_line_user_error(tmp_path / "garbage", "bag .*garbage.*not an MCAP file")
 
 
 def test_mcap_file_path_is_accepted(tmp_path):

@@ -294,7 +294,7 @@ def launch(spec: RunSpec, out_dir: Path, *, progress: Callable[[LaunchProgress],
            domain_id: int | None = None, python: str = sys.executable, wrap: Wrap | None = None) -> LaunchResult:
     """Run the whole ROS-engine run described by ``spec``; returns when every child has exited."""
     spec.check()
-    out_dir = Path(out_dir)
+    out_dir = Path(out_dir).absolute()  # (the children run in the repository's folder)
     (out_dir / "logs").mkdir(parents=True, exist_ok=True)
     spec_path = out_dir / "run_spec.json"
     spec.to_file(spec_path)
