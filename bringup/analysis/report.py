@@ -74,6 +74,16 @@ _NS = 1_000_000_000
 REPORT_TOPIC_SUFFIXES = ("/observations", "/dtn/events", "/dtn/counters", "/schedule", "/ground/uplink")
 
 
+# RunMeta's field types (as annotated) -> does a JSON value have it
+_META_TYPES = {
+    "str": lambda v: isinstance(v, str),
+    "int": lambda v: type(v) is int,
+    "float": lambda v: type(v) in (int, float) and math.isfinite(v),
+    "dict": lambda v: isinstance(v, dict),
+    "None": lambda v: v is None,
+}
+
+
 @dataclass
 class RunMeta:
     scenario: str
@@ -115,11 +125,8 @@ class RunMeta:
                     continue
                 raise ValueError(f"meta.{f.name} is missing")
             v = d[f.name]
-            want = {"str": str, "int": int, "float": float}[f.type]
-            ok = (type(v) is int) if want is int else (
-                type(v) in (int, float) and math.isfinite(v)) if want is float else isinstance(v, str)
-            if not ok:
-                raise ValueError(f"meta.{f.name} = {v!r} is not a {'finite number' if want is float else f.type}")
+            if not any(_META_TYPES.get(t, lambda _v: True)(v) for t in str(f.type).split(" | ")):
+                raise ValueError(f"meta.{f.name} = {str(v)[:80]!r} is not {f.type.replace('float', 'a finite number')}")
             kw[f.name] = v
         if kw["horizon_s"] <= 0 or kw["n_sats"] < 1 or kw["n_gp"] < 0 or kw["seed"] < 0 or kw.get("revisit_zero_s", 0) < 0:
             raise ValueError(f"meta out of range: horizon_s {kw['horizon_s']}, n_sats {kw['n_sats']}, "

@@ -20,7 +20,11 @@ The terms (bytes; each names the module whose arrays it counts):
   the ground segment;
 * orbit samples (orbit_clock/propagation.py, isl.py, ground_passes.py): positions every 10 s per
   satellite, x4 for the temporaries of the searches;
-* ISL search (orbit_clock/isl.py): one float64 margin per satellite pair per 10 s sample;
+* ISL search (orbit_clock/isl.py): 8 bytes per satellite pair per 10 s sample - measured (peak
+  resident memory of ``isl_contact_plan`` alone, 2 cores, 2026-11-25): 240 satellites 6 h 581 MiB
+  (estimate 473), 1000 satellites 1 h 1318 MiB (1372), 3 h 3840 MiB (4116); it grows with the
+  contacts found (1.2 million for 1000 satellites over 3 h), so 1000 satellites over 24 h (~32 GiB)
+  do not fit a 24 GiB machine;
 * access search (orbit_clock/access.py): float64 angles per satellite, region and 20 s sample (x3);
 * planner instance (sat_node/scheduler/problem.py, dp.py): ~48 per DP step and candidate GP
   (values, masks, prior counts, DP tables); the candidates are the GPs of the regions in reach over

@@ -420,14 +420,14 @@ def test_out_of_range_payloads_are_not_counted(tmp_path, capsys, run_bag):
 # -- a full disk ------------------------------------------------------------------------------------
 @pytest.fixture
 def small_disk(tmp_path):
-    """``make(name)``: a 256 KiB tmpfs mounted for the test, all removed after it (root: the CI and
-    this machine)."""
+    """``make(name, size)``: a tmpfs of ``size`` (256 KiB unless told) mounted for the test, all
+    removed after it (root: the CI and this machine)."""
     mounts = []
 
-    def make(name: str) -> Path:
+    def make(name: str, size: str = "256k") -> Path:
         mnt = tmp_path / name
         mnt.mkdir()
-        subprocess.run(["mount", "-t", "tmpfs", "-o", "size=256k", "tmpfs", str(mnt)], check=True)
+        subprocess.run(["mount", "-t", "tmpfs", "-o", f"size={size}", "tmpfs", str(mnt)], check=True)
         mounts.append(mnt)
         return mnt
 
@@ -441,8 +441,9 @@ def small_disk(tmp_path):
 
 def test_full_disk_is_named(tmp_path, capsys, small_disk, run_bag):
     # a local run's bag fills the disk (centralized: no bundle stores): the recorder's error names
-    # the device and the bag file
-    disk = small_disk("d1")
+    # the device and the bag file (the disk holds the world cache, ~390 KB with 2000 GPs, not the
+    # bag, ~1 MB)
+    disk = small_disk("d1", "640k")
     one_line_error(capsys, ["run", "--engine", "local", "--mode", "centralized", "--sats", "12", "--hours", "2",
                             "--no-plots", "--no-progress", "--out", disk / "r"],
                    "no space left on device", disk / "r" / "bag" / "bag.mcap")
