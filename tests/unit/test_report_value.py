@@ -11,7 +11,9 @@ with recorded OSSE value ``v`` is worth 0 when g was seen less than 900 s before
 else ``v / (n + 1)`` with n the looks at g before it; every look counts as seen. The nine looks
 cover: first looks, a second look exactly 900 s after (counts, halved), one 899.999 s after (0), a
 tie at one time between two satellites written to the bag in the losing satellite's order first, a
-look after a duplicate (the duplicate counts in n), and a GP worth 0. Every expected figure below is
+look after a duplicate (the duplicate counts in n), and a look recording 0 - outside the OSSE's
+values 1..256 (ground_station/osse.py), so no look of a run: the report does not count it and says
+so in ``report_rejections``. Every expected figure below is
 written out with its arithmetic; the sums are exact in binary floating point, so they are compared
 exactly (the error means to 1e-12).
 """
@@ -39,7 +41,7 @@ LOOKS = [
     ("sat_11", 3, 1000 * S_NS, 90.0, 80.0),           # e: GP 3, exactly 900 s after a
     ("sat_11", 7, 1300 * S_NS, 150.0, 40.0),          # f: GP 7, exactly 900 s after c and d
     ("sat_12", 3, 1_899_999_000_000, 90.0, 30.0),     # g: GP 3, 899.999 s after e
-    ("sat_12", 9, 2000 * S_NS, 0.0, 5.0),             # h: GP 9, a GP worth nothing now
+    ("sat_12", 9, 2000 * S_NS, 0.0, 5.0),             # h: GP 9, a value no OSSE holds: not counted
     ("sat_12", 3, 2900 * S_NS, 100.0, 20.0),          # i: GP 3, 1000.001 s after g
 ]
 
@@ -51,14 +53,14 @@ LOOKS = [
 #   e  t=1000   GP3 last 100: 900 s, not < 900; n=1 ->  90 / 2 = 45  (sat_11)
 #   f  t=1300   GP7 last 400: 900 s; n=2 (d, c)      -> 150 / 3 = 50  (sat_11)
 #   g  t=1899.999 GP3 last 1000: 899.999 s < 900 ->   0, duplicate     (sat_12)
-#   h  t=2000   GP9 never seen                ->   0 / (0+1) =   0     (sat_12)
+#   h  t=2000   recorded 0, outside 1..256    ->  not counted (report_rejections)
 #   i  t=2900   GP3 last 1899.999: 1000.001 s; n=3 (a, e, g) -> 100 / 4 = 25 (sat_12)
-CUMULATIVE = 120.0 + 64.0 + 200.0 + 0.0 + 45.0 + 50.0 + 0.0 + 0.0 + 25.0  # = 504
+CUMULATIVE = 120.0 + 64.0 + 200.0 + 0.0 + 45.0 + 50.0 + 0.0 + 25.0  # = 504
 PER_SAT = {"sat_11": 64.0 + 200.0 + 45.0 + 50.0,  # = 359
-           "sat_12": 120.0 + 0.0 + 0.0 + 0.0 + 25.0}  # = 145
+           "sat_12": 120.0 + 0.0 + 0.0 + 25.0}  # = 145
 DUPLICATES = 2  # c, g
-# first look at each GP: a (GP3, 120), b (GP5, 64), d (GP7, 200), h (GP9, 0) -> 384 of 504
-FIRST_LOOK_SHARE = (120.0 + 64.0 + 200.0 + 0.0) / 504.0  # = 0.761904...
+# first look at each GP: a (GP3, 120), b (GP5, 64), d (GP7, 200) -> 384 of 504
+FIRST_LOOK_SHARE = (120.0 + 64.0 + 200.0) / 504.0  # = 0.761904...
 # |assumed - true| / true over the looks with a true value > 0:
 #   a |110-120|/120 = 1/12, b |60-64|/64 = 1/16, d |210-200|/200 = 1/20,
 #   e |80-45|/45 = 7/9, f |40-50|/50 = 1/5, i |20-25|/25 = 1/5
@@ -67,8 +69,8 @@ FIRST_LOOK_SHARE = (120.0 + 64.0 + 200.0 + 0.0) / 504.0  # = 0.761904...
 ERROR_MEAN = 989.0 / 4320.0
 ERROR_MEDIAN = 17.0 / 120.0
 N_GP = 10
-# GPs 3, 5, 7, 9 observed: 4 of 10; 9 looks over 10 GPs
-GP_OBSERVED, GP_FRACTION, LOOKS_PER_GP = 4, 4 / 10, 9 / 10
+# GPs 3, 5, 7 observed: 3 of 10; 8 looks counted over 10 GPs
+GP_OBSERVED, GP_FRACTION, LOOKS_PER_GP = 3, 3 / 10, 8 / 10
 
 META = RunMeta(scenario="hand-worked", mode="distributed", engine="local", seed=1, horizon_s=3600.0, n_sats=2,
                n_gp=N_GP, revisit_zero_s=900.0, knowledge="study", osse={})
@@ -102,7 +104,8 @@ def test_hand_worked_value_figures(tmp_path):
     assert rep["value"]["first_look_share"] == FIRST_LOOK_SHARE
     assert abs(rep["value"]["assumed_error_mean"] - ERROR_MEAN) < 1e-12
     assert abs(rep["value"]["assumed_error_median"] - ERROR_MEDIAN) < 1e-12
-    assert rep["observations"] == {"count": 9, "duplicates_15min": DUPLICATES}
+    assert rep["observations"] == {"count": 8, "duplicates_15min": DUPLICATES}
+    assert rep["report_rejections"] == {"observation.recorded_value_out_of_range": 1}  # h
     assert rep["coverage"] == {"gp_observed": GP_OBSERVED, "gp_total": N_GP, "gp_observed_fraction": GP_FRACTION,
                                "looks_per_gp": LOOKS_PER_GP}
     assert (rep["scenario"], rep["n_sats"], rep["horizon_s"]) == ("hand-worked", 2, 3600.0)
