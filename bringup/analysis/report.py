@@ -64,6 +64,7 @@ from ground_station.osse import VALUE_MAX, VALUE_MIN
 from msgs_json import codec
 from msgs_json import schemas as S
 from msgs_json.envelope import Envelope
+from msgs_json.topics import sat_of_topic
 from sat_node.dtn.agent import BundleEvent
 from sat_node.dtn.stats import dtn_report
 from sat_node.value import ValueLedger
@@ -181,7 +182,7 @@ class ReportBuilder:
         try:
             if t.endswith("/observations"):
                 o = codec.decode(t, env.data)
-                if t != f"/{o.sat}/observations":
+                if sat_of_topic(t) != o.sat:  # (under any namespace: msgs_json.topics.design_topic)
                     self.rejected["observation.sat_not_its_topic"] += 1
                     return
                 self.obs.append(o)

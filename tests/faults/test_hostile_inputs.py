@@ -417,6 +417,21 @@ def test_out_of_range_payloads_are_not_counted(tmp_path, capsys, run_bag):
     assert "5 payloads not counted" in err
 
 
+def test_observations_under_a_namespace_count_and_another_satellites_do_not():
+    # a run whose nodes were pushed into a namespace records /fleet/sat_11/observations: its own
+    # satellite's observations count there; one naming another satellite does not
+    from bringup.analysis.report import ReportBuilder
+    from msgs_json import codec
+    from msgs_json import schemas as S
+    from msgs_json.envelope import Envelope
+
+    b = ReportBuilder()
+    o = S.Observation(sat="sat_11", gp=3, t_ns=10**9, assumed_value=5.0, recorded_value=5.0)
+    b.add(Envelope(o.t_ns, "sat_11", 0, "/fleet/sat_11/observations", codec.encode(o)))
+    b.add(Envelope(o.t_ns, "sat_11", 1, "/fleet/sat_12/observations", codec.encode(o)))
+    assert len(b.obs) == 1 and dict(b.rejected) == {"observation.sat_not_its_topic": 1}
+
+
 # -- a full disk ------------------------------------------------------------------------------------
 @pytest.fixture
 def small_disk(tmp_path):
