@@ -65,8 +65,10 @@ def test_replay_delivers_every_message_and_clock(tmp_path, with_clock):
     got: dict[str, list[bytes]] = {t: [] for t in expected}
     cond = threading.Condition()
 
-    def done() -> bool:
-        return all(len(got[t]) >= len(expected[t]) for t in expected)
+    def done(topics=tuple(expected)) -> bool:
+        return all(len(got[t]) >= len(expected[t]) for t in topics)
+
+    reliable = tuple(t for t in expected if t != "/clock")
 
     with lease_domain_id() as lease:
         ctx = Context()
@@ -99,17 +101,28 @@ def test_replay_delivers_every_message_and_clock(tmp_path, with_clock):
             n_topics = 5 if with_clock else 4
             assert f"replayed {n_recorded} messages on {n_topics} topics" in proc.stdout
             with cond:
-                assert cond.wait_for(done, timeout=20.0), {t: (len(got[t]), len(expected[t])) for t in expected}
+                assert cond.wait_for(lambda: done(reliable), timeout=20.0), {
+                    t: (len(got[t]), len(expected[t])) for t in expected}
+                cond.wait_for(done, timeout=5.0)  # /clock is best effort: what arrives is checked below
         finally:
             ex.shutdown()
             node.destroy_node()
             rclpy.try_shutdown(context=ctx)
             spin.join(timeout=10)
-    # byte-identical, in order, per topic; DDS may pad a payload to a 4-byte multiple
+    # byte-identical, in order, per topic; DDS may pad a payload to a 4-byte multiple. /clock goes out
+    # best effort, as recorded (rclpy's TimeSource subscribes so): DDS may drop a sample on a loaded
+    # machine, so what arrives must be the expected clocks in order, at least one of them
+    def same(g: bytes, e: bytes) -> bool:
+        return g[: len(e)] == e and set(g[len(e):]) <= {0} and len(g) - len(e) < 4
+
     for topic, exp in expected.items():
+        if topic == "/clock":
+            it = iter(exp)
+            assert got[topic] and all(any(same(g, e) for e in it) for g in got[topic]), topic
+            continue
         assert len(got[topic]) == len(exp), topic
         for g, e in zip(got[topic], exp, strict=True):
-            assert g[: len(e)] == e and set(g[len(e):]) <= {0} and len(g) - len(e) < 4, topic
+            assert same(g, e), topic
 
 
 def test_replay_missing_bag_is_one_line_error(tmp_path):
