@@ -56,6 +56,8 @@ FAST_EXIT = True
 _NS = 1_000_000_000
 MAX_ISL_DELAY_S = 86_400.0  # one day of extra one-way delay: beyond any TTL, still a number
 MAX_RESTARTS = 1000
+# wall seconds a ROS process has to finish a step (with K satellites per process: K times this)
+ACK_TIMEOUT_S = 10.0
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -311,6 +313,8 @@ def _run_ros(world, world_path: Path, args, meta, bag_dir: Path, out: Path, rout
     # on the start: a slow one (cold caches, a loaded machine) is waited for and named, never fatal
     spec = RunSpec(factory=FACTORY, prepare=PREPARE, startup_timeout_s=None,
                    roles=list(groups), groups={g: m for g, m in groups.items() if m != [g]},
+                   # a process steps its K satellites one after the other: K times the one-satellite deadline
+                   ack_timeout_s=ACK_TIMEOUT_S * per_process,
                    scenario=str(Path(sc.source_path).resolve()),
                    overrides=overrides_of(args), mode=args.mode,
                    real_time_factor=args.real_time_factor, bag_dir=str(bag_dir.resolve()),

@@ -1,0 +1,193 @@
+"""Benchmark: how a whole run's cost grows with the constellation (local engine).
+
+Usage::
+
+    .venv/bin/python bench/bench_scale.py [--sats 24,48,96,240,480] [--hours 6] [--planes 3]
+        [--regions paper|global] [--planning joint|alone] [--json]
+
+A run of minutes: ``--sats 24,48,96 --hours 1``.
+
+Each size is one `constellation run --engine local --sats N --planes P` (a Walker star over the
+paper scenario's orbits; `--planes 3` keeps the paper's planes, as `--sats` alone does), run as a
+child process from this checkout. Printed per size: wall time, CPU time of the process tree (the
+run and its recorder), peak memory (sum of the tree's PSS, sampled every 0.25 s from /proc, as
+bench/bench_run.py does), the run's own figures (observations, bundles created / delivered, envelopes
+on the bus, CGR queries: report.json ``runtime.cgr_queries``, the bundle agents' route searches)
+and the ratios to the first size, which is the baseline of the same call (24 satellites unless
+``--sats`` says otherwise). Then the fitted growth exponent b of wall = a * N^b (least squares in
+log-log over every size) and the exponent between the baseline and each size.
+
+``--planning alone`` plans every satellite by itself instead of jointly with the satellites whose
+fields of regard overlap (the scenario's default, sat_node/scheduler/joint.py): a satellite's group
+grows with the constellation's density, so joint planning's cost grows faster than N; ``alone``
+measures the rest (orbits, contacts, routing, bundles) without it.
+
+``--regions global`` replaces the paper's five regions by a global grid of 80 km regions (every
+30 deg of latitude from -60 to 60, every 45 deg of longitude: 40 regions, 4000 ground points), so
+that observations and bundles are not limited by five cities.
+
+Targets (the issue's, measured here, never asserted in tests): 240 satellites x 6 h in <= 10 min
+with <= 8 GiB; exponent 24 -> 240 <= 1.5. The load of the machine (``os.getloadavg``) is printed
+before and after each run: wall times on a loaded 2-core machine are not comparable; CPU times are
+less sensitive.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO))
+sys.path.insert(0, str(REPO / "bench"))
+
+import msgspec
+from bench_run import _mem_mib, _tree
+
+from bringup.scenario.config import load_scenario
+
+
+def _toml_value(v) -> str:
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, (int, float)):
+        return repr(v)
+    if isinstance(v, str):
+        return json.dumps(v)
+    if isinstance(v, list):
+        return "[" + ", ".join(_toml_value(x) for x in v) + "]"
+    raise TypeError(f"no TOML for {type(v).__name__}")
+
+
+def scenario_toml(raw: dict) -> str:
+    """TOML text of a scenario dict (tables of scalars and lists, and arrays of tables)."""
+    lines = []
+    for table, body in raw.items():
+        scalars = {k: v for k, v in body.items() if not (isinstance(v, list) and v and isinstance(v[0], dict))}
+        lines.append(f"[{table}]")
+        lines += [f"{k} = {_toml_value(v)}" for k, v in scalars.items()]
+        for k, v in body.items():
+            if k not in scalars:
+                for item in v:
+                    lines.append(f"[[{table}.{k}]]")
+                    lines += [f"{kk} = {_toml_value(vv)}" for kk, vv in item.items()]
+        lines.append("")
+    return "\n".join(lines)
+
+
+def global_regions() -> list[dict]:
+    return [{"name": f"g{lat:+03d}{lon:+04d}", "lat_deg": float(lat), "lon_deg": float(lon), "size_km": 80.0}
+            for lat in range(-60, 61, 30) for lon in range(-180, 180, 45)]
+
+
+def scenario_file(regions: str, folder: Path) -> str:
+    """The scenario the runs use: ``paper``, or a copy of it with the global grid of regions."""
+    if regions == "paper":
+        return "paper"
+    raw = msgspec.to_builtins(load_scenario("paper"))
+    raw.pop("source_path", None)
+    raw["scenario"]["name"] = "paper-global"
+    raw["regions"]["list"] = global_regions()
+    path = folder / "paper-global.toml"
+    path.write_text(scenario_toml(raw))
+    load_scenario(path)  # validated like any scenario file
+    return str(path)
+
+
+def run_size(n: int, planes: int, args, scenario: str, out: Path) -> dict:
+    p = max(1, min(planes, n))
+    while n % p:
+        p -= 1
+    cmd = [sys.executable, "-m", "bringup.cli", "run", "--engine", "local", "--scenario", scenario, "--sats", str(n),
+           "--planes", str(p), "--hours", str(args.hours), "--planning", args.planning, "--out", str(out), "--no-plots", "--no-progress"]
+    load0 = os.getloadavg()[0]
+    c0 = os.times()
+    t0 = time.perf_counter()
+    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, cwd=str(REPO))
+    peak = 0.0
+    while proc.poll() is None:
+        peak = max(peak, _mem_mib(_tree(proc.pid))[1])
+        time.sleep(0.25)
+    wall = time.perf_counter() - t0
+    c1 = os.times()
+    err = proc.stderr.read()
+    if proc.returncode != 0:
+        raise SystemExit(f"{n} satellites: run failed: {err[-2000:]}")
+    rep = json.loads((out / "report.json").read_text())
+    rt = rep["runtime"]
+    return {"sats": n, "planes": p, "wall_s": round(wall, 1),
+            "cpu_s": round((c1.children_user - c0.children_user) + (c1.children_system - c0.children_system), 1),
+            "peak_pss_mib": round(peak), "observations": rep["observations"]["count"],
+            "bundles_created": rep["dtn"]["bundles_created"], "bundles_delivered": rep["dtn"]["bundles_delivered"],
+            "envelopes": rt.get("envelopes"), "cgr_queries": rt.get("cgr_queries"),
+            "value": round(rep["value"]["cumulative"]), "load_before": round(load0, 1),
+            "load_after": round(os.getloadavg()[0], 1)}
+
+
+def exponent(ns, ys) -> float:
+    """b of y = a * n^b, least squares in log-log."""
+    return float(np.polyfit(np.log(ns), np.log(ys), 1)[0])
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--sats", default="24,48,96,240,480", help="constellation sizes; the first is the baseline")
+    ap.add_argument("--hours", type=float, default=6.0)
+    ap.add_argument("--planes", type=int, default=3, help="planes (the largest <= this that divides each size)")
+    ap.add_argument("--regions", choices=("paper", "global"), default="paper")
+    ap.add_argument("--planning", choices=("joint", "alone"), default="joint",
+                    help="joint (the scenario's) or alone: each satellite plans by itself")
+    ap.add_argument("--json", action="store_true", help="one JSON document at the end instead of the table")
+    args = ap.parse_args()
+    sizes = [int(x) for x in args.sats.split(",")]
+    rows = []
+    with tempfile.TemporaryDirectory(prefix="bench_scale_") as d:
+        scenario = scenario_file(args.regions, Path(d))
+        for n in sizes:
+            row = run_size(n, args.planes, args, scenario, Path(d) / f"run{n}")
+            rows.append(row)
+            if not args.json:
+                print(json.dumps(row), flush=True)
+    base = rows[0]
+    for r in rows:
+        r["wall_x"] = round(r["wall_s"] / base["wall_s"], 2)
+        r["cpu_x"] = round(r["cpu_s"] / base["cpu_s"], 2)
+        r["exp_wall_from_base"] = (round(math.log(r["wall_s"] / base["wall_s"]) / math.log(r["sats"] / base["sats"]), 2)
+                                   if r is not base else None)
+        r["exp_cpu_from_base"] = (round(math.log(r["cpu_s"] / base["cpu_s"]) / math.log(r["sats"] / base["sats"]), 2)
+                                  if r is not base else None)
+    fit = {}
+    if len(rows) >= 2:
+        ns = [r["sats"] for r in rows]
+        fit = {"wall": round(exponent(ns, [r["wall_s"] for r in rows]), 2),
+               "cpu": round(exponent(ns, [r["cpu_s"] for r in rows]), 2)}
+        for k in ("bundles_created", "cgr_queries", "envelopes"):
+            if all(r.get(k) for r in rows):
+                fit[k] = round(exponent(ns, [r[k] for r in rows]), 2)
+    doc = {"hours": args.hours, "regions": args.regions, "planning": args.planning, "rows": rows, "fitted_exponent": fit}
+    if args.json:
+        print(json.dumps(doc, indent=2))
+        return 0
+    print(f"\n{'sats':>5} {'planes':>6} {'wall s':>8} {'x':>6} {'cpu s':>8} {'PSS MiB':>8} {'obs':>6} {'bundles':>8} "
+          f"{'cgr':>9} {'env':>10} {'exp(wall)':>9} {'load':>9}")
+    for r in rows:
+        print(f"{r['sats']:>5} {r['planes']:>6} {r['wall_s']:>8.1f} {r['wall_x']:>6.2f} {r['cpu_s']:>8.1f} "
+              f"{r['peak_pss_mib']:>8} {r['observations']:>6} {r['bundles_created']:>8} {r['cgr_queries'] or 0:>9} "
+              f"{r['envelopes'] or 0:>10} {r['exp_wall_from_base'] or 0:>9.2f} "
+              f"{r['load_before']:>4}/{r['load_after']:<4}")
+    print(f"{args.hours:g} h, regions {args.regions}, planning {args.planning}")
+    print(f"fitted growth exponents (y = a N^b over {', '.join(str(r['sats']) for r in rows)}): {fit}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
