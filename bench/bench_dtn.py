@@ -22,6 +22,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from bringup.analysis.dtn_alone import run_dtn
 from bringup.analysis.dtn_bounds import floor_mean, latency_lower_bounds, store_forward_bound_mean
+from bringup.engine.keys import resolve_bpsec_key
 from orbit_clock.contact_plan_io import read_contact_plan
 from sat_node.dtn.agent import AgentConfig
 from sat_node.dtn.cgr import ContactGraph
@@ -59,7 +60,7 @@ def main() -> int:
 
 def _run_case(case, fwd, plan, traffic, args) -> None:
     t0 = time.perf_counter()
-    cfg = AgentConfig.for_policy(args.queue, args.hop_tolerance_s, forwarding=fwd)
+    cfg = AgentConfig.for_policy(args.queue, args.hop_tolerance_s, forwarding=fwd, key=resolve_bpsec_key()[0])
     run = run_dtn(plan, traffic, config=cfg)
     wall = time.perf_counter() - t0
     per_obs = fwd == "multicast"

@@ -264,7 +264,7 @@ def main() -> int:
     contact_plan = read_contact_plan(INPUTS / "contact_plan_3p_8s.csv", rate_bps=args.rate_bps)
     plan = Plan(contact_plan, args.bundle_bits)
     traffic = read_traffic(INPUTS / f"traffic_{args.case}.csv")
-    ttls = AgentConfig().ttl_s_by_priority
+    ttls = AgentConfig(key=bytes(16)).ttl_s_by_priority
     items = [(it.t_s, plan.index[it.source], plan.index[it.dest], it.priority,
               ttl_s_for_priority(it.priority, ttls)) for it in traffic]
     per_bundle = latency_lower_bounds(contact_plan, traffic, args.bundle_bits, {i: i for i in range(len(traffic))})

@@ -81,7 +81,7 @@ class SatelliteLogic:
     """Participant for satellite ``name``; ``world`` is a bringup.scenario.world.World."""
 
     def __init__(self, world, name: str, mode: str = "distributed", *, store_path: str | None = None,
-                 dtn: bool | None = None):
+                 dtn: bool | None = None, bpsec_key: bytes | None = None):
         if mode not in ("distributed", "centralized", "nonagile"):
             raise ValueError(f"mode {mode!r}: expected distributed, centralized or nonagile")
         self.name = name
@@ -114,11 +114,14 @@ class SatelliteLogic:
         self.agent = None
         self.port = None  # the agent on the lockstep bus (sat_node/dtn/port.py)
         if self.dtn:
+            if bpsec_key is None:
+                raise ValueError(f"satellite {name}: DTN needs the constellation's BPSec key (bpsec_key), "
+                                 "given by the deployment")
             i = sc.isl
             # settle_delay_s=None: the port settles each transmission when no failure report can come
             cfg = AgentConfig.for_policy(
                 i.send_order, i.hop_tolerance_s, ttl_s_by_priority={1: i.ttl_p1_s, 3: i.ttl_p2_3_s, 15: i.ttl_p4_15_s},
-                bundle_bits=i.bundle_bits, settle_delay_s=None, forwarding=i.forwarding)
+                bundle_bits=i.bundle_bits, settle_delay_s=None, forwarding=i.forwarding, key=bpsec_key)
             store = BundleStore(store_path) if store_path else None
             # one contact graph per process, shared by its satellites (World.isl_graph)
             self.agent = new_agent(name, world.isl_graph(cfg.hop_limit), cfg, store=store)

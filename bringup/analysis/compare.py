@@ -36,6 +36,7 @@ import msgspec
 from scipy.stats import t as student_t
 
 from bringup.analysis.report import REPORT_TOPIC_SUFFIXES, RunMeta, build_report
+from bringup.engine.keys import resolve_bpsec_key
 from bringup.engine.local import run_local
 from bringup.errors import UserError
 from bringup.scenario.config import _validate
@@ -265,7 +266,7 @@ def run_in_process(sc, mode: str, *, store_dir: Path | None = None) -> dict:
             envs.append(env)
 
     with tempfile.TemporaryDirectory() as tmp:
-        parts = all_participants(world, mode, store_dir=Path(store_dir or tmp))
+        parts = all_participants(world, mode, store_dir=Path(store_dir or tmp), bpsec_key=resolve_bpsec_key()[0])
         res = run_local(parts, horizon_ns=sc.horizon_ns,
                         max_step_ns=round(sc.scenario.lockstep_max_step_s * 1e9), sink=sink)
     return build_report(envs, meta, {"wall_s": res.wall_s, "real_time_factor": res.real_time_factor})

@@ -30,6 +30,7 @@ import time
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
+from bringup.engine.keys import resolve_bpsec_key
 from bringup.engine.local import run_local
 from dtn_router.link import LinkModel
 from dtn_router.router import RouterLogic
@@ -104,7 +105,8 @@ def run_dtn(plan: ContactPlan, traffic: list[TrafficItem], *, config: AgentConfi
     bundles created there (``<bundle id>.bpv7``, as they stand at creation: primary, BIB, priority,
     hop count, payload). ``sink``: called with every envelope of the run (default: none kept)."""
     t0 = time.perf_counter()
-    config = replace(config or AgentConfig(), settle_delay_s=None)
+    # no config: the deployment's BPSec key (environment) or one generated for this run
+    config = replace(config or AgentConfig(key=resolve_bpsec_key()[0]), settle_delay_s=None)
     if not config.bundle_bits:
         raise ValueError("run_dtn: the medium needs a fixed bundle size (AgentConfig.bundle_bits)")
     if not max_step_s > 0:

@@ -11,6 +11,7 @@ import sys
 from contextlib import contextmanager
 from pathlib import Path
 
+from bringup.engine.keys import ENV_BPSEC_KEY, ENV_BPSEC_KEY_FILE, RunKeys
 from bringup.errors import UserError
 from bringup.scenario.config import KNOWLEDGE_MODELS, Scenario, load_scenario
 from msgs_json.names import MAX_PLANES, MAX_SATS
@@ -88,6 +89,18 @@ def scenario_from_args(args: argparse.Namespace) -> Scenario:
         sc = sc.with_overrides(**kw)
     check_run_size(sc)
     return sc
+
+
+def add_key_args(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--bpsec-key-file", type=Path, default=None, metavar="FILE",
+                   help="the constellation's BPSec (BIB) key, hex on one line, mode 600 (default: "
+                        f"${ENV_BPSEC_KEY_FILE}, else ${ENV_BPSEC_KEY} in hex, else a key generated for the run)")
+
+
+def keys_from_args(args: argparse.Namespace) -> RunKeys:
+    """The run's keys: a new run key and the BPSec key from ``--bpsec-key-file`` or the environment
+    (bringup/engine/keys.py)."""
+    return RunKeys.generate(getattr(args, "bpsec_key_file", None))
 
 
 def add_out_arg(p: argparse.ArgumentParser) -> None:

@@ -1,4 +1,4 @@
-"""`constellation compose`: write a Docker Compose file (with its run spec and world) for N satellites.
+"""`constellation compose`: write a Docker Compose file (with its run spec, world and keys) for N satellites.
 
 See bringup/deploy/compose.py for what the file holds and docker/README.md for how to run it
 (`docker compose`, `podman-compose`, or `constellation containers up`).
@@ -13,7 +13,7 @@ import os
 from pathlib import Path
 
 from bringup.analysis.report import RunMeta
-from bringup.cli.common import add_scenario_args
+from bringup.cli.common import add_key_args, add_scenario_args, keys_from_args
 from bringup.cli.run import parse_cut
 from bringup.deploy.compose import IMAGE, compose_project, repo_root, write_project
 from bringup.errors import UserError
@@ -41,6 +41,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--factory", default=None,
                    help="participant factory 'module:function' (default: the ROS engine's, "
                         "bringup.engine.ros.factory:build)")
+    add_key_args(p)
     p.add_argument("--context", type=Path, default=None,
                    help="repository root to build the image from (default: this checkout)")
 
@@ -63,7 +64,7 @@ def run(args: argparse.Namespace) -> int:
                               mode=args.mode, domain_id=args.domain_id, subnet=args.subnet,
                               factory=args.factory, build_context=os.path.relpath(context, out.parent),
                               project_name=args.name, image=args.image, restart=args.restart, router_kw=router_kw,
-                              meta=meta, real_time_factor=args.real_time_factor)
+                              meta=meta, real_time_factor=args.real_time_factor, keys=keys_from_args(args))
     for a, b, _, _ in cuts:
         for n in (a, b):
             if n not in project.world.sat_names:

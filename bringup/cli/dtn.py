@@ -21,6 +21,8 @@ from pathlib import Path
 from bringup.analysis.dtn_alone import run_dtn
 from bringup.analysis.dtn_bounds import floor_mean, latency_lower_bounds, store_forward_bound_mean
 from bringup.cli.run_folder import json_text
+from bringup.cli.common import add_key_args
+from bringup.engine.keys import resolve_bpsec_key, write_key_file
 from bringup.errors import UserError
 from orbit_clock.contact_plan import node_number
 from orbit_clock.contact_plan_io import ContactPlanError, read_contact_plan
@@ -54,6 +56,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--dump-bundles", type=Path, default=None, metavar="DIR",
                    help="write the encoded bytes of the first 100 bundles created, one <id>.bpv7 file each")
     p.add_argument("--no-lower-bound", action="store_true", help="skip the latency lower bounds")
+    add_key_args(p)
 
 
 _MAX_TTL_S = 10 * 365.25 * 86400  # ten years: any longer is a typo (the study's longest is 3000 s)
@@ -113,15 +116,20 @@ def run(args: argparse.Namespace) -> int:
         raise UserError(str(exc)) from None
     _check_nodes(plan, traffic, args)
     ttl = _parse_ttl(args.ttl_s)
+    key, key_from = resolve_bpsec_key(args.bpsec_key_file)
     try:
         config = AgentConfig.for_policy(args.queue, args.hop_tolerance_s, ttl_s_by_priority=ttl,
-                                        bundle_bits=args.bundle_bits, forwarding=args.forwarding)
+                                        bundle_bits=args.bundle_bits, forwarding=args.forwarding, key=key)
     except ValueError as exc:
         raise UserError(f"--hop-tolerance-s: {exc}") from None
     dump = None
     if args.dump_bundles is not None:
         args.dump_bundles.mkdir(parents=True, exist_ok=True)
         dump = args.dump_bundles
+        if args.bpsec_key_file is None:
+            # the BIBs of the dumped bundles verify under this key (another BPv7 stack needs it)
+            write_key_file(dump / "bpsec.key", key)
+            print(f"dtn: BPSec key {key_from} written to {dump / 'bpsec.key'}", file=sys.stderr)
     run_ = run_dtn(plan, traffic, config=config, dump_dir=dump, dump_count=100)
     per_obs = args.forwarding == "multicast"
     report = run_.report(None if args.no_lower_bound else

@@ -27,11 +27,12 @@ from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
 from bringup.analysis.report import ReportBuilder, RunMeta, report_from_bag
 from bringup.analysis.report_md import report_md
-from bringup.cli.common import add_scenario_args, overrides_of, scenario_from_args
+from bringup.cli.common import (add_key_args, add_scenario_args, keys_from_args, overrides_of,
+                                 scenario_from_args)
 from bringup.cli.run_folder import RunFolder, json_text, write_text_atomic
 from bringup.engine.local import run_local
 from bringup.engine.ros.factory import FACTORY, PREPARE
-from bringup.engine.ros.launcher import launch
+from bringup.engine.ros.launcher import launch, lease_domain_id
 from bringup.engine.ros.run_spec import RunSpec
 from bringup.engine.store_batches import StoreBatches
 from bringup.errors import UserError
@@ -79,6 +80,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="ros engine: satellites hosted by one OS process (one executor, one node each); "
                         f"auto: 1 up to {AUTO_SAT_PROCESSES} satellites (and with --restart), else as few "
                         f"as keep {AUTO_SAT_PROCESSES} satellite processes (default auto)")
+    add_key_args(p)
     p.add_argument("--restart", type=int, default=0, metavar="N",
                    help="ros engine: restart a crashed process (satellite, router, ground or the clock) up to "
                         "N times; every process checkpoints each step and resumes from it (default 0: a crash "
@@ -137,12 +139,13 @@ def run(args: argparse.Namespace) -> int:
                 raise UserError(f"--cut: {n!r} is not a satellite of the scenario ({sc.sat_names[0]}..)")
     # made absolute here, against the folder the user ran the command in (the ROS engine's
     # processes run in the repository's folder)
+    keys = keys_from_args(args)
     with RunFolder(args.out or Path("runs") / f"{sc.name}-{args.mode}") as folder:
         out = folder.path
         bag_dir = out / "bag"
         try:
             try:
-                return _run(sc, cuts, out, bag_dir, args, folder, per_process)
+                return _run(sc, cuts, out, bag_dir, args, folder, per_process, keys)
             except sqlite3.Error as exc:  # a satellite's bundle store (sat_node/dtn/store.py)
                 raise UserError(f"a satellite's SQLite store in {out / 'store'} failed: {exc}"
                                 + _space_note(out)) from None
@@ -160,12 +163,13 @@ def _space_note(out: Path) -> str:
     return f" (no space left on device: {free // 1024} KiB free)" if free < 2**20 else ""
 
 
-def _run(sc, cuts, out: Path, bag_dir: Path, args, folder: RunFolder, per_process: int) -> int:
+def _run(sc, cuts, out: Path, bag_dir: Path, args, folder: RunFolder, per_process: int, keys) -> int:
     def say(*a) -> None:
         print(*a, file=sys.stderr)
     say(f"run: {sc.name}, {sc.constellation.total_sats} satellites, {sc.scenario.horizon_s / 3600:g} h, "
         f"mode {args.mode}, engine {args.engine}"
         + (f" ({per_process} satellites per process)" if per_process > 1 else "") + f" -> {out}")
+    say(f"run: BPSec key {keys.bpsec_from}")
     t0 = time.perf_counter()
     stores_ready = None
     if args.engine == "local":  # the ros engine's satellites make their own, in their processes
@@ -181,10 +185,10 @@ def _run(sc, cuts, out: Path, bag_dir: Path, args, folder: RunFolder, per_proces
     rep = None
     if args.engine == "local":
         stores_ready()  # (before the recorder forks: no other thread runs then)
-        runtime, rep = _run_local(world, args, meta, bag_dir, out, router_kw, show=not args.no_progress)
+        runtime, rep = _run_local(world, args, meta, bag_dir, out, router_kw, keys, show=not args.no_progress)
     else:
-        runtime = _run_ros(world, world_path, args, meta, bag_dir, out, router_kw, show=not args.no_progress,
-                           per_process=per_process)
+        runtime = _run_ros(world, world_path, args, meta, bag_dir, out, router_kw, keys, say,
+                           show=not args.no_progress, per_process=per_process)
     code = _finish(out, bag_dir, runtime, world, args, say, rep=rep)
     folder.done()
     return code
@@ -229,7 +233,7 @@ def _progress_display(show: bool, horizon_ns: int):
     return prog, update
 
 
-def _run_local(world, args, meta, bag_dir: Path, out: Path, router_kw, *, show: bool) -> tuple[dict, dict]:
+def _run_local(world, args, meta, bag_dir: Path, out: Path, router_kw, keys, *, show: bool) -> tuple[dict, dict]:
     """The run on the local engine; returns its runtime figures and its report (built by the
     recorder process from the envelopes it wrote: the same body as `constellation report BAG`,
     tests/system/test_engines_equal.py)."""
@@ -237,7 +241,7 @@ def _run_local(world, args, meta, bag_dir: Path, out: Path, router_kw, *, show: 
     store_dir = out / "store"  # (made by run(): _fresh_store_dir)
     # the recorder (bag, visualisation, report decoding) forks first, before the stores open
     with Recorder(bag_dir, world, report=ReportBuilder) as rec:
-        parts = all_participants(world, args.mode, store_dir=store_dir, router_kw=router_kw)
+        parts = all_participants(world, args.mode, store_dir=store_dir, router_kw=router_kw, bpsec_key=keys.bpsec)
         prog, update = _progress_display(show, sc.horizon_ns)
         rec.write_envelope(Envelope(0, "run", 0, "/run/meta", json.dumps({"meta": meta.__dict__})))
 
@@ -301,8 +305,8 @@ def _close_all(parts: list) -> None:
             f.result()
 
 
-def _run_ros(world, world_path: Path, args, meta, bag_dir: Path, out: Path, router_kw, *, show: bool,
-             per_process: int = 1) -> dict:
+def _run_ros(world, world_path: Path, args, meta, bag_dir: Path, out: Path, router_kw, keys, say, *,
+             show: bool, per_process: int = 1) -> dict:
     sc = world.scenario
     groups = process_groups(roles_for(world, args.mode), world.sat_names, per_process)
     store_dir = out / "store"
@@ -339,14 +343,17 @@ def _run_ros(world, world_path: Path, args, meta, bag_dir: Path, out: Path, rout
             extra += f", {p.in_flight} bundles in flight"
         update(t_ns=p.t_ns, rtf=p.real_time_factor, extra=extra)
 
-    if prog is not None:
-        prog.start()
-    t0 = time.perf_counter()
-    try:
-        res = launch(spec, out, progress=progress)
-    finally:
+    with lease_domain_id() as lease:
+        # (also in OUT/run_spec.json): what a user needs to look at the live run with ROS tools
+        say(f"run: ROS_DOMAIN_ID={lease.domain_id} (ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST)")
         if prog is not None:
-            prog.stop()
+            prog.start()
+        t0 = time.perf_counter()
+        try:
+            res = launch(spec, out, progress=progress, domain_id=lease.domain_id, keys=keys)
+        finally:
+            if prog is not None:
+                prog.stop()
     wall = time.perf_counter() - t0
     restarts = getattr(res, "restarts", {}) or {}
     if not res.ok:

@@ -13,8 +13,10 @@ process loads, as the local launcher's processes do). Services, all from one ima
   same volume;
 
 each runs ``constellation node --run-spec /run/constellation/run_spec.json --role ROLE``, the entry
-the launcher (bringup/engine/ros/launcher.py) starts each local process with. The run spec and the
-world are bind-mounted read-only from beside the compose file. With ``restart = N`` every service
+the launcher (bringup/engine/ros/launcher.py) starts each local process with. The run spec, the
+world and the run's keys (``run.keys``: the run key that authenticates every envelope and the
+BPSec key, bringup/engine/keys.py; mode 0600, owned by the image's user) are bind-mounted
+read-only from beside the compose file. With ``restart = N`` every service
 has the restart policy ``on-failure:N``: a process killed inside its container ends the container,
 the engine restarts it, and it resumes from its checkpoint while the clock waits for it by name (the
 guarantees of ``constellation run --restart``, bringup/engine/checkpoint.py).
@@ -43,6 +45,7 @@ from __future__ import annotations
 
 import ipaddress
 import os
+import sys
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -50,6 +53,7 @@ from typing import Any
 
 import yaml
 
+from bringup.engine.keys import KEYS_FILE_NAME, RunKeys
 from bringup.engine.ros.factory import FACTORY, PREPARE
 from bringup.engine.ros.run_spec import CLOCK_ROLE, RunSpec
 from bringup.errors import UserError
@@ -77,7 +81,10 @@ RUNS_IN_CONTAINER = "/runs"
 SPEC_IN_CONTAINER = "/run/constellation/run_spec.json"
 SCENARIO_IN_CONTAINER = "/run/constellation/scenario.toml"
 WORLD_IN_CONTAINER = "/run/constellation/world.pkl"
+KEYS_IN_CONTAINER = "/run/constellation/run.keys"
 SPEC_FILE_NAME = "run_spec.json"
+# The image's user (docker/Dockerfile `useradd --uid`): it must own the run keys inside the container.
+IMAGE_UID = 10001
 WORLD_FILE_NAME = "world.pkl"
 # Host numbers inside the subnet: .1 is the bridge's gateway; clock, router, ground, contacts, then the satellites.
 _FIRST_HOST = 2
@@ -94,6 +101,7 @@ class ComposeProject:
     run_spec: RunSpec
     addresses: dict[str, str]  # service name -> IPv4 address on the compose network
     world: Any = None  # bringup.scenario.world.World, pickled beside the compose file
+    keys: RunKeys | None = None  # the run's keys (bringup/engine/keys.py), written beside it (mode 0600)
 
     @property
     def name(self) -> str:
@@ -128,6 +136,7 @@ def compose_project(
     ack_timeout_s: float = 30.0,
     meta: Callable[[Any, str], dict] | None = None,
     real_time_factor: float | None = None,
+    keys: RunKeys | None = None,
 ) -> ComposeProject:
     """Compose document + run spec for the scenario with ``sats`` satellites.
 
@@ -137,6 +146,8 @@ def compose_project(
     ``router_kw``: the DTN router's extra delay and ISL cuts (``constellation run --isl-delay-s/--cut``).
     ``meta(world, mode)``: the run's ``/run/meta`` record (bringup/analysis/report.py ``RunMeta``);
     with it the clock also writes report.json / report.md next to the bag.
+    ``keys``: the run's keys (default: a new run key and the deployment's BPSec key,
+    bringup/engine/keys.py), mounted read-only into every container as the run spec is.
     """
     sc = load_scenario(scenario)
     if sats is not None or hours is not None or seed is not None:
@@ -191,6 +202,8 @@ def compose_project(
         max_restarts=restart,
         restart_wait_s=RESTART_WAIT_S if restart else 0.0,
         state_dir=f"{run_dir}/state" if restart else None,
+        keys_file=KEYS_IN_CONTAINER,
+        domain_id=domain_id,
         extra={"world": WORLD_IN_CONTAINER, "world_key": world.key, "store_dir": f"{run_dir}/store",
                "router": router_kw or None},
     )
@@ -199,7 +212,7 @@ def compose_project(
     spec.check("compose run spec")
 
     mounts_common = [f"./{SPEC_FILE_NAME}:{SPEC_IN_CONTAINER}:ro", f"./{WORLD_FILE_NAME}:{WORLD_IN_CONTAINER}:ro",
-                     f"{VOLUME}:{RUNS_IN_CONTAINER}"]
+                     f"./{KEYS_FILE_NAME}:{KEYS_IN_CONTAINER}:ro", f"{VOLUME}:{RUNS_IN_CONTAINER}"]
     if is_file:
         mounts_common.append(f"{scenario_path.resolve()}:{SCENARIO_IN_CONTAINER}:ro")
     services: dict[str, Any] = {}
@@ -236,7 +249,8 @@ def compose_project(
         "networks": {NETWORK: {"driver": "bridge", "internal": True, "ipam": {"config": [{"subnet": str(net)}]}}},
         "volumes": {VOLUME: {}},
     }
-    return ComposeProject(compose=compose, run_spec=spec, addresses=addresses, world=world)
+    return ComposeProject(compose=compose, run_spec=spec, addresses=addresses, world=world,
+                          keys=keys or RunKeys.generate())
 
 
 _HEADER = """\
@@ -266,4 +280,20 @@ def write_project(project: ComposeProject, out: Path) -> list[Path]:
     paths = [out, spec_path]
     if project.world is not None:
         paths.append(project.world.save(out.parent / WORLD_FILE_NAME))
+    if project.keys is not None:
+        paths.append(_write_keys(project.keys, out.parent / KEYS_FILE_NAME))
     return paths
+
+
+def _write_keys(keys: RunKeys, path: Path) -> Path:
+    """The run's keys beside the compose file, mode 0600, owned by the image's user (uid
+    ``IMAGE_UID``) when we may give it away (root, as rootful podman/docker need anyway);
+    otherwise the file stays ours and stderr says how to hand it over."""
+    keys.write(path)
+    if os.geteuid() == 0:
+        os.chown(path, IMAGE_UID, IMAGE_UID)
+    elif os.geteuid() != IMAGE_UID:
+        print(f"compose: {path} (mode 600) must be owned by the containers' user, uid {IMAGE_UID}: "
+              f"`sudo chown {IMAGE_UID} {path}` (rootless podman: `podman unshare chown {IMAGE_UID} {path}`)",
+              file=sys.stderr)
+    return path

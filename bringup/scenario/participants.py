@@ -9,7 +9,8 @@ router and the announcer share one truth ISL plan: the world's, with the run's f
 their run spec's factory (bringup/engine/ros/factory.py), one role each, or several satellites each
 (``process_groups``: ``constellation run --sats-per-process K``); ``all_participants(world,
 mode)`` gives the same participants, in the same order, for the local engine. Both build the
-satellites from the same World pickle, so every process sees identical inputs.
+satellites from the same World pickle, so every process sees identical inputs. The satellites'
+BPSec key is an argument: it comes from the deployment (bringup/engine/keys.py), not the world.
 
 Checked by tests/unit/test_ground_segment.py, tests/unit/test_contact_announcer.py (who is
 made for each mode), tests/unit/test_process_groups.py (satellites grouped into processes) and
@@ -100,7 +101,8 @@ def kernels_for(mode: str, role: str | None) -> tuple[str, ...]:
     return ()
 
 
-def make_participant(world: World, role: str, mode: str, *, store_dir: Path | None, router_kw: dict | None):
+def make_participant(world: World, role: str, mode: str, *, store_dir: Path | None, router_kw: dict | None,
+                     bpsec_key: bytes):
     if role == ROUTER_ROLE:
         return RouterLogic.for_world(world, **(router_kw or {}))
     if role == CONTACTS_ROLE:
@@ -109,7 +111,7 @@ def make_participant(world: World, role: str, mode: str, *, store_dir: Path | No
         return GroundLogic(world)
     if role in world.sat_names:
         store = str(store_path(store_dir, role)) if store_dir is not None and mode == "distributed" else None
-        return SatelliteLogic(world, role, mode, store_path=store)
+        return SatelliteLogic(world, role, mode, store_path=store, bpsec_key=bpsec_key)
     raise UserError(f"role {role!r}: not a satellite of the scenario, nor "
                     f"'{ROUTER_ROLE}'/'{GROUND_ROLE}'/'{CONTACTS_ROLE}'")
 
@@ -137,7 +139,8 @@ def create_stores(store_dir: Path, sats: list[str]):
     return wait
 
 
-def all_participants(world: World, mode: str, *, store_dir: Path | None = None,
+def all_participants(world: World, mode: str, *, bpsec_key: bytes, store_dir: Path | None = None,
                      router_kw: dict | None = None) -> list:
-    return [make_participant(world, r, mode, store_dir=store_dir, router_kw=router_kw) for r in roles_for(world, mode)]
+    return [make_participant(world, r, mode, store_dir=store_dir, router_kw=router_kw, bpsec_key=bpsec_key)
+            for r in roles_for(world, mode)]
 

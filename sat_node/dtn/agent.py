@@ -75,7 +75,7 @@ from .routing_blocks import peek_next_hops, recipients_of, set_routing
 from .store import BundleStore, StoredBundle
 
 __all__ = ["BundleAgent", "AgentConfig", "Transmission", "BundleEvent", "ttl_s_for_priority",
-           "DROP_REASONS", "SEND_ORDERS", "FORWARDINGS", "deadline_delays", "peek_next_hop"]
+           "MIN_KEY_BYTES", "DROP_REASONS", "SEND_ORDERS", "FORWARDINGS", "deadline_delays", "peek_next_hop"]
 
 DROP_REASONS = ("ttl", "integrity", "no_route", "hop_limit", "other")
 # Send orders (AgentConfig.for_policy): strict priority (the study's), or earliest expiry first
@@ -103,6 +103,10 @@ def peek_next_hop(data: bytes) -> int | None:
     return nhs[0] if nhs else None
 
 
+# Shortest BIB key accepted (128 bits).
+MIN_KEY_BYTES = 16
+
+
 def ttl_s_for_priority(priority: int, ttl_s_by_priority: dict[int, float]) -> float:
     for p in sorted(ttl_s_by_priority):
         if priority <= p:
@@ -112,11 +116,12 @@ def ttl_s_for_priority(priority: int, ttl_s_by_priority: dict[int, float]) -> fl
 
 @dataclass(frozen=True)
 class AgentConfig:
-    """key: the constellation's BIB key; ttl_s_by_priority: {max priority: TTL [s]} (the study's:
+    """key: the constellation's BIB key (BIB-HMAC-SHA2, at least 16 bytes; required: it comes from
+    the deployment, never from the code); ttl_s_by_priority: {max priority: TTL [s]} (the study's:
     P1 900 s, P2-3 1800 s, P4-15 3000 s); bundle_bits: the size used for link timing (None: the
     encoded size); epoch_dtn_ms: the scenario epoch in DTN time [ms]; hop_limit: hop-count block."""
 
-    key: bytes = b"constellation-shared-key-0000000"
+    key: bytes
     ttl_s_by_priority: dict = field(default_factory=lambda: {1: 900.0, 3: 1800.0, 15: 3000.0})
     bundle_bits: int | None = 2000
     epoch_dtn_ms: int = PAPER_EPOCH_DTN_MS
@@ -132,6 +137,11 @@ class AgentConfig:
     # "unicast": one bundle per recipient (this module's BundleAgent, the study simulator's model);
     # "multicast": one bundle per observation to its recipient list (sat_node/dtn/multicast.py)
     forwarding: str = "unicast"
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.key, bytes) or len(self.key) < MIN_KEY_BYTES:
+            n = len(self.key) if isinstance(self.key, bytes) else type(self.key).__name__
+            raise ValueError(f"BPSec key: bytes of length >= {MIN_KEY_BYTES} needed, got {n}")
 
     @classmethod
     def for_policy(cls, send_order: str = "priority", hop_tolerance_s: float = 0.0, **kw) -> "AgentConfig":
@@ -213,12 +223,15 @@ class _Group:
 
 
 class BundleAgent:
-    def __init__(self, node: str, plan: ContactPlan | ContactGraph, config: AgentConfig | None = None, *,
+    def __init__(self, node: str, plan: ContactPlan | ContactGraph, config: AgentConfig, *,
                  store: BundleStore | None = None, on_event: Callable[[BundleEvent], None] | None = None,
                  keep_events: bool = True):
         self.node = node
         self.number = node_number(node)
-        self.config = config or AgentConfig()
+        if not isinstance(config, AgentConfig):
+            raise TypeError(f"agent {node}: config must be an AgentConfig (it carries the BPSec key), got "
+                            f"{type(config).__name__}")
+        self.config = config
         self.graph = plan if isinstance(plan, ContactGraph) else ContactGraph(plan, self.config.hop_limit)
         self.store = store
         self.on_event = on_event

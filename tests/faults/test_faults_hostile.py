@@ -23,6 +23,7 @@ import pytest
 
 from msgs_json import codec, schemas as S, topics as T
 from msgs_json.envelope import Emit, StepResult
+from tests.keys import TEST_BPSEC_KEY
 
 pytestmark = [pytest.mark.faults, pytest.mark.system]
 
@@ -48,7 +49,7 @@ def _forged_bundle(target: str, claimed_src: str, gp: int, t_ns: int, seq: int) 
     from sat_node.dtn.routing_blocks import set_routing
     from sat_node.inference import Inference, encode_inference
 
-    cfg = AgentConfig()
+    cfg = AgentConfig(key=TEST_BPSEC_KEY)
     b = Bundle(dest=ipn(node_number(target), 1), src=ipn(node_number(claimed_src), 1),
                creation_ms=cfg.epoch_dtn_ms + t_ns // 1_000_000, seq=10_000 + seq, lifetime_ms=900_000,
                payload=encode_inference(Inference(claimed_src, gp, FORGED_T_NS, 99.0, 0)))
@@ -136,7 +137,7 @@ def _run(world, rogue=None):
     from bringup.scenario.participants import all_participants
 
     sc = world.scenario
-    parts = all_participants(world, "distributed")
+    parts = all_participants(world, "distributed", bpsec_key=TEST_BPSEC_KEY)
     if rogue is not None:
         parts.append(rogue)
     res = run_local(parts, horizon_ns=sc.horizon_ns, max_step_ns=int(round(sc.scenario.lockstep_max_step_s * 1e9)))

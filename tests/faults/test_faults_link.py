@@ -23,6 +23,7 @@ import sys
 import pytest
 
 from msgs_json import codec, schemas as S
+from tests.keys import TEST_BPSEC_KEY
 
 pytestmark = [pytest.mark.faults, pytest.mark.system]
 
@@ -42,7 +43,7 @@ def _run(world, router_kw=None):
     from bringup.scenario.participants import all_participants
 
     sc = world.scenario
-    parts = all_participants(world, "distributed", router_kw=router_kw)
+    parts = all_participants(world, "distributed", router_kw=router_kw, bpsec_key=TEST_BPSEC_KEY)
     res = run_local(parts, horizon_ns=sc.horizon_ns, max_step_ns=int(round(sc.scenario.lockstep_max_step_s * 1e9)))
     return parts, res.envelopes
 
@@ -135,7 +136,7 @@ def test_forged_status_is_rejected_and_counted(world):
     from msgs_json.envelope import Envelope
     from msgs_json.topics import dtn_status_topic
 
-    sat = all_participants(world, "distributed")[0]
+    sat = all_participants(world, "distributed", bpsec_key=TEST_BPSEC_KEY)[0]
     sat.start(0)
     held0 = sat.agent.held_count()
     bad = [S.TransmissionFailed(sat=sat.name, t_ns=5, bundle_id="ipn:99.0/1/0", next_hop="sat_12", start_ns=1,

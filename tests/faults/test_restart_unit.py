@@ -19,6 +19,8 @@ from pathlib import Path
 
 import pytest
 
+from tests.keys import TEST_BPSEC_KEY
+
 pytestmark = pytest.mark.faults
 
 REPO = Path(__file__).resolve().parents[2]
@@ -119,17 +121,18 @@ def test_satellites_rebuilt_from_snapshot_and_store_continue_exactly(world, tmp_
     from sat_node.satellite import SatelliteLogic
 
     horizon, max_step = world.scenario.horizon_ns, int(world.scenario.scenario.lockstep_max_step_s * 1e9)
-    ref = run_local(all_participants(world, "distributed", store_dir=tmp_path / "ref"),
+    ref = run_local(all_participants(world, "distributed", store_dir=tmp_path / "ref", bpsec_key=TEST_BPSEC_KEY),
                     horizon_ns=horizon, max_step_ns=max_step)
     rng = random.Random(7)
     parts = []
     store = tmp_path / "crash"
     store.mkdir()
-    for p in all_participants(world, "distributed", store_dir=tmp_path / "unused"):
+    for p in all_participants(world, "distributed", store_dir=tmp_path / "unused", bpsec_key=TEST_BPSEC_KEY):
         if isinstance(p, SatelliteLogic):
             path = str(store / f"{p.name}.sqlite")
             t_kill = rng.randrange(horizon // 10, horizon)
-            parts.append(_Restarting(lambda n=p.name, s=path: SatelliteLogic(world, n, "distributed", store_path=s),
+            parts.append(_Restarting(lambda n=p.name, s=path: SatelliteLogic(world, n, "distributed", store_path=s,
+                                                                                   bpsec_key=TEST_BPSEC_KEY),
                                      t_kill))
         else:
             parts.append(p)

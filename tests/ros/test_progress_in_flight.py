@@ -22,6 +22,8 @@ from pathlib import Path
 
 import pytest
 
+from tests.keys import TEST_BPSEC_KEY
+
 pytestmark = [pytest.mark.ros, pytest.mark.system, pytest.mark.timeout(600)]
 
 REPO = Path(__file__).resolve().parents[2]
@@ -50,7 +52,8 @@ def _local_in_flight(world, store: Path) -> dict[int, int]:
 
     sc = world.scenario
     store.mkdir()
-    parts = all_participants(world, "distributed", store_dir=store, router_kw={"extra_delay_s": DELAY_S})
+    parts = all_participants(world, "distributed", store_dir=store, router_kw={"extra_delay_s": DELAY_S},
+                             bpsec_key=TEST_BPSEC_KEY)
     router = next(p for p in parts if p.name == ROUTER_NAME)
     seen: dict[int, int] = {}
 
@@ -64,10 +67,10 @@ def _local_in_flight(world, store: Path) -> dict[int, int]:
 
 
 def test_ros_progress_in_flight_equals_local_engine_step_by_step(world, tmp_path):
-    from bringup.engine.ros.launcher import launch
     from bringup.engine.ros.factory import FACTORY
-    from bringup.scenario.participants import roles_for
+    from bringup.engine.ros.launcher import launch
     from bringup.engine.ros.run_spec import RunSpec
+    from bringup.scenario.participants import roles_for
 
     w, world_path, _ = world
     sc = w.scenario

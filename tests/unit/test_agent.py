@@ -5,6 +5,7 @@
 
 from orbit_clock.contact_plan import Contact, ContactPlan
 from sat_node.dtn.agent import AgentConfig, BundleAgent
+from tests.keys import TEST_BPSEC_KEY
 
 S = 10**9
 PLAN = ContactPlan([Contact(0.0, 100.0, "sat_11", "sat_12", 1000.0, 0.0),
@@ -14,7 +15,7 @@ PLAN = ContactPlan([Contact(0.0, 100.0, "sat_11", "sat_12", 1000.0, 0.0),
 
 
 def agents(**kw):
-    cfg = AgentConfig(**kw)
+    cfg = AgentConfig(**{"key": TEST_BPSEC_KEY, **kw})
     return {n: BundleAgent(n, PLAN, cfg) for n in ("sat_11", "sat_12", "sat_13")}
 
 
@@ -62,7 +63,7 @@ def test_integrity_and_malformed_are_dropped():
     bad[-3] ^= 0x01  # inside the payload
     assert a["sat_12"].receive(bytes(bad), "sat_11", 3 * S) == "dropped.integrity"
     assert a["sat_12"].receive(b"\x9f\x00", "sat_11", 3 * S) == "dropped.integrity"
-    other = BundleAgent("sat_12", PLAN, AgentConfig(key=b"another constellation"))
+    other = BundleAgent("sat_12", PLAN, AgentConfig(key=b"another constellation key"))
     assert other.receive(t.bundle_bytes, "sat_11", 3 * S) == "dropped.integrity"
     assert a["sat_12"].receive(t.bundle_bytes, "sat_11", 3 * S) == "delivered"
 

@@ -11,6 +11,7 @@ from bringup.analysis.dtn_bounds import latency_lower_bounds, store_forward_boun
 from orbit_clock.contact_plan import Contact, ContactPlan
 from orbit_clock.contact_plan_io import read_contact_plan
 from sat_node.dtn.traffic import TrafficItem, read_traffic
+from tests.keys import TEST_BPSEC_KEY
 
 #   sat_11 --[0;1000] owlt 0.5--> sat_12 --[0;1000] owlt 0.5--> sat_13   (and reverse)
 PLAN = ContactPlan([Contact(0.0, 1000.0, a, b, 1000.0, 0.5) for a, b in
@@ -114,7 +115,7 @@ def test_store_forward_bound_below_every_full_delivery(seed):
     ttl = {1: 900.0, 3: 1800.0, 15: 3000.0}
     sf = store_forward_bound_mean(plan, traffic, 2000, ttl)
     checked = 0
-    for cfg in (AgentConfig(), AgentConfig(priority_delay_s=deadline_delays(ttl))):
+    for cfg in (AgentConfig(key=TEST_BPSEC_KEY), AgentConfig(key=TEST_BPSEC_KEY, priority_delay_s=deadline_delays(ttl))):
         rep = run_dtn(plan, traffic, config=cfg).report()
         if rep["dtn.delivery_ratio"] == 1.0:
             assert rep["dtn.latency_s.mean"] >= sf - 1e-6, (rep["dtn.latency_s.mean"], sf)
@@ -168,7 +169,7 @@ def test_case1_trade_off_between_send_orders(paper_inputs, order):
     Both means sit above the store-and-forward bound, which no policy beats when all is delivered."""
     from sat_node.dtn.agent import AgentConfig
 
-    cfg = AgentConfig.for_policy(order)
+    cfg = AgentConfig.for_policy(order, key=TEST_BPSEC_KEY)
     plan, traffic, rep = _study_run(paper_inputs, "case1", cfg)
     sf = store_forward_bound_mean(plan, traffic, 2000, cfg.ttl_s_by_priority)
     assert rep["dtn.conservation_ok"] and rep["dtn.dropped.integrity"] == 0
@@ -213,15 +214,16 @@ def test_cli_deadline_queue_changes_the_order(tmp_path, capsys):
 def test_policy_config_names_what_is_wrong():
     from sat_node.dtn.agent import AgentConfig, deadline_delays
 
-    cfg = AgentConfig.for_policy("deadline", 12.5, ttl_s_by_priority={1: 100.0, 15: 300.0}, bundle_bits=800)
+    cfg = AgentConfig.for_policy("deadline", 12.5, ttl_s_by_priority={1: 100.0, 15: 300.0}, bundle_bits=800,
+                                 key=TEST_BPSEC_KEY)
     assert cfg.priority_delay_s == deadline_delays({1: 100.0, 15: 300.0}) == (100.0,) + (300.0,) * 14
     assert cfg.hop_tolerance_s == 12.5 and cfg.bundle_bits == 800
-    assert AgentConfig.for_policy().priority_delay_s is None
+    assert AgentConfig.for_policy(key=TEST_BPSEC_KEY).priority_delay_s is None
     with pytest.raises(ValueError, match="send order 'fifo'"):
-        AgentConfig.for_policy("fifo")
+        AgentConfig.for_policy("fifo", key=TEST_BPSEC_KEY)
     for bad in (-1.0, float("nan")):
         with pytest.raises(ValueError, match="hop tolerance"):
-            AgentConfig.for_policy("priority", bad)
+            AgentConfig.for_policy("priority", bad, key=TEST_BPSEC_KEY)
 
 
 def test_cli_hop_tolerance_takes_the_direct_contact(tmp_path, capsys):

@@ -17,6 +17,7 @@ from orbit_clock.contact_plan import Contact, ContactPlan
 from sat_node.dtn.agent import AgentConfig, deadline_delays, ttl_s_for_priority
 from sat_node.dtn.cgr import ContactGraph
 from sat_node.dtn.traffic import TrafficItem
+from tests.keys import TEST_BPSEC_KEY
 
 
 def _case(seed: int):
@@ -41,7 +42,7 @@ def _case(seed: int):
         traffic.append(TrafficItem(max(0.0, t), s, d, rng.randint(1, 15), f"p{k}", "r", k))
     traffic.sort(key=lambda i: i.t_s)
     ttl = {1: rng.choice([5.0, 60.0, 900.0]), 3: 1800.0, 15: 3000.0}
-    config = AgentConfig(ttl_s_by_priority=ttl, bundle_bits=2000,
+    config = AgentConfig(key=TEST_BPSEC_KEY, ttl_s_by_priority=ttl, bundle_bits=2000,
                          priority_delay_s=deadline_delays(ttl) if rng.random() < 0.3 else None,
                          hop_tolerance_s=rng.choice([0.0, 0.0, 5.0]))
     return ContactPlan(contacts), traffic, config

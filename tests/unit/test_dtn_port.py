@@ -22,6 +22,7 @@ from orbit_clock.contact_plan import Contact, ContactPlan
 from sat_node.dtn.agent import AgentConfig, BundleAgent
 from sat_node.dtn.port import DtnPort
 from sat_node.dtn.traffic import TrafficItem
+from tests.keys import TEST_BPSEC_KEY
 
 S_ = 10**9
 LINK = ContactPlan([Contact(0.0, 1000.0, "sat_11", "sat_12", 1000.0, 0.5),
@@ -29,7 +30,7 @@ LINK = ContactPlan([Contact(0.0, 1000.0, "sat_11", "sat_12", 1000.0, 0.5),
 
 
 def _port(plan=LINK, **kw):
-    return DtnPort("sat_11", BundleAgent("sat_11", plan, AgentConfig(settle_delay_s=None, **kw)))
+    return DtnPort("sat_11", BundleAgent("sat_11", plan, AgentConfig(key=TEST_BPSEC_KEY, settle_delay_s=None, **kw)))
 
 
 @pytest.mark.parametrize("grid_s,settled_at_s", [
@@ -54,9 +55,9 @@ def test_a_sent_bundle_is_settled_when_no_report_can_still_come(grid_s, settled_
 
 def test_port_needs_an_agent_it_can_settle():
     with pytest.raises(ValueError, match="settles transmissions itself"):
-        DtnPort("sat_11", BundleAgent("sat_11", LINK, AgentConfig()))
+        DtnPort("sat_11", BundleAgent("sat_11", LINK, AgentConfig(key=TEST_BPSEC_KEY)))
     with pytest.raises(ValueError, match="fixed bundle size"):
-        DtnPort("sat_11", BundleAgent("sat_11", LINK, AgentConfig(settle_delay_s=None, bundle_bits=None)))
+        DtnPort("sat_11", BundleAgent("sat_11", LINK, AgentConfig(key=TEST_BPSEC_KEY, settle_delay_s=None, bundle_bits=None)))
 
 
 def test_a_report_naming_no_transmission_of_ours_is_an_error():
@@ -101,7 +102,7 @@ def test_failure_is_reported_at_the_attempts_end_and_always_finds_its_transmissi
 def test_traffic_node_counts_a_bad_message_and_goes_on():
     from sat_node.dtn.traffic import TrafficNode
 
-    node = TrafficNode(BundleAgent("sat_11", LINK, AgentConfig(settle_delay_s=None)),
+    node = TrafficNode(BundleAgent("sat_11", LINK, AgentConfig(key=TEST_BPSEC_KEY, settle_delay_s=None)),
                        [(0, TrafficItem(1.0, "sat_11", "sat_12", 1, "p0", "r", 0))])
     r = node.step(5 * S_, [Envelope(1, "dtn_router", 0, node.port.in_topic, "not bytes"),
                            Envelope(1, "dtn_router", 1, node.port.status_topic, b"\xff")])

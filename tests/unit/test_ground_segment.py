@@ -13,6 +13,7 @@ from bringup.scenario.participants import all_participants
 from bringup.scenario.world import World
 from msgs_json import codec
 from msgs_json import schemas as S
+from tests.keys import TEST_BPSEC_KEY
 
 
 @pytest.fixture(scope="module")
@@ -20,7 +21,7 @@ def run(paper_scenario):
     # the footprint spacing (500 GPs): GPs are seen more than once in 3 h, so the 15-min rule is put to work
     world = World.build(paper_scenario.with_overrides(sats=6, hours=3, gp_spacing_km=8.0))
     sc = world.scenario
-    res = run_local(all_participants(world, "centralized"), horizon_ns=sc.horizon_ns,
+    res = run_local(all_participants(world, "centralized", bpsec_key=TEST_BPSEC_KEY), horizon_ns=sc.horizon_ns,
                     max_step_ns=int(sc.scenario.lockstep_max_step_s * 1e9))
     wanted = ("/ground/uplink", "/ground/downlink")
     msgs = [codec.decode(e.topic, e.data) for e in res.envelopes

@@ -46,7 +46,7 @@ from bringup.scenario.world import World
 
 sc = load_scenario("paper").with_overrides(hours=1 / 3)
 world = World.build(sc)
-run_local(all_participants(world, "distributed"), horizon_ns=sc.horizon_ns,
+run_local(all_participants(world, "distributed", bpsec_key=bytes(32)), horizon_ns=sc.horizon_ns,
           max_step_ns=int(sc.scenario.lockstep_max_step_s * 1e9))
 print(json.dumps({"took": took, "before": before, "after": sigs(), "calls": calls}))
 """

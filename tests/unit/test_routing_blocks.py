@@ -13,6 +13,7 @@ from sat_node.dtn import routing_blocks as rb
 from sat_node.dtn.agent import AgentConfig, BundleAgent
 from sat_node.dtn.bpsec import add_bib, verify_bib
 from sat_node.dtn.bpv7 import BIB_BLOCK, Bundle, BundleError, Imc, decode_bundle, encode_bundle, ipn
+from tests.keys import TEST_BPSEC_KEY
 
 
 def _mc_bundle() -> Bundle:
@@ -143,7 +144,7 @@ def _check_with_pyd3tn(b7, raw: bytes, want: Bundle) -> None:
 
 
 def test_unicast_bundle_parses_in_pyd3tn(pyd3tn_bundle7):
-    a = BundleAgent("sat_11", PLAN, AgentConfig())
+    a = BundleAgent("sat_11", PLAN, AgentConfig(key=TEST_BPSEC_KEY))
     a.originate(b"payload of one observation", "sat_12", 3, 0)
     tx = a.transmissions_until(0)[0]
     want = decode_bundle(tx.bundle_bytes)

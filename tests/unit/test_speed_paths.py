@@ -15,6 +15,7 @@ import sys
 
 from bringup.recording.bag import BagReader, BagWriter
 from msgs_json.envelope import Envelope
+from tests.keys import TEST_BPSEC_KEY
 
 
 def _write(path, fast_off: bool) -> None:
@@ -82,7 +83,7 @@ def test_settle_prefix_equals_brute_force():
 
     plan = ContactPlan([Contact(0.0, 1e4, "sat_11", "sat_12", 1e4, 0.01),
                         Contact(0.0, 1e4, "sat_12", "sat_11", 1e4, 0.01)])
-    ag = BundleAgent("sat_11", plan, AgentConfig(settle_delay_s=0.5))
+    ag = BundleAgent("sat_11", plan, AgentConfig(key=TEST_BPSEC_KEY, settle_delay_s=0.5))
     txs = []
     for k in range(20):
         ag.originate(b"x" * 10, "sat_12", 1 + k % 3, k * 10**8)

@@ -7,7 +7,7 @@ import sys
 import textwrap
 
 from orbit_clock.contact_plan import Contact, ContactPlan
-from sat_node.dtn.agent import BundleAgent
+from sat_node.dtn.agent import AgentConfig, BundleAgent
 from sat_node.dtn.store import BundleStore
 
 PLAN = ContactPlan([Contact(100.0, 200.0, "sat_11", "sat_12", 1000.0, 0.0)])
@@ -18,10 +18,10 @@ def test_killed_process_resumes_with_its_bundles(tmp_path):
     script = textwrap.dedent(f"""
         import os, sys
         from orbit_clock.contact_plan import Contact, ContactPlan
-        from sat_node.dtn.agent import BundleAgent
+        from sat_node.dtn.agent import AgentConfig, BundleAgent
         from sat_node.dtn.store import BundleStore
         plan = ContactPlan([Contact(100.0, 200.0, "sat_11", "sat_12", 1000.0, 0.0)])
-        a = BundleAgent("sat_11", plan, store=BundleStore({str(db)!r}))
+        a = BundleAgent("sat_11", plan, AgentConfig(key=bytes(16)), store=BundleStore({str(db)!r}))
         for i in range(5):
             a.originate(b"obs %d" % i, "sat_12", 1 + i, now_ns=i * 10**9)
         print("ready", flush=True)
@@ -35,7 +35,7 @@ def test_killed_process_resumes_with_its_bundles(tmp_path):
     store = BundleStore(db)
     assert store._db.execute("PRAGMA journal_mode").fetchone()[0] == "wal"
     assert len(store) == 5
-    a = BundleAgent("sat_11", PLAN, store=store)
+    a = BundleAgent("sat_11", PLAN, AgentConfig(key=bytes(16)), store=store)
     assert a.held_count() == 5
     txs = a.transmissions_until(150 * 10**9)
     assert len(txs) == 5 and [t.start_ns for t in txs] == [100 * 10**9 + 2 * k * 10**9 for k in range(5)]
@@ -62,10 +62,10 @@ def test_killed_mid_transmission_keeps_the_bundle(tmp_path):
     script = textwrap.dedent(f"""
         import sys
         from orbit_clock.contact_plan import Contact, ContactPlan
-        from sat_node.dtn.agent import BundleAgent
+        from sat_node.dtn.agent import AgentConfig, BundleAgent
         from sat_node.dtn.store import BundleStore
         plan = ContactPlan([Contact(100.0, 200.0, "sat_11", "sat_12", 1000.0, 0.0)])
-        a = BundleAgent("sat_11", plan, store=BundleStore({str(db)!r}))
+        a = BundleAgent("sat_11", plan, AgentConfig(key=bytes(16)), store=BundleStore({str(db)!r}))
         a.originate(b"on the air", "sat_12", 1, now_ns=0)
         a.originate(b"sent", "sat_12", 1, now_ns=0)
         txs = a.transmissions_until(103 * 10**9)  # first 100-102 s (ended), second 102-104 s (on the air)
@@ -82,7 +82,7 @@ def test_killed_mid_transmission_keeps_the_bundle(tmp_path):
     p.wait(timeout=30)
     store = BundleStore(db)
     assert [b.bundle_id for b in store.load_all()] == [line[1]]  # the one on the air, only
-    a = BundleAgent("sat_11", PLAN, store=store)
+    a = BundleAgent("sat_11", PLAN, AgentConfig(key=bytes(16)), store=store)
     assert a.held_count() == 1
     txs = a.transmissions_until(150 * 10**9)
     assert [t.bundle_id for t in txs] == [line[1]] and txs[0].start_ns == 100 * 10**9

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from bringup.scenario.world import World, scenario_key
+from tests.keys import TEST_BPSEC_KEY
 
 
 @pytest.fixture(scope="module")
@@ -41,12 +42,12 @@ def test_satellite_agents_take_the_scenario_send_order_and_hop_tolerance(world):
     from sat_node.satellite import SatelliteLogic
 
     sat = world.sat_names[0]
-    cfg = SatelliteLogic(world, sat, "distributed").agent.config
+    cfg = SatelliteLogic(world, sat, "distributed", bpsec_key=TEST_BPSEC_KEY).agent.config
     assert cfg.priority_delay_s is None and cfg.hop_tolerance_s == 0.0
     sc = world.scenario
     isl = msgspec.structs.replace(sc.isl, send_order="deadline", hop_tolerance_s=30.0)
     w2 = dataclasses.replace(world, scenario=msgspec.structs.replace(sc, isl=isl))
-    cfg = SatelliteLogic(w2, sat, "distributed").agent.config
+    cfg = SatelliteLogic(w2, sat, "distributed", bpsec_key=TEST_BPSEC_KEY).agent.config
     assert cfg.hop_tolerance_s == 30.0
     assert cfg.priority_delay_s == deadline_delays(cfg.ttl_s_by_priority)
     assert cfg.priority_delay_s[0] == isl.ttl_p1_s and cfg.priority_delay_s[14] == isl.ttl_p4_15_s

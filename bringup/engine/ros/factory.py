@@ -5,7 +5,8 @@ A run spec (bringup/engine/ros/run_spec.py) names the factory every node process
 world pickle the launcher wrote (``spec.extra["world"]``) and returns the participants process
 ``role`` hosts (one, or several satellites: ``spec.groups``), made by
 bringup/scenario/participants.py exactly as the local engine makes them, so both engines run the
-same participants from the same inputs (tests/system/test_engines_equal.py).
+same participants from the same inputs (tests/system/test_engines_equal.py); the satellites' BPSec
+key comes from the run's keys file (bringup/engine/keys.py).
 
 ``PREPARE`` is the same runs' prepare hook: ``prepare(spec, role)`` compiles (cold numba cache) or
 loads the numba kernels the role's participants use (bringup/scenario/participants.py kernels_for,
@@ -38,8 +39,9 @@ def build(spec: RunSpec, role: str) -> list:
         raise UserError("run spec: extra.world (path of the world pickle) is missing")
     world = World.load(Path(path), spec.extra.get("world_key"))
     store_dir = spec.extra.get("store_dir")
+    bpsec_key = spec.keys().bpsec
     return [make_participant(world, r, spec.mode, store_dir=Path(store_dir) if store_dir else None,
-                             router_kw=spec.extra.get("router")) for r in spec.members(role)]
+                             router_kw=spec.extra.get("router"), bpsec_key=bpsec_key) for r in spec.members(role)]
 
 
 def prepare(spec: RunSpec, role: str | None) -> dict[str, float]:

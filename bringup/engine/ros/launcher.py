@@ -72,6 +72,9 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
+import msgspec
+
+from bringup.engine.keys import KEYS_FILE_NAME, RunKeys
 from bringup.engine.ros.run_spec import CLOCK_ROLE, RunSpec
 from bringup.engine.ros.shm_cleanup import remove_unheld
 from bringup.errors import UserError
@@ -291,13 +294,17 @@ Wrap = Callable[[str, list[str], dict[str, str]], tuple[list[str], dict[str, str
 
 
 def launch(spec: RunSpec, out_dir: Path, *, progress: Callable[[LaunchProgress], None] | None = None,
-           domain_id: int | None = None, python: str = sys.executable, wrap: Wrap | None = None) -> LaunchResult:
-    """Run the whole ROS-engine run described by ``spec``; returns when every child has exited."""
+           domain_id: int | None = None, python: str = sys.executable, wrap: Wrap | None = None,
+           keys: RunKeys | None = None) -> LaunchResult:
+    """Run the whole ROS-engine run described by ``spec``; returns when every child has exited.
+
+    ``keys``: the run's keys when the spec names no ``keys_file`` (default: a new run key and the
+    deployment's BPSec key, bringup/engine/keys.py); they are written to ``out_dir/run.keys`` (mode
+    0600) for the run and removed when it ends."""
     spec.check()
     out_dir = Path(out_dir).absolute()  # (the children run in the repository's folder)
     (out_dir / "logs").mkdir(parents=True, exist_ok=True)
     spec_path = out_dir / "run_spec.json"
-    spec.to_file(spec_path)
     if spec.state_dir:
         _clear_checkpoints(Path(spec.state_dir), [CLOCK_ROLE, *spec.roles])
     # FastDDS shared-memory files that no live process holds are leftovers of killed processes; a port
@@ -306,6 +313,12 @@ def launch(spec: RunSpec, out_dir: Path, *, progress: Callable[[LaunchProgress],
     remove_unheld()
     lease = lease_domain_id() if domain_id is None else None
     dom = lease.domain_id if lease else int(domain_id)  # type: ignore[arg-type]
+    own_keys = None
+    if spec.keys_file is None:
+        own_keys = (keys or RunKeys.generate()).write(out_dir / KEYS_FILE_NAME)
+    spec = msgspec.structs.replace(spec, domain_id=dom,
+                                   keys_file=str(own_keys.resolve()) if own_keys else spec.keys_file)
+    spec.to_file(spec_path)
     env = child_env(dom)
     last: list[LaunchProgress | None] = [None]
     children: list[_Child] = []
@@ -453,3 +466,5 @@ def launch(spec: RunSpec, out_dir: Path, *, progress: Callable[[LaunchProgress],
             signal.signal(signal.SIGTERM, old_term)
         if lease is not None:
             lease.release()
+        if own_keys is not None:
+            own_keys.unlink(missing_ok=True)

@@ -6,6 +6,8 @@ the roles (one OS process each, besides the ``clock`` role; ``groups`` may give 
 participant roles) and a participant factory as a dotted path ``"module:function"``;
 ``function(spec, role) -> list[Participant]`` returns the participants one process role hosts, so
 tests can plug in toy participants.
+``keys_file`` names the run's keys (bringup/engine/keys.py; written by the launcher, mode 0600) and
+``domain_id`` the run's ROS_DOMAIN_ID.
 An optional ``prepare`` hook (same form) readies what processes need before they report ready
 (the scenario's: bringup/scenario/participants.py prepare, the satellites' numba kernels).
 
@@ -21,6 +23,7 @@ from typing import Any
 
 import msgspec
 
+from bringup.engine.keys import RunKeys
 from bringup.errors import UserError
 from bringup.scenario.config import load_scenario
 
@@ -64,6 +67,12 @@ class RunSpec(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
     # process role -> the participant roles it hosts (given to the factory one by one); a process
     # role not listed hosts itself
     groups: dict[str, list[str]] = {}
+    # The run's keys (bringup/engine/keys.py): an owner-only file with the run key every envelope is
+    # authenticated with and the satellites' BPSec key; the launcher writes one when this is None.
+    keys_file: str | None = None
+    # The run's ROS_DOMAIN_ID (the launcher writes it here; informative: the processes get it in
+    # their environment).
+    domain_id: int | None = None
     extra: dict[str, Any] = {}
 
     def members(self, role: str) -> list[str]:
@@ -105,6 +114,12 @@ class RunSpec(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
             raise UserError(f"{where}: 'groups' must list each participant once, in non-empty groups")
         if self.prepare is not None and ":" not in self.prepare:
             raise UserError(f"{where}: 'prepare' must be 'module:function', got {self.prepare!r}")
+
+    def keys(self) -> RunKeys:
+        """The run's keys, read from ``keys_file`` (one-line UserError when there is none)."""
+        if not self.keys_file:
+            raise UserError("run spec: no keys_file (the launcher writes the run's keys and names them here)")
+        return RunKeys.read(Path(self.keys_file))
 
     def load_scenario(self):
         """The scenario with overrides (None when the spec names none, e.g. toy runs)."""
