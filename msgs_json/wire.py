@@ -5,6 +5,9 @@ Every lockstep data topic carries ``std_msgs/msg/String`` whose ``data`` is one 
     {"t_ns": <int>, "src": "<participant>", "seq": <int>, "body": "<payload>"}            # JSON topics
     {"t_ns": <int>, "src": "<participant>", "seq": <int>, "b64": "<base64 of bytes>"}    # byte topics
 
+On DDS a run's envelopes also carry ``"mac"``, their MAC under the run key (msgs_json/auth.py); the
+recorder checks it and records the envelope without it, so a bag holds exactly the form above.
+
 ``body`` is the payload's own JSON text (validated by its msgs_json schema when decoded by the
 receiver); ``b64`` carries raw bytes (BPv7 bundles) in standard base64. The same text is what the
 MCAP bag records, with log time = ``t_ns``, so a bag can be turned back into envelopes exactly.
@@ -24,7 +27,8 @@ import msgspec
 
 from msgs_json.envelope import Envelope
 
-__all__ = ["WireEncoder", "WireError", "encode_envelope", "encode_envelope_bytes", "decode_envelope"]
+__all__ = ["WireEncoder", "WireError", "encode_envelope", "encode_envelope_bytes", "decode_envelope",
+           "decode_envelope_mac"]
 
 
 class WireError(ValueError):
@@ -37,17 +41,19 @@ class _Wire(msgspec.Struct, forbid_unknown_fields=True, omit_defaults=True):
     seq: int
     body: str | None = None
     b64: str | None = None
+    mac: str | None = None
 
 
 _enc = msgspec.json.Encoder()
 _dec = msgspec.json.Decoder(_Wire)
 
 
-def encode_envelope(env: Envelope) -> str:
+def encode_envelope(env: Envelope, mac: str | None = None) -> str:
+    """The wire text of ``env``; ``mac``: its MAC under the run key (msgs_json/auth.py), on DDS."""
     if isinstance(env.data, bytes):
-        w = _Wire(env.t_ns, env.source, env.seq, b64=base64.b64encode(env.data).decode("ascii"))
+        w = _Wire(env.t_ns, env.source, env.seq, b64=base64.b64encode(env.data).decode("ascii"), mac=mac)
     else:
-        w = _Wire(env.t_ns, env.source, env.seq, body=env.data)
+        w = _Wire(env.t_ns, env.source, env.seq, body=env.data, mac=mac)
     return _enc.encode(w).decode("utf-8")
 
 
@@ -103,7 +109,14 @@ class WireEncoder:
 
 
 def decode_envelope(text: str | bytes, topic: str) -> Envelope:
-    """Parse wire text received on ``topic``; raises WireError (one line) when malformed."""
+    """Parse wire text received on ``topic``; raises WireError (one line) when malformed. A MAC
+    in the text is not checked here (:func:`decode_envelope_mac`)."""
+    return decode_envelope_mac(text, topic)[0]
+
+
+def decode_envelope_mac(text: str | bytes, topic: str) -> tuple[Envelope, str | None]:
+    """:func:`decode_envelope` and the MAC the text carries (None when it has none), for the
+    receiver to verify (msgs_json/auth.py RunAuth.verify)."""
     try:
         w = _dec.decode(text)
     except msgspec.DecodeError as exc:
@@ -119,4 +132,4 @@ def decode_envelope(text: str | bytes, topic: str) -> Envelope:
             raise WireError(f"{topic}: bad envelope: 'b64' is not valid base64") from None
     else:
         data = w.body  # type: ignore[assignment]
-    return Envelope(t_ns=w.t_ns, source=w.src, seq=w.seq, topic=topic, data=data)
+    return Envelope(t_ns=w.t_ns, source=w.src, seq=w.seq, topic=topic, data=data), w.mac

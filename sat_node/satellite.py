@@ -104,7 +104,6 @@ class SatelliteLogic:
         self._last_cpu_s = 0.0
         self._news_conflict = False
         self.news_replans_due = 0
-        self.host_rejected: dict[str, int] = {}
         self.rejected = 0
         self.dtn = (mode == "distributed") if dtn is None else dtn
         self.pending_downlink: list[S.Observation] = []
@@ -214,9 +213,7 @@ class SatelliteLogic:
             store.close()
 
     def _counters_emit(self, t_ns: int) -> Emit:
-        # host_rejected: set by the ROS host before finish (bringup/engine/ros/host.py)
-        return self.port.counters_emit(t_ns, rejected=self.rejected, rejected_by_reason=self.rejected_by_reason,
-                                       host_rejected=self.host_rejected)
+        return self.port.counters_emit(t_ns, rejected=self.rejected, rejected_by_reason=self.rejected_by_reason)
 
     # ------------------------------------------------------------------ inputs
     def _on_message(self, env: Envelope, t_ns: int) -> None:

@@ -33,6 +33,9 @@ Definitions:
   do not decode, and observations outside the run (a GP index not below the scenario's ``n_gp``, a
   time after the horizon, a recorded value outside the OSSE's VALUE_MIN..VALUE_MAX
   (ground_station/osse.py), a ``sat`` other than its topic's), by reason.
+* security.* - what the run's processes rejected before acting on it (no MAC under the run key,
+  a MAC that does not verify, malformed, an ack from no host of the run), from the /run/meta
+  record the ROS clock writes: :func:`security_figures`.
 * consensus.* - ISL-delayed implicit consensus (Nag et al. section 4), see
   :func:`consensus_figures`: for each pair of successive passes of different satellites over a
   region, whether the earlier satellite's observations reached the later one (bundle delivered)
@@ -69,7 +72,8 @@ from sat_node.dtn.agent import BundleEvent
 from sat_node.dtn.stats import dtn_report
 from sat_node.value import ValueLedger
 
-__all__ = ["REPORT_TOPIC_SUFFIXES", "ReportBuilder", "RunMeta", "build_report", "consensus_figures", "flatten", "report_from_bag", "true_values"]
+__all__ = ["REPORT_TOPIC_SUFFIXES", "ReportBuilder", "RunMeta", "build_report", "consensus_figures", "flatten",
+           "report_from_bag", "security_figures", "true_values"]
 
 _NS = 1_000_000_000
 REPORT_TOPIC_SUFFIXES = ("/observations", "/dtn/events", "/dtn/counters", "/schedule", "/ground/uplink")
@@ -149,12 +153,12 @@ def _bundle_event(msg):
     return BundleEvent(msg.t_ns, kind, msg.sat, msg.bundle_id, msg.priority, msg.dst, msg.creation_ns, reason, deadline)
 
 
-def build_report(envelopes, meta: RunMeta, runtime: dict | None = None) -> dict:
+def build_report(envelopes, meta: RunMeta, runtime: dict | None = None, security: dict | None = None) -> dict:
     """The report dict (nested, DESIGN.md keys) from envelopes (any iterable of Envelope)."""
     b = ReportBuilder()
     for env in envelopes:
         b.add(env)
-    return b.build(meta, runtime)
+    return b.build(meta, runtime, security)
 
 
 class ReportBuilder:
@@ -224,10 +228,11 @@ class ReportBuilder:
                 keep.append(o)
         return keep, out
 
-    def build(self, meta: RunMeta, runtime: dict | None = None, *, reached_s: float | None = None,
-              recording: dict | None = None) -> dict:
-        """The report of everything added so far. ``reached_s``: the run ended early, at this sim
-        time (``partial``); ``recording``: what the bag's reader found (recovered, lost, warnings)."""
+    def build(self, meta: RunMeta, runtime: dict | None = None, security: dict | None = None, *,
+              reached_s: float | None = None, recording: dict | None = None) -> dict:
+        """The report of everything added so far. ``security``: the run's /run/meta security record;
+        ``reached_s``: the run ended early, at this sim time (``partial``); ``recording``: what the
+        bag's reader found (recovered, lost, warnings)."""
         obs, rejected = self._in_run(meta)
         for k, v in self.rejected.items():
             rejected[k] += v
@@ -262,15 +267,41 @@ class ReportBuilder:
             rej: dict[str, int] = defaultdict(int)
             for c in counters.values():
                 for k, v in c.items():
-                    if k.startswith(("rejected.", "tx_failed.", "agent.dropped.", "agent.discarded.", "host.")):
+                    if k.startswith(("rejected.", "tx_failed.", "agent.dropped.", "agent.discarded.")):
                         rej[k] += v
             rep["dtn"]["rejections"] = dict(sorted(rej.items()))
         rep["messages_rejected_in_report"] = sum(rejected.values())
         rep["report_rejections"] = dict(sorted(rejected.items()))
+        rep["security"] = security_figures(security)
         rt = dict(runtime or {})
         rt["scheduler_cpu_s_per_sat"] = (sum(cpu_by_planner.values()) / meta.n_sats) if meta.n_sats else None
         rep["runtime"] = rt
         return rep
+
+
+def security_figures(record: dict | None) -> dict:
+    """report.json ``security`` from the run's /run/meta ``security`` record: ``rejected`` - messages
+    the run's processes rejected (not authenticated under the run key, malformed, from no host of
+    the run), by reason, summed over processes and topics; ``rejected_by_process`` - the record
+    itself, ``{process: {topic: {reason: n}}}`` (the clock, the router, each satellite...). Both
+    empty when nothing was rejected (and always under the local engine: one process, no network).
+    ValueError naming the first malformed entry (the record comes from a bag: untrusted)."""
+    if record is not None and not isinstance(record, dict):
+        raise ValueError(f"'security' is {type(record).__name__}, not an object")
+    by = (record or {}).get("rejected_by_process") or {}
+    if not isinstance(by, dict):
+        raise ValueError(f"security.rejected_by_process is {type(by).__name__}, not an object")
+    total: dict[str, int] = defaultdict(int)
+    for proc, topics in by.items():
+        if not isinstance(topics, dict):
+            raise ValueError(f"security.rejected_by_process.{str(proc)[:40]} is not an object")
+        for topic, reasons in topics.items():
+            if not isinstance(reasons, dict) or not all(type(n) is int and n >= 0 for n in reasons.values()):
+                raise ValueError(f"security.rejected_by_process.{str(proc)[:40]}.{str(topic)[:80]}: "
+                                 "not an object of counts")
+            for reason, n in reasons.items():
+                total[reason] += n
+    return {"rejected": dict(sorted(total.items())), "rejected_by_process": dict(by)}
 
 
 PASS_GAP_S = 120.0  # observations of one satellite closer than this belong to one pass over one area
@@ -492,6 +523,7 @@ def report_from_bag(bag_path, *, warn=None) -> dict:
         meta = None
         runtime = {}
         closed = False
+        security = None
         for env in bag.envelopes(["/run/meta"]):
             try:
                 d = json.loads(env.data)
@@ -501,6 +533,9 @@ def report_from_bag(bag_path, *, warn=None) -> dict:
                 rt = d.get("runtime", None)
                 if rt is not None and not isinstance(rt, dict):
                     raise ValueError(f"'runtime' is {type(rt).__name__}, not an object")
+                sec = d.get("security", None)
+                if sec is not None:
+                    security_figures(sec)  # (ValueError naming what is malformed)
             except ValueError as exc:
                 raise UserError(f"bag {bag.path}: /run/meta record at t = {env.t_ns} ns: "
                                 f"{' '.join(str(exc).split())[:200]}") from None
@@ -509,6 +544,8 @@ def report_from_bag(bag_path, *, warn=None) -> dict:
             meta = m
             if rt is not None:
                 runtime, closed = rt, True
+            if sec is not None:
+                security = sec
         wanted = [t for t in names if t.endswith(REPORT_TOPIC_SUFFIXES)]
         envs: list[Envelope] = list(bag.envelopes(wanted))
         recording = None
@@ -522,7 +559,7 @@ def report_from_bag(bag_path, *, warn=None) -> dict:
     b = ReportBuilder()
     for env in envs:
         b.add(env)
-    rep = b.build(meta, runtime, reached_s=reached, recording=recording)
+    rep = b.build(meta, runtime, security, reached_s=reached, recording=recording)
     if partial and warn is not None:
         warn(f"partial report: the run reached t = {reached:g} s of its {meta.horizon_s:g} s horizon "
              f"({'no closing /run/meta record' if not closed else 'data lost from the bag'})")

@@ -19,6 +19,13 @@ def _fmt(v, nd=3):
     return f"{v:,}" if isinstance(v, int) else str(v)
 
 
+def _rejected(sec: dict) -> str:
+    rej = sec.get("rejected") or {}
+    if not rej:
+        return "0"
+    return f"{sum(rej.values())} ({', '.join(f'{k} {n}' for k, n in rej.items())})"
+
+
 def report_md(rep: dict, plots: list[Path] = (), base: Path | None = None) -> str:
     v, c, o, d, r = rep["value"], rep["coverage"], rep["observations"], rep.get("dtn", {}), rep.get("runtime", {})
     k, f = rep.get("knowledge") or {}, rep.get("osse") or {}
@@ -48,6 +55,7 @@ def report_md(rep: dict, plots: list[Path] = (), base: Path | None = None) -> st
         f"{_fmt((d.get('dropped') or {}).get('integrity'))} / {_fmt((d.get('dropped') or {}).get('other'))} |",
         f"| wall time [s] / real-time factor | {_fmt(r.get('wall_s'), 1)} / {_fmt(r.get('real_time_factor'), 0)} |",
         f"| scheduler CPU per satellite [s] | {_fmt(r.get('scheduler_cpu_s_per_sat'), 2)} |",
+        f"| messages rejected (not the run's, malformed) | {_rejected(rep.get('security') or {})} |",
         "",
     ]
     by_p = d.get("latency_s_by_priority") or {}

@@ -7,6 +7,7 @@ run), writes report.json / report.md there from the bag once it is closed; any o
 the participants the run spec's factory returns for it (bringup/engine/ros/host.py). With the
 spec's ``state_dir`` a host checkpoints every step and, started again after a crash, resumes from
 its checkpoint (bringup/engine/checkpoint.py).
+A process started by a launcher ends with it (bringup/engine/ros/lifeline.py).
 Before a host says hello (ready) it runs the spec's prepare hook for its role (e.g. loads the
 numba kernels its participants use); ``--prepare`` runs the hook once for the whole run, as the
 launcher does before it starts any process.
@@ -27,6 +28,7 @@ from bringup.analysis.report_md import report_md
 from bringup.cli.run_folder import json_text, write_text_atomic
 from bringup.engine.ros.clock_node import run_clock
 from bringup.engine.ros.host import run_host
+from bringup.engine.ros.lifeline import hold
 from bringup.engine.ros.run_spec import CLOCK_ROLE, RunSpec, load_factory
 from bringup.errors import UserError
 
@@ -52,6 +54,8 @@ def _write_report(spec: RunSpec, rc: int) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    # started by a launcher: die with it (bringup/engine/ros/lifeline.py)
+    hold(args.role or "prepare")
     spec = RunSpec.from_file(args.run_spec)
     if args.prepare:
         if args.role is not None:
@@ -74,7 +78,7 @@ def run(args: argparse.Namespace) -> int:
     idle = max(300.0, 10 * spec.ack_timeout_s, 2 * spec.restart_wait_s)
     bounded = spec.startup_timeout_s is not None
     # an unbounded start: this host waits for step 0 as long as the clock waits for the others
-    return run_host(args.role, participants, ack_timeout_s=spec.ack_timeout_s,
+    return run_host(args.role, participants, run_key=spec.keys().run, ack_timeout_s=spec.ack_timeout_s,
                     startup_timeout_s=spec.startup_timeout_s if bounded else 60.0,
                     idle_timeout_s=idle, first_step_timeout_s=idle if bounded else None,
                     state_path=str(Path(spec.state_dir) / f"{args.role}.state.sqlite") if spec.state_dir else None)

@@ -280,8 +280,10 @@ def _run_local(world, args, meta, bag_dir: Path, out: Path, router_kw, keys, *, 
                    "envelopes": sum(res.counts_by_topic.values()),
                    "rejected_messages": sum(getattr(p, "rejected", 0) for p in parts),
                    "cgr_queries": sum(getattr(getattr(p, "agent", None), "cgr_queries", 0) for p in parts)}
-        rec.write_envelope(Envelope(sc.horizon_ns, "run", 1, "/run/meta",
-                                    json.dumps({"meta": meta.__dict__, "runtime": runtime})))
+        # one process, no network: nothing reaches the nodes from outside the run (the ROS clock
+        # writes what its processes rejected here)
+        rec.write_envelope(Envelope(sc.horizon_ns, "run", 1, "/run/meta", json.dumps(
+            {"meta": meta.__dict__, "runtime": runtime, "security": {"rejected_by_process": {}}})))
         # while the recorder finishes the bag and the report, the satellites' stores close: SQLite
         # checkpoints each WAL into its file and syncs it, mostly waiting on the disk, so the 24
         # closes run side by side (~1 s one after the other on the paper run)
@@ -356,6 +358,9 @@ def _run_ros(world, world_path: Path, args, meta, bag_dir: Path, out: Path, rout
                 prog.stop()
     wall = time.perf_counter() - t0
     restarts = getattr(res, "restarts", {}) or {}
+    if res.returncode == 130:  # Ctrl-C / SIGTERM: the exit code says interrupted, as everywhere
+        say(f"run: {res.message} (logs in {out / 'logs'})")
+        raise KeyboardInterrupt
     if not res.ok:
         raise UserError(f"ROS run failed: {res.message} (logs in {out / 'logs'})")
     last = res.last
@@ -385,6 +390,10 @@ def _finish(out: Path, bag_dir: Path, runtime: dict, world, args, say, *, rep: d
         plots = [out / "plots" / p.name for p in made]
     write_text_atomic(out / "report.md", report_md(rep, plots, base=out))
     write_text_atomic(out / "report.json", json_text(rep, indent=2, sort_keys=True) + "\n")
+    rej = rep.get("security", {}).get("rejected") or {}
+    if rej:
+        say(f"run: {sum(rej.values())} messages from outside the run rejected and not acted on "
+            f"({', '.join(f'{k} {n}' for k, n in rej.items())}; report.json security)")
     v = rep["value"]
     d = rep["dtn"]
     say(f"run: done in {runtime.get('wall_s', 0):.1f} s "

@@ -35,19 +35,26 @@ participants; :class:`TopicInbox` is exercised by the same runs.
 
 from __future__ import annotations
 
+import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import msgspec
 
+from msgs_json.auth import AuthError, RunAuth
 from msgs_json.envelope import Envelope
 from msgs_json.schemas import SimAck, SimStep
+from msgs_json.wire import WireError, decode_envelope_mac, encode_envelope
 
 __all__ = [
     "ACK_TOPIC",
+    "INTERRUPTED",
     "RESEND_TOPIC",
     "STEP_TOPIC",
     "AckMsg",
+    "Gate",
     "LockstepError",
+    "Rejections",
     "ResendMsg",
     "StepMsg",
     "TopicInbox",
@@ -58,6 +65,8 @@ __all__ = [
 ]
 
 STEP_TOPIC = "/sim/step"
+# The stop message's reason when the run was interrupted (Ctrl-C, SIGTERM, launcher gone): hosts exit 130.
+INTERRUPTED = "interrupted"
 ACK_TOPIC = "/sim/ack"
 # Not recorded (the recorder skips /_lockstep/*): the clock's re-sends to a restarted host.
 RESEND_TOPIC = "/_lockstep/resend"
@@ -96,6 +105,9 @@ class AckMsg(SimAck, kw_only=True, frozen=True):
     ``in_flight``: the sum of the host's participants' ``StepResult.in_flight`` after this step
     (items held to emit later, e.g. bundle copies still travelling: what the local engine's progress
     shows), None when none reports one; the clock passes the sum on in its progress records.
+    ``rejected``: what the host rejected so far, ``{topic: {reason: count}}`` (:class:`Rejections`);
+    the clock writes the last one of each host into the run's /run/meta record (the report's
+    ``security`` section).
     """
 
     hello: bool = False
@@ -105,6 +117,7 @@ class AckMsg(SimAck, kw_only=True, frozen=True):
     seq_end: dict[str, int] = {}
     error: str = ""
     in_flight: int | None = None
+    rejected: dict[str, dict[str, int]] = {}
 
 
 class ResendMsg(msgspec.Struct, kw_only=True, frozen=True, forbid_unknown_fields=True):
@@ -145,6 +158,90 @@ def decode_resend(text: str) -> ResendMsg:
         return _resend_dec.decode(text)
     except (msgspec.DecodeError, msgspec.ValidationError, ValueError) as exc:
         raise LockstepError(f"{RESEND_TOPIC}: bad resend message: {exc}") from None
+
+
+class Rejections:
+    """Messages a process rejected, counted per (topic, reason), and when to say so in its log.
+
+    ``add`` returns a log line for the first rejection of each (topic, reason), then at most one
+    line per ``period_s`` per (topic, reason) with how many came since and in all (a flood of junk
+    is a few lines, not one per message); None otherwise. ``counts()`` is ``{topic: {reason: n}}``,
+    what the process reports (hosts in their acks, the clock in the run's /run/meta record).
+    """
+
+    def __init__(self, period_s: float = 5.0, clock=time.monotonic):
+        self.period_s = period_s
+        self._clock = clock
+        self._n: dict[tuple[str, str], int] = {}
+        self._next: dict[tuple[str, str], float] = {}
+        self._since: dict[tuple[str, str], int] = {}
+
+    def add(self, topic: str, reason: str, detail: str) -> str | None:
+        key = (topic, reason)
+        n = self._n[key] = self._n.get(key, 0) + 1
+        now = self._clock()
+        if n == 1 or now >= self._next.get(key, 0.0):
+            since = self._since.get(key, 0) + 1
+            self._since[key] = 0
+            self._next[key] = now + self.period_s
+            if n == 1:
+                return f"rejected ({reason}): {detail}"
+            return f"rejected ({reason}) {since} on {topic} in the last {self.period_s:g} s, {n} so far: {detail}"
+        self._since[key] = self._since.get(key, 0) + 1
+        return None
+
+    def total(self) -> int:
+        return sum(self._n.values())
+
+    def counts(self) -> dict[str, dict[str, int]]:
+        out: dict[str, dict[str, int]] = {}
+        for (topic, reason), n in sorted(self._n.items()):
+            out.setdefault(topic, {})[reason] = n
+        return out
+
+
+class Gate:
+    """What one process of a run lets in: only messages authenticated under the run key
+    (msgs_json/auth.py); the rest is counted by topic and reason (:class:`Rejections`) and logged
+    through ``log`` (rate-limited). The host and the clock both use it, and it seals what they send."""
+
+    def __init__(self, run_key: bytes, log: Callable[[str], None]):
+        self.auth = RunAuth(run_key)
+        self.rejections = Rejections()
+        self._log = log
+
+    def reject(self, topic: str, reason: str, detail: str) -> None:
+        line = self.rejections.add(topic, reason, detail)
+        if line is not None:
+            self._log(line)
+
+    def envelope(self, text: str, topic: str) -> Envelope | None:
+        """The envelope in wire ``text`` received on ``topic`` if it is the run's (MAC verified)."""
+        try:
+            env, mac = decode_envelope_mac(text, topic)
+            self.auth.verify(env, mac)
+        except WireError as exc:
+            self.reject(topic, "malformed", str(exc))
+            return None
+        except AuthError as exc:
+            self.reject(topic, exc.reason, str(exc))
+            return None
+        return env
+
+    def text(self, topic: str, text: str) -> str | None:
+        """A lockstep message's JSON text (its MAC checked and taken off), else None (counted)."""
+        try:
+            return self.auth.open(topic, text)
+        except AuthError as exc:
+            self.reject(topic, exc.reason, str(exc))
+            return None
+
+    def wire(self, env: Envelope) -> str:
+        """The wire text of one of our envelopes, with its MAC."""
+        return encode_envelope(env, self.auth.mac(env))
+
+    def sealed(self, topic: str, msg: StepMsg | AckMsg | ResendMsg) -> str:
+        return self.auth.seal(topic, encode_msg(msg))
 
 
 @dataclass

@@ -91,7 +91,7 @@ def test_killed_process_is_named(tmp_path):
     res = launch(spec, tmp_path, progress=on_progress)
     assert killed
     assert not res.ok
-    assert "c2" in res.message, res.message
+    assert "process 'c2' killed by SIGKILL" in res.message, res.message
     assert "c2" in res.failed_roles
     assert time.monotonic() - t0 < 60
 

@@ -21,6 +21,7 @@ from tests.unit.test_contract import AT, EXPECTED, local_error
 
 pytestmark = [pytest.mark.ros, pytest.mark.timeout(180)]
 S = 10**9
+KEY = bytes(range(32))
 
 
 def _key(e):
@@ -76,22 +77,30 @@ def test_stalled_participant_is_named(tmp_path):
 
 
 def test_bad_message_is_counted_not_fatal(monkeypatch):
-    """A subscription callback fed junk counts it and keeps going (no exception escapes)."""
+    """A subscription callback fed junk, envelopes without a MAC or with a wrong one counts each by
+    reason and keeps going (no exception escapes); only the run's own envelope is buffered."""
     from std_msgs.msg import String
 
-    from bringup.engine.ros.launcher import lease_domain_id
     from bringup.engine.ros.host import ParticipantHost
+    from bringup.engine.ros.launcher import lease_domain_id
+    from msgs_json.auth import RunAuth
+    from msgs_json.envelope import Envelope
+    from msgs_json.wire import encode_envelope
 
+    good = Envelope(5, "ping", 0, "/toy/ping", "{}")
     with lease_domain_id() as lease:
         monkeypatch.setenv("ROS_DOMAIN_ID", str(lease.domain_id))
-        host = ParticipantHost("pingpong", [toy.Ping(), toy.Pong()])
+        host = ParticipantHost("pingpong", [toy.Ping(), toy.Pong()], run_key=KEY)
         try:
             box = host.slots[1].inboxes[0]  # pong's /toy/ping inbox
             cb = host._make_cb(box)
             cb(String(data="not json"))
             cb(String(data='{"t_ns": -1, "src": "x", "seq": 0, "body": "{}"}'))
-            cb(String(data='{"t_ns": 5, "src": "ping", "seq": 0, "body": "{}"}'))
-            assert box.decode_errors == 2 and host.decode_errors == {"/toy/ping": 2}
+            cb(String(data=encode_envelope(good)))  # no MAC
+            cb(String(data=encode_envelope(good, RunAuth(b"another run's key").mac(good))))
+            cb(String(data=encode_envelope(good._replace(seq=1), RunAuth(KEY).mac(good))))  # MAC of another one
+            cb(String(data=encode_envelope(good, RunAuth(KEY).mac(good))))
+            assert host.gate.rejections.counts() == {"/toy/ping": {"bad_mac": 2, "malformed": 2, "unauthenticated": 1}}
             assert [e.seq for e in box.pending] == [0]
             assert box.ready({"ping": 0}) is True and box.expected == 0  # a later step's envelope is held
             box.expected = 1
@@ -110,7 +119,7 @@ def test_contract_break_is_the_same_line_in_the_host_as_in_the_local_engine(monk
 
     with lease_domain_id() as lease:
         monkeypatch.setenv("ROS_DOMAIN_ID", str(lease.domain_id))
-        host = ParticipantHost("c1", [toy.Breaker(1, 3, kind, AT)])
+        host = ParticipantHost("c1", [toy.Breaker(1, 3, kind, AT)], run_key=bytes(32))
         try:
             host._run_step(StepMsg(k=0, t_ns=0, start=True))
             host._run_step(StepMsg(k=1, t_ns=10 * S))

@@ -24,8 +24,18 @@ time = the step's / the envelope's t_ns. Data topics are those the hosts subscri
 String topic that appears on the graph (polled while waiting); hosts publish on a topic only once
 the recorder's subscription has matched, so the bag holds every envelope. With a scenario the bag
 also gets the visualisation frames and the plotted series (value so far, bundles in flight:
-bringup/recording/metrics_feed.py). SIGINT/SIGTERM: the
-clock tells the hosts to stop and closes the bag (readable).
+bringup/recording/metrics_feed.py). SIGINT/SIGTERM (also sent when its launcher dies,
+bringup/engine/ros/lifeline.py): the clock tells the hosts to stop and closes the bag (readable).
+
+Authenticated traffic: the clock seals its step messages and checks the MAC (msgs_json/auth.py)
+of every ack and every envelope it records (bringup/engine/lockstep.py Gate); what does not verify
+is neither acted on nor recorded, only counted. The bag holds each envelope without its MAC (the
+wire form of msgs_json/wire.py, as the local engine writes it). /run/meta's ``security`` holds what
+the clock and each host (its last ack) rejected: report.json ``security``.
+
+Why one module: the clock is one ROS node whose callbacks share one state - the barrier (the
+current step's acks), the recorder (dedupe keys, counts, re-send buffer, journal) and the
+checkpoint that must hold both in one transaction; split, each part would reach into the others.
 
 Crash and restart: with ``restart_wait_s > 0`` a host that misses the ack deadline is
 reported by name on stderr and waited for (bounded by ``restart_wait_s``) while the launcher
@@ -52,7 +62,8 @@ on error or Ctrl-C) the journal is exported into ``bag_dir`` (one ordinary bag).
 
 Oracle: tests/ros/test_lockstep.py (toy participants over DDS give exactly the local engine's
 envelopes, read back from the bag; a killed host is named within the bounded wait; Ctrl-C leaves
-a readable bag).
+a readable bag); tests/faults/test_faults_hostile_ros.py (forged steps, acks, stops, observations
+and replays on a live run: rejected, counted in report.json, the report unchanged).
 """
 
 from __future__ import annotations
@@ -78,9 +89,11 @@ from std_msgs.msg import String
 from bringup.engine.contract import next_step_ns
 from bringup.engine.lockstep import (
     ACK_TOPIC,
+    INTERRUPTED,
     RESEND_TOPIC,
     STEP_TOPIC,
     AckMsg,
+    Gate,
     LockstepError,
     ResendMsg,
     StepMsg,
@@ -89,14 +102,14 @@ from bringup.engine.lockstep import (
     encode_msg,
 )
 from bringup.engine.ros.host import QOS_DATA, QOS_SYNC_PUB, QOS_SYNC_SUB, exit_now
-from bringup.engine.ros.run_spec import RunSpec
-from bringup.recording.bag import BagWriter, string_from_cdr
+from bringup.engine.ros.run_spec import CLOCK_ROLE, RunSpec
+from bringup.recording.bag import BagWriter, string_cdr, string_from_cdr
 from bringup.recording.journal import BagJournal
 from bringup.recording.metrics_feed import MetricsFeed
 from bringup.recording.viz_feed import VizFeed
 from bringup.scenario.world import World
 from msgs_json.envelope import Envelope
-from msgs_json.wire import WireError, decode_envelope
+from msgs_json.wire import decode_envelope, encode_envelope
 
 __all__ = ["ClockError", "LockstepClock", "run_clock"]
 
@@ -120,10 +133,15 @@ class LockstepClock:
         self.roles = list(spec.roles)
         self.horizon_ns, self.max_step_ns = spec.bounds_ns()
         self.t0_ns = spec.t0_ns
+        run_key = spec.keys().run
+        # what each host rejected, from its last ack (AckMsg.rejected)
+        self.host_rejected: dict[str, dict[str, dict[str, int]]] = {}
         self._stop_requested = False
         self.ctx = Context()
         rclpy.init(context=self.ctx, signal_handler_options=SignalHandlerOptions.NO)
         self.node = rclpy.create_node("orbit_clock", context=self.ctx, start_parameter_services=False)
+        # only the run's messages get in (MAC under the run key); the rest is counted
+        self.gate = Gate(run_key, self.node.get_logger().warning)
         self.executor = EventsExecutor(context=self.ctx)
         self.executor.add_node(self.node)
         self.clock_pub = self.node.create_publisher(Clock, "/clock", _QOS_CLOCK)
@@ -161,7 +179,6 @@ class LockstepClock:
                 self.metrics = MetricsFeed(world.scenario.value.revisit_zero_s)
         self.rec_topics: dict[str, object] = {}
         self.rec_counts: dict[str, int] = {}
-        self.bad_recorded = 0
         self.totals: dict[str, int] = {}
         self._next_graph_poll = 0.0
         self.steps = 0
@@ -181,16 +198,26 @@ class LockstepClock:
 
     # -- callbacks ----------------------------------------------------------------------------------
     def _on_ack(self, raw: bytes) -> None:
+        reject = self.gate.reject
+        text = self.gate.text(ACK_TOPIC, deserialize_message(raw, String).data)
+        if text is None:
+            return
         try:
-            ack = decode_ack(deserialize_message(raw, String).data)
+            ack = decode_ack(text)
         except LockstepError as exc:
-            self.node.get_logger().warning(str(exc))
+            reject(ACK_TOPIC, "malformed", str(exc))
             return
         if ack.participant not in self.roles:
-            self.node.get_logger().warning(f"{ACK_TOPIC}: ack from unknown host {ack.participant!r} ignored")
+            reject(ACK_TOPIC, "unknown_source", f"{ACK_TOPIC}: ack from unknown host {ack.participant!r}")
             return
+        if ack.rejected:
+            self.host_rejected[ack.participant] = ack.rejected
         if ack.hello:
             if self.running:
+                if not self.restart:  # only a restarted host says hello again, and none is restarted
+                    reject(ACK_TOPIC, "unexpected_hello", f"{ACK_TOPIC}: hello from {ack.participant} "
+                           "during a run without restarts")
+                    return
                 self.rejoins.append(ack)
             self.hellos[ack.participant] = ack
         else:
@@ -200,16 +227,14 @@ class LockstepClock:
             if ack.participant in self.acks:  # the same ack again (re-announced step): recorded once
                 return
             self.acks[ack.participant] = ack
-            if self.bag is not None:
-                self.bag.write_raw(ACK_TOPIC, _STRING, raw, ack.t_ns)
+            if self.bag is not None:  # recorded as the ack itself (the MAC is the transport's)
+                self.bag.write_raw(ACK_TOPIC, _STRING, string_cdr(text), ack.t_ns)
 
     def _make_rec_cb(self, topic: str):
         def cb(raw: bytes) -> None:
             text = deserialize_message(raw, String).data
-            try:
-                env = decode_envelope(text, topic)
-            except WireError:
-                self.bad_recorded += 1
+            env = self.gate.envelope(text, topic)
+            if env is None:
                 return
             key = (topic, env.source, env.seq)
             if key in self._rec_keys:
@@ -221,10 +246,12 @@ class LockstepClock:
             self.rec_counts[topic] = self.rec_counts.get(topic, 0) + 1
             if self.metrics is not None:
                 self.metrics.observe(env)
+            # recorded without its MAC: the bag holds the envelope's wire form (msgs_json/wire.py)
+            cdr = string_cdr(encode_envelope(env))
             if self.journal is not None:
-                self.journal.write_keyed(topic, _STRING, raw, env.t_ns, env.source, env.seq)
+                self.journal.write_keyed(topic, _STRING, cdr, env.t_ns, env.source, env.seq)
             elif self.bag is not None:
-                self.bag.write_raw(topic, _STRING, raw, env.t_ns)
+                self.bag.write_raw(topic, _STRING, cdr, env.t_ns)
         return cb
 
     def _record(self, topic: str) -> None:
@@ -252,7 +279,8 @@ class LockstepClock:
                       f"(resumes after step {h.resume_k})", file=sys.stderr, flush=True)
             for topic in h.subscriptions:
                 wires = [w for _k, w in self.recent.get(topic, ())]
-                self.resend_pub.publish(String(data=encode_msg(ResendMsg(to=h.participant, topic=topic, wires=wires))))
+                self.resend_pub.publish(String(data=self.gate.sealed(
+                    RESEND_TOPIC, ResendMsg(to=h.participant, topic=topic, wires=wires))))
 
     def _prune_recent(self) -> None:
         lo = self.cur_k - _RESEND_STEPS
@@ -311,9 +339,8 @@ class LockstepClock:
                     raise ClockError(f"hosts not ready after {waited:.0f} s: " + self._who(missing)) from None
                 print(f"clock: waiting for {len(missing)} of {len(self.roles)} processes to be ready "
                       f"after {waited:.0f} s: {', '.join(missing)}", file=sys.stderr, flush=True)
-                print(json.dumps({"waiting": {"not_ready": missing, "roles": len(self.roles),
-                                              "wall_s": round(waited, 1), "horizon_ns": self.horizon_ns}}),
-                      flush=True)
+                self._out({"waiting": {"not_ready": missing, "roles": len(self.roles),
+                                       "wall_s": round(waited, 1), "horizon_ns": self.horizon_ns}})
 
     def _publish_step(self, msg: StepMsg) -> None:
         if not msg.start and not msg.stop:
@@ -326,16 +353,26 @@ class LockstepClock:
                     self.viz.write(self.bag, msg.t_ns)
                     self.metrics.write(self.bag, msg.t_ns, in_flight=self.in_flight,
                                        complete=self._observations_recorded())
-        s = String(data=encode_msg(msg))
-        self.step_pub.publish(s)
+        text = encode_msg(msg)
+        self.step_pub.publish(String(data=self.gate.auth.seal(STEP_TOPIC, text)))
         if self.bag is not None:
-            self.bag.write_raw(STEP_TOPIC, _STRING, serialize_message(s), msg.t_ns)
+            self.bag.write_raw(STEP_TOPIC, _STRING, string_cdr(text), msg.t_ns)
 
     def _progress(self, t_ns: int, wall_s: float, done: bool = False) -> None:
         rec = {"t_ns": t_ns, "horizon_ns": self.horizon_ns, "steps": self.steps, "wall_s": round(wall_s, 4)}
         if self.in_flight is not None:
             rec["in_flight"] = self.in_flight
-        print(json.dumps({"done" if done else "progress": rec}), flush=True)
+        self._out({"done" if done else "progress": rec})
+
+    def _out(self, rec: dict) -> None:
+        """A progress record on stdout (the launcher reads it). A closed pipe means the launcher is
+        gone: the run stops (hosts told, bag closed), as on SIGTERM."""
+        try:
+            print(json.dumps(rec), flush=True)
+        except (BrokenPipeError, OSError):
+            if not self._stop_requested:
+                print("clock: the launcher's pipe is closed (launcher gone): stopping", file=sys.stderr, flush=True)
+            self._stop_requested = True
 
     # -- checkpoint (clock restart) -------------------------------------------------------------------
     def _state(self, k: int, t: int, msg: StepMsg, wall_s: float) -> bytes:
@@ -375,8 +412,9 @@ class LockstepClock:
         for kk, topic, source, seq, cdr in self.journal.keyed_rows(min_k=lo):
             self._rec_keys.add((topic, source, seq))
             self.rec_counts[topic] = self.rec_counts.get(topic, 0) + 1
-            if cdr is not None:
-                self.recent.setdefault(topic, []).append((kk, string_from_cdr(cdr)))
+            if cdr is not None:  # recorded without MAC: sealed again for re-sends
+                env = decode_envelope(string_from_cdr(cdr), topic)
+                self.recent.setdefault(topic, []).append((kk, self.gate.wire(env)))
         print(f"clock: restarted from its checkpoint: resuming at wire step {k} (t = {st['t_ns'] / 1e9:.3f} s), "
               f"{sum(self.rec_counts.values())} envelopes already recorded", file=sys.stderr, flush=True)
         return k, int(st["t_ns"]), decode_step(st["msg"]), float(st["wall_s"])
@@ -406,7 +444,7 @@ class LockstepClock:
                 self.reannounces += 1
                 print(f"clock: recorder misses {self._missing()} after step {msg.k}; step re-announced",
                       file=sys.stderr, flush=True)
-                self.step_pub.publish(String(data=encode_msg(msg)))
+                self.step_pub.publish(String(data=self.gate.sealed(STEP_TOPIC, msg)))
 
     # -- the run ------------------------------------------------------------------------------------
     def run(self) -> int:
@@ -490,12 +528,21 @@ class LockstepClock:
                        "real_time_factor": ((t - self.t0_ns) / 1e9 / wall) if wall > 0 else None}
             if self.journal is not None:
                 runtime["clock_restarts"] = self.clock_restarts()
-            self.bag.write_envelope(Envelope(t, "run", 1, "/run/meta",
-                                             json.dumps({"meta": self.meta, "runtime": runtime})))
+            self.bag.write_envelope(Envelope(t, "run", 1, "/run/meta", json.dumps(
+                {"meta": self.meta, "runtime": runtime, "security": self.security()})))
         if self.journal is not None:
             self.journal.commit(k, pickle.dumps({"done": True}))
         self._progress(t, wall, done=True)
         return 0
+
+    def security(self) -> dict:
+        """What the run's processes rejected: ``{"rejected_by_process": {process: {topic: {reason:
+        n}}}}`` (the clock's own and each host's last ack; bringup/analysis/report.py sums it)."""
+        by = {r: c for r, c in sorted(self.host_rejected.items()) if c}
+        own = self.gate.rejections.counts()
+        if own:
+            by = {CLOCK_ROLE: own, **by}
+        return {"rejected_by_process": by}
 
     def clock_restarts(self) -> int:
         """How many times this run's clock was restarted (0 without a journal)."""
@@ -522,7 +569,7 @@ class LockstepClock:
 
     def stop_hosts(self, reason: str = "") -> None:
         try:
-            self.step_pub.publish(String(data=encode_msg(StepMsg(k=0, t_ns=0, stop=True, reason=reason))))
+            self.step_pub.publish(String(data=self.gate.sealed(STEP_TOPIC, StepMsg(k=0, t_ns=0, stop=True, reason=reason))))
             self.step_pub.wait_for_all_acked(Duration(seconds=2.0))
         except Exception:  # noqa: BLE001 - best effort on the way out
             pass
@@ -562,7 +609,7 @@ def run_clock(spec: RunSpec, on_closed=None) -> int:
         rc = clock.run()
         clock.stop_hosts()
     except KeyboardInterrupt:
-        clock.stop_hosts("interrupted")
+        clock.stop_hosts(INTERRUPTED)
         print("clock: interrupted; hosts told to stop, bag closed", file=sys.stderr)
         rc = 130
     except ClockError as exc:

@@ -9,8 +9,13 @@ buffer envelopes; the step itself runs in one loop, participants in list order, 
 by (t_ns, source, seq) (traps 1 and 6). Before running step k the host waits until every inbox holds
 all envelopes of the previous steps, counted from the step message (bringup/engine/lockstep.py, trap
 5). A publisher is used only once it has matched every subscription the run declared for its
-topic (plus the recorder's), so nothing is lost to discovery. A message that does not decode is
-counted per topic and logged, never fatal.
+topic (plus the recorder's), so nothing is lost to discovery.
+
+Only the run's own messages are acted on: every envelope and step message carries a MAC under the
+run key (msgs_json/auth.py; the key from the run's keys file, bringup/engine/keys.py), the host
+puts its MAC on everything it publishes and drops whatever does not verify or does not decode -
+counted per topic and reason (bringup/engine/lockstep.py Rejections; the first of each kind logged,
+then one summary line every few seconds), reported in every ack (``rejected``), never fatal.
 
 Crash and restart: with ``state_path`` the host checkpoints after every wire step
 (bringup/engine/checkpoint.py; in the participant's own SQLite store when it has one, one transaction per
@@ -74,18 +79,18 @@ from bringup.engine.contract import (
 )
 from bringup.engine.lockstep import (
     ACK_TOPIC,
+    INTERRUPTED,
     RESEND_TOPIC,
     STEP_TOPIC,
     AckMsg,
+    Gate,
     LockstepError,
     StepMsg,
     TopicInbox,
     decode_resend,
     decode_step,
-    encode_msg,
 )
 from msgs_json.envelope import Envelope, Participant, StepResult
-from msgs_json.wire import WireError, decode_envelope, encode_envelope
 
 __all__ = ["QOS_DATA", "QOS_SYNC_PUB", "QOS_SYNC_SUB", "HostError", "ParticipantHost", "exit_now", "run_host"]
 
@@ -124,8 +129,8 @@ class _Slot:
 class ParticipantHost:
     """Hosts ``participants`` in one rclpy context; :meth:`run` follows the clock to the end."""
 
-    def __init__(self, role: str, participants: Sequence[Participant], *, ack_timeout_s: float = 10.0,
-                 startup_timeout_s: float = 60.0, idle_timeout_s: float = 300.0,
+    def __init__(self, role: str, participants: Sequence[Participant], *, run_key: bytes,
+                 ack_timeout_s: float = 10.0, startup_timeout_s: float = 60.0, idle_timeout_s: float = 300.0,
                  first_step_timeout_s: float | None = 300.0,
                  state_path: str | None = None, rejoin_period_s: float = 2.0):
         try:
@@ -144,6 +149,8 @@ class ParticipantHost:
         rclpy.init(context=self.ctx, signal_handler_options=SignalHandlerOptions.NO)
         self.executor = EventsExecutor(context=self.ctx)
         self.host_node = rclpy.create_node(f"host_{role}", context=self.ctx, cli_args=_CLOCK_REMAP, **_LEAN)
+        # only the run's messages get in (MAC under the run key); the rest is counted
+        self.gate = Gate(run_key, self.host_node.get_logger().warning)
         self._steps: deque[StepMsg] = deque()
         self.host_node.create_subscription(String, STEP_TOPIC, self._on_step, QOS_SYNC_SUB)
         self.ack_pub = self.host_node.create_publisher(String, ACK_TOPIC, QOS_SYNC_PUB)
@@ -166,7 +173,6 @@ class ParticipantHost:
         self.seq_end: dict[str, int] = {}
         self.subs: dict[str, int] = {}
         self.subs_default = 0
-        self.decode_errors: dict[str, int] = {}
         self.duplicates = 0
         self.rejoin_period_s = rejoin_period_s
         self.host_node.create_subscription(String, RESEND_TOPIC, self._on_resend, QOS_DATA)
@@ -222,42 +228,39 @@ class ParticipantHost:
             raise HostError(f"host {self.role}: checkpoint of step {k} failed: {type(exc).__name__}: {exc}") from exc
         self.ckpt.commit(k, hs, parts)
 
-    # -- callbacks: buffer only ---------------------------------------------------------------------
+    # -- callbacks: check, then buffer only -----------------------------------------------------------
     def _make_cb(self, box: TopicInbox):
         def cb(msg: String) -> None:
-            try:
-                if not box.add(decode_envelope(msg.data, box.topic)):
-                    self.duplicates += 1
-            except WireError as exc:
-                box.decode_errors += 1
-                n = self.decode_errors[box.topic] = self.decode_errors.get(box.topic, 0) + 1
-                if n == 1 or n % 100 == 0:
-                    self.host_node.get_logger().warning(f"{exc} (rejected, {n} so far on {box.topic})")
+            env = self.gate.envelope(msg.data, box.topic)
+            if env is not None and not box.add(env):
+                self.duplicates += 1
         return cb
 
     def _on_resend(self, msg: String) -> None:
+        text = self.gate.text(RESEND_TOPIC, msg.data)
+        if text is None:
+            return
         try:
-            r = decode_resend(msg.data)
+            r = decode_resend(text)
         except LockstepError as exc:
-            self.decode_errors[RESEND_TOPIC] = self.decode_errors.get(RESEND_TOPIC, 0) + 1
-            self.host_node.get_logger().warning(str(exc))
+            self.gate.reject(RESEND_TOPIC, "malformed", str(exc))
             return
         if r.to != self.role:
             return
         for box in self.inboxes_by_topic.get(r.topic, ()):
             for w in r.wires:
-                try:
-                    if not box.add(decode_envelope(w, r.topic)):
-                        self.duplicates += 1
-                except WireError:
-                    box.decode_errors += 1
+                env = self.gate.envelope(w, r.topic)
+                if env is not None and not box.add(env):
+                    self.duplicates += 1
 
     def _on_step(self, msg: String) -> None:
+        text = self.gate.text(STEP_TOPIC, msg.data)
+        if text is None:
+            return
         try:
-            self._steps.append(decode_step(msg.data))
+            self._steps.append(decode_step(text))
         except LockstepError as exc:
-            self.decode_errors[STEP_TOPIC] = self.decode_errors.get(STEP_TOPIC, 0) + 1
-            self.host_node.get_logger().warning(str(exc))
+            self.gate.reject(STEP_TOPIC, "malformed", str(exc))
 
     def request_stop(self, *_args) -> None:
         self._stop_requested = True
@@ -309,16 +312,19 @@ class ParticipantHost:
             emits = check_emits(slot.name, emits, t_max_ns, where)
         except EngineError as exc:
             raise HostError(str(exc)) from None
+        wire = self.gate.wire
         for e in emits:
-            env = Envelope(e.t_ns, slot.name, slot.seq, e.topic, e.data)
-            text = encode_envelope(env)
+            text = wire(Envelope(e.t_ns, slot.name, slot.seq, e.topic, e.data))
             self._publisher(slot, e.topic).publish(String(data=text))
             self._step_wires.append((slot.name, e.topic, text))
             slot.seq += 1
             sent[e.topic] = sent.get(e.topic, 0) + 1
 
     def _ack(self, **kw) -> None:
-        self.ack_pub.publish(String(data=encode_msg(AckMsg(participant=self.role, **kw))))
+        rej = self.gate.rejections.counts()
+        if rej:  # what this host rejected so far (the clock puts the last count in /run/meta)
+            kw = {**kw, "rejected": rej}
+        self.ack_pub.publish(String(data=self.gate.sealed(ACK_TOPIC, AckMsg(participant=self.role, **kw))))
 
     # -- one wire step ------------------------------------------------------------------------------
     def _run_step(self, m: StepMsg) -> None:
@@ -368,18 +374,6 @@ class ParticipantHost:
                 slot.wake, slot.flight = r.next_wakeup_ns, r.in_flight
             if m.final:
                 for slot in self.slots:
-                    # what the host rejected for this participant, so the participant can report it:
-                    # wire texts that were no envelope, and envelopes never consumed (a source that is
-                    # no participant of the run, e.g. a rogue publisher)
-                    if hasattr(slot.p, "host_rejected"):
-                        rej = {}
-                        for b in slot.inboxes:
-                            leaf = b.topic.rsplit("/", 1)[-1]
-                            if b.decode_errors:
-                                rej[f"{leaf}.malformed"] = rej.get(f"{leaf}.malformed", 0) + b.decode_errors
-                            if b.pending:
-                                rej[f"{leaf}.unknown_source"] = rej.get(f"{leaf}.unknown_source", 0) + len(b.pending)
-                        slot.p.host_rejected = rej
                     where = f"finish at {t}"
                     try:
                         emits = slot.p.finish(t)
@@ -422,7 +416,7 @@ class ParticipantHost:
             if m.stop:
                 if m.reason:
                     print(f"host {self.role}: stopped by the clock: {m.reason}", file=sys.stderr)
-                return 0
+                return 130 if m.reason == INTERRUPTED else 0
             if m.k <= self.done_k:
                 # a step already done (the step writer's history, after a restart): answer the one
                 # the clock may still wait for, ignore older ones

@@ -9,9 +9,15 @@ what a role hosts comes from the spec's participant factory). Every child gets
 host never share one) and ``FASTRTPS_DEFAULT_PROFILES_FILE`` = bringup/engine/ros/dds/fastdds_profile.xml.
 Progress (sim time, real-time factor, steps/s, bundles in flight in the router) goes to a
 callback. Ctrl-C / SIGTERM: the clock is asked to stop first (it tells the hosts and closes the
-bag, which stays readable), then the hosts; a child that fails is named in the result's message
-and the result is non-zero. A child still running 5 s after SIGTERM gets SIGUSR1 (node processes
-then write their Python stacks into their log) and SIGKILL, and its log says so.
+bag, which stays readable), then the hosts; the result's code is 130. A child that fails is named in
+the result's message (a signal by its name: "process 'sat_11' killed by SIGKILL") with what the
+stop left in the bag, and the result is non-zero. The run's keys (bringup/engine/keys.py) go to
+``out_dir/run.keys`` (mode 0600) unless the spec names a keys file, and are removed at the end; the
+run spec records the keys file and the ROS_DOMAIN_ID. Every child holds a lifeline to the launcher
+(``AGILE_DTN_LAUNCHER_PID``; bringup/engine/ros/lifeline.py): if the launcher dies, even by
+SIGKILL, its processes stop within seconds (the clock closing the bag). A child still running 5 s
+after SIGTERM gets SIGUSR1 (node processes then write their Python stacks into their log) and
+SIGKILL, and its log says so.
 End of a run: after the clock exits 0 the hosts get 10 s to leave (they take ~0.1 s), then
 SIGTERM. A host that had to be killed then is not a failure of the run (it acked the final step,
 so everything it sent is in the bag and its per-step state is committed); it is listed in the
@@ -49,7 +55,8 @@ e.g. ``ip netns exec NS ...`` with per-host ``ROS_STATIC_PEERS`` (tests/multihos
 Oracle: tests/ros/test_launcher.py (a toy run completes and its bag equals the local engine's
 envelopes; a killed host is named; a host that will not exit after a clean run is killed, named
 in ``lingered`` with its stacks in its log, and the run stands; SIGINT leaves a readable bag; two
-leases never share an id;
+leases never share an id; a killed child is named with its signal; tests/ros/test_launcher_dies.py:
+no child outlives a SIGKILLed launcher, Ctrl-C is 130;
 progress carries the router's bundles in flight, equal step by step to the local engine's figure,
 tests/ros/test_progress_in_flight.py); tests/faults/test_restart_clock.py (a clock killed more
 often than allowed leaves a partial bag that equals the local engine's run up to its last step).
@@ -75,6 +82,7 @@ from pathlib import Path
 import msgspec
 
 from bringup.engine.keys import KEYS_FILE_NAME, RunKeys
+from bringup.engine.ros.lifeline import ENV_LAUNCHER_PID
 from bringup.engine.ros.run_spec import CLOCK_ROLE, RunSpec
 from bringup.engine.ros.shm_cleanup import remove_unheld
 from bringup.errors import UserError
@@ -139,6 +147,8 @@ def child_env(domain_id: int) -> dict[str, str]:
     env["FASTRTPS_DEFAULT_PROFILES_FILE"] = str(FASTDDS_PROFILE)
     env["PYTHONPATH"] = os.pathsep.join(p for p in (str(REPO), env.get("PYTHONPATH", "")) if p)
     env["PYTHONUNBUFFERED"] = "1"
+    # every node process ends with this one (bringup/engine/ros/lifeline.py)
+    env[ENV_LAUNCHER_PID] = str(os.getpid())
     return env
 
 
@@ -231,6 +241,26 @@ def _signame(sig: int) -> str:
         return signal.Signals(sig).name
     except ValueError:
         return f"signal {sig}"
+
+
+def _died(c: _Child) -> str:
+    """One line for a process that ended on its own, naming the signal that killed it."""
+    code = c.proc.returncode
+    if code is not None and code < 0:
+        return f"process '{c.role}' killed by {_signame(-code)}"
+    return f"process '{c.role}' failed (exit code {code}): {c.last_error() or 'no message'}"
+
+
+def _bag_after_stop(clock: _Child, spec: RunSpec) -> str:
+    """What the stop left in the bag: the clock closes it when it stops by itself (exit 0, 3, 130)."""
+    if not spec.bag_dir:
+        return "no bag recorded"
+    code = clock.proc.returncode
+    if code in (0, 3, 130):
+        return f"the clock stopped the run and closed the bag {spec.bag_dir}: it holds the run up to the stop"
+    if code is not None and code < 0:
+        return f"the clock was killed by {_signame(-code)} and did not close the bag {spec.bag_dir}"
+    return f"the clock exited with code {code}; the bag {spec.bag_dir} may not be closed"
 
 
 # Wall seconds hosts get to exit after the clock ended the run (they normally take ~0.1 s).
@@ -399,12 +429,11 @@ def launch(spec: RunSpec, out_dir: Path, *, progress: Callable[[LaunchProgress],
                     dead = [h for h in hosts if h.proc.poll() not in (None, 0)]
                 if dead and crc is None:
                     failed = [h.role for h in dead]
-                    message = "; ".join(
-                        f"process '{h.role}' failed (exit code {h.proc.returncode}): {h.last_error() or 'no message'}"
-                        for h in dead)
+                    message = "; ".join(_died(h) for h in dead)
                     rc = 1
                     _terminate([clock], 10.0)
                     _terminate(hosts, 5.0)
+                    message += "; " + _bag_after_stop(clock, spec)
                     break
                 if (crc is not None and crc not in _CLOCK_DECIDED and clock_restartable
                         and restarts.get(CLOCK_ROLE, 0) < spec.max_restarts):
@@ -426,6 +455,10 @@ def launch(spec: RunSpec, out_dir: Path, *, progress: Callable[[LaunchProgress],
                         rc = crc
                         failed = [CLOCK_ROLE] + [h.role for h in hosts if h.proc.poll() not in (None, 0)]
                         message = clock.last_error() or f"clock exited with code {crc}"
+                        if crc < 0:  # killed: the recorder with it
+                            message = (f"clock killed by {_signame(-crc)}" + (
+                                "" if crashed or not spec.bag_dir else
+                                f": the recorder died with it and did not close the bag {spec.bag_dir}"))
                         if crashed:
                             how = f"killed by {_signame(-crc)}" if crc < 0 else f"exited with code {crc}"
                             message = (f"clock {how} and was restarted {restarts.get(CLOCK_ROLE, 0)} of "
@@ -448,8 +481,7 @@ def launch(spec: RunSpec, out_dir: Path, *, progress: Callable[[LaunchProgress],
                     if crc == 0 and bad:
                         rc = 1
                         failed = [h.role for h in bad]
-                        message = "; ".join(f"process '{h.role}' failed (exit code {h.proc.returncode}): "
-                                            f"{h.last_error() or 'no message'}" for h in bad)
+                        message = "; ".join(_died(h) for h in bad)
                     if crashed and spec.bag_dir:
                         message += "; " + _partial_bag(spec)
                     break
@@ -457,7 +489,7 @@ def launch(spec: RunSpec, out_dir: Path, *, progress: Callable[[LaunchProgress],
         except KeyboardInterrupt:
             _terminate([clock], 15.0)
             _terminate(hosts, 5.0)
-            rc, message, failed = 130, "interrupted: every process stopped, bag closed", []
+            rc, message, failed = 130, "interrupted: every process stopped; " + _bag_after_stop(clock, spec), []
         reader.join(timeout=2.0)
         return LaunchResult(rc, message, dom, out_dir, last[0], failed, restarts, lingered)
     finally:
