@@ -3,7 +3,9 @@
 Each process hosts one toy Counter (tests/ros/toy_participants.py) that wakes every 10 s (= the
 max step, so every step is 10 s of sim time) and sends one envelope per step to its ring neighbour; the clock records everything into an MCAP bag.
 Prints, per process count: steps, wall time, steps/s, real-time factor at 10 s steps, peak RSS of
-all processes together (sampled from /proc). Usage:
+all processes together (sampled from /proc); then what the run key's MAC (msgs_json/auth.py) costs
+per envelope, beside the wire encoding every envelope pays anyway. To compare with a checkout
+without it, run that checkout's copy of this file (it imports the code beside it). Usage:
     .venv/bin/python bench/bench_lockstep.py [--procs 2 8 24] [--steps 300] [--no-bag]
 """
 
@@ -82,6 +84,36 @@ def bench(n_procs: int, steps: int, bag: bool) -> dict:
             "rtf_at_10s_steps": p.real_time_factor, "total_wall_s": total, "peak_rss_mib": peak[0] / 1024}
 
 
+def mac_cost(n: int = 20000) -> dict | None:
+    """Per-envelope cost [us] of the run key's MAC (msgs_json/auth.py) on a toy counter envelope and
+    on a 300-byte bundle, beside the wire encode/decode every envelope pays anyway (min of 5 x n);
+    None in a checkout without authenticated traffic (a baseline)."""
+    import timeit
+
+    try:
+        from msgs_json.auth import RunAuth
+    except ImportError:
+        return None
+    from msgs_json.envelope import Envelope
+    from msgs_json.wire import decode_envelope_mac, encode_envelope
+
+    auth = RunAuth(bytes(32))
+    out = {}
+    for kind, env in (("toy", Envelope(123_000_000_000, "c3", 41, "/toy/count/c3", '{"c": 41, "crc": 123456789}')),
+                      ("bundle", Envelope(123_000_000_000, "sat_11", 41, "/sat_12/dtn/in", bytes(range(256)) + bytes(44)))):
+        text = encode_envelope(env, auth.mac(env))
+
+        def us(f):
+            return min(timeit.repeat(f, number=n, repeat=5)) / n * 1e6
+
+        out[kind] = {"mac": us(lambda env=env: auth.mac(env)),
+                     "verify": us(lambda env=env, t=text: auth.verify(*decode_envelope_mac(t, env.topic)))
+                     - us(lambda env=env, t=text: decode_envelope_mac(t, env.topic)),
+                     "encode": us(lambda env=env: encode_envelope(env)),
+                     "decode": us(lambda env=env, t=text: decode_envelope_mac(t, env.topic))}
+    return out
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--procs", type=int, nargs="+", default=[2, 8, 24])
@@ -93,6 +125,11 @@ def main() -> None:
         r = bench(n, a.steps, not a.no_bag)
         print(f"{r['procs']:>5} {r['steps']:>6} {r['step_wall_s']:>8.2f} {r['steps_per_s']:>8.1f} "
               f"{r['rtf_at_10s_steps']:>8.0f} {r['total_wall_s']:>13.1f} {r['peak_rss_mib']:>11.0f}", flush=True)
+    cost = mac_cost()
+    if cost is not None:
+        for kind, c in cost.items():
+            print(f"MAC per {kind} envelope: {c['mac']:.2f} us to make, {c['verify']:.2f} us to check "
+                  f"(wire encode {c['encode']:.2f} us, decode {c['decode']:.2f} us)")
 
 
 if __name__ == "__main__":

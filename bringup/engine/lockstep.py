@@ -262,7 +262,6 @@ class TopicInbox:
     expected: int = 0
     delivered: int = 0
     pending: list[Envelope] = field(default_factory=list)
-    decode_errors: int = 0
     consumed: dict[str, int] = field(default_factory=dict)
     duplicates: int = 0
     _keys: set[tuple[str, int]] = field(default_factory=set)

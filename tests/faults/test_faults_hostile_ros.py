@@ -1,7 +1,7 @@
 """Hostile messages on a live ROS 2 run: forged, replayed and tampered traffic is rejected and counted.
 
 A real ``constellation run --engine ros`` (one process per satellite, router, contact announcer and
-clock; its own leased ROS_DOMAIN_ID, ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST; paced at 60x real
+clock; its own leased ROS_DOMAIN_ID, ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST; paced at 30x real
 time so the attack lands while it runs) is started by the test; once its processes are up,
 tests/faults/forger.py joins the same domain from its own rclpy process and publishes a fixed
 corpus: forged observations (unsigned, and signed with another run's key), a forged step and a
@@ -75,7 +75,7 @@ def test_forged_messages_are_rejected_counted_and_change_nothing(tmp_path):
     r = subprocess.run(_cmd("local", clean), capture_output=True, text=True, timeout=600, check=False)
     assert r.returncode == 0, r.stderr[-2000:]
     out = tmp_path / "attacked"
-    run = subprocess.Popen(_cmd("ros", out, "--real-time-factor", "60"), stdout=subprocess.PIPE,
+    run = subprocess.Popen(_cmd("ros", out, "--real-time-factor", "30"), stdout=subprocess.PIPE,
                            stderr=subprocess.PIPE, text=True)
     forger = None
     sent_file = tmp_path / "forged.json"
@@ -91,12 +91,14 @@ def test_forged_messages_are_rejected_counted_and_change_nothing(tmp_path):
         forger = subprocess.Popen([sys.executable, str(HERE / "forger.py"), SAT, OTHER, str(sent_file)],
                                   env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
         _f_out, f_err = forger.communicate(timeout=600)
+        still_running = run.poll() is None  # else the forgeries may have come after the final step
         _stdout, stderr = run.communicate(timeout=900)
     finally:
         for p in (run, forger):
             if p is not None and p.poll() is None:
                 p.kill()
     assert forger.returncode == 0, f_err[-2000:]
+    assert still_running, "the run ended before the forger was done: pace it slower"
     assert run.returncode == 0, stderr[-3000:]
     sent = json.loads(sent_file.read_text())
 

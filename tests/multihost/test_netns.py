@@ -238,13 +238,16 @@ def test_toy_lockstep_run_across_hosts_equals_local(tmp_path, root_state_unchang
         sys.path.remove(str(TOY_DIR))
     from bringup.engine.local import run_local
     from bringup.recording.bag import BagReader
+    from bringup.engine.keys import RunKeys
     from bringup.engine.ros.run_spec import CLOCK_ROLE, RunSpec
 
     s = 1_000_000_000
     roles = toy.roles(3)
+    # the run's keys, as the launcher writes them (every process authenticates its traffic with them)
+    keys = RunKeys.generate().write(tmp_path / "run.keys")
     spec = RunSpec(factory="toy_participants:make", roles=roles, horizon_ns=40 * s, max_step_ns=5 * s,
                    bag_dir=str(tmp_path / "bag"), extra={"n_counters": 3}, startup_timeout_s=60.0,
-                   ack_timeout_s=20.0)
+                   ack_timeout_s=20.0, keys_file=str(keys))
     spec_path = tmp_path / "run_spec.json"
     spec.to_file(spec_path)
     ref = run_local(toy.all_participants(spec), horizon_ns=spec.horizon_ns, max_step_ns=spec.max_step_ns)
