@@ -114,12 +114,15 @@ class MulticastAgent:
     """The bundle agent of node ``node`` in multicast forwarding (module docstring). Same interface
     as :class:`sat_node.dtn.agent.BundleAgent` for the port (sat_node/dtn/port.py)."""
 
-    def __init__(self, node: str, plan: ContactPlan | ContactGraph, config: AgentConfig | None = None, *,
+    def __init__(self, node: str, plan: ContactPlan | ContactGraph, config: AgentConfig, *,
                  store: BundleStore | None = None, on_event: Callable[[BundleEvent], None] | None = None,
                  keep_events: bool = True):
         self.node = node
         self.number = node_number(node)
-        self.config = config or AgentConfig()
+        if not isinstance(config, AgentConfig):
+            raise TypeError(f"agent {node}: config must be an AgentConfig (it carries the BPSec key), got "
+                            f"{type(config).__name__}")
+        self.config = config
         self.graph = plan if isinstance(plan, ContactGraph) else ContactGraph(plan, self.config.hop_limit)
         if not self.config.bundle_bits:
             raise ValueError(f"{node}: multicast forwarding needs a nominal bundle size (AgentConfig.bundle_bits)")
@@ -648,10 +651,9 @@ class MulticastAgent:
             self._requeue(h, sb.received_ns)
 
 
-def new_agent(node: str, plan: ContactPlan | ContactGraph, config: AgentConfig | None = None, **kw):
+def new_agent(node: str, plan: ContactPlan | ContactGraph, config: AgentConfig, **kw):
     """The bundle agent of ``config.forwarding``: :class:`MulticastAgent` or the unicast
     :class:`sat_node.dtn.agent.BundleAgent` (one bundle per recipient, the study simulator's model)."""
-    config = config or AgentConfig()
     if config.forwarding == "multicast":
         return MulticastAgent(node, plan, config, **kw)
     return BundleAgent(node, plan, config, **kw)

@@ -159,6 +159,7 @@ def test_partially_served_multicast_bundle_survives_sigkill(tmp_path):
     import textwrap
 
     from orbit_clock.contact_plan import Contact, ContactPlan
+    from sat_node.dtn.agent import AgentConfig
     from sat_node.dtn.bpv7 import decode_bundle
     from sat_node.dtn.multicast import MulticastAgent
     from sat_node.dtn.routing_blocks import next_hops_of
@@ -170,9 +171,11 @@ def test_partially_served_multicast_bundle_survives_sigkill(tmp_path):
     script = textwrap.dedent(f"""
         import sys
         from orbit_clock.contact_plan import Contact, ContactPlan
+        from sat_node.dtn.agent import AgentConfig
         from sat_node.dtn.multicast import MulticastAgent
         from sat_node.dtn.store import BundleStore
-        a = MulticastAgent("sat_11", {plan_src}, store=BundleStore({str(db)!r}))
+        from tests.keys import TEST_BPSEC_KEY
+        a = MulticastAgent("sat_11", {plan_src}, AgentConfig(key=TEST_BPSEC_KEY), store=BundleStore({str(db)!r}))
         first = a.originate_many(b"partly served", [("sat_12", 1), ("sat_13", 2)], 10 * 10**9)
         tx = a.transmissions_until(10 * 10**9)
         assert [t.next_hops for t in tx] == [("sat_12",)], tx
@@ -192,7 +195,7 @@ def test_partially_served_multicast_bundle_survives_sigkill(tmp_path):
     p.wait(timeout=30)
     a = MulticastAgent("sat_11", ContactPlan([Contact(0.0, 100.0, "sat_11", "sat_12", 1000.0, 0.0),
                                               Contact(100.0, 200.0, "sat_11", "sat_13", 1000.0, 0.0)]),
-                       store=BundleStore(db))
+                       AgentConfig(key=TEST_BPSEC_KEY), store=BundleStore(db))
     assert a.held_pairs() == {(first, "sat_13"), (second, "sat_12")}
     txs = a.transmissions_until(150 * 10**9)
     sent = {(t.bundle_id, t.next_hops): next_hops_of(decode_bundle(t.bundle_bytes)) for t in txs}

@@ -2,9 +2,9 @@
 and its latency bounds (bringup/analysis/dtn_bounds.py): drawn plans with hand-worked delivery
 times and bounds, conservation, send orders and hop tolerance through the CLI, the study's inputs."""
 
-import pytest
-
 import random
+
+import pytest
 
 from bringup.analysis.dtn_alone import run_dtn
 from bringup.analysis.dtn_bounds import latency_lower_bounds, store_forward_bound_mean
@@ -335,7 +335,7 @@ def test_study_inputs_multicast_targets(paper_inputs, case, pairs, observations)
 
     plan = read_contact_plan(paper_inputs / "contact_plan_3p_8s.csv", rate_bps=1000)
     traffic = read_traffic(paper_inputs / f"traffic_{case}.csv")
-    cfg = AgentConfig(forwarding="multicast")
+    cfg = AgentConfig(key=TEST_BPSEC_KEY, forwarding="multicast")
     run = run_dtn(plan, traffic, config=cfg)
     rep = run.report()
     assert rep["dtn.conservation_ok"] and rep["dtn.bundles_created"] == pairs and rep["dtn.dropped.integrity"] == 0

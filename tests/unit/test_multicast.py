@@ -10,10 +10,11 @@ import pytest
 from bringup.analysis.dtn_alone import run_dtn
 from orbit_clock.contact_plan import Contact, ContactPlan
 from sat_node.dtn.agent import AgentConfig
+from sat_node.dtn.bpv7 import decode_bundle
 from sat_node.dtn.multicast import MulticastAgent
 from sat_node.dtn.routing_blocks import next_hops_of, overhead_bits
-from sat_node.dtn.bpv7 import decode_bundle
 from sat_node.dtn.traffic import TrafficItem
+from tests.keys import TEST_BPSEC_KEY
 
 S = 10**9
 
@@ -35,7 +36,7 @@ def _drawn(sat13_from: float):
 
 
 def _agents(plan, **kw):
-    cfg = AgentConfig(**kw)
+    cfg = AgentConfig(**{"key": TEST_BPSEC_KEY, **kw})
     return {n: MulticastAgent(n, plan, cfg) for n in ("sat_11", "sat_12", "sat_13", "sat_14")}
 
 
@@ -173,7 +174,7 @@ def test_random_plans_multicast_never_later_than_unicast_on_an_empty_network(see
     ttl = {15: 1000.0}
     got = {}
     for fwd in ("unicast", "multicast"):
-        run = run_dtn(plan, traffic, config=AgentConfig(ttl_s_by_priority=ttl, forwarding=fwd))
+        run = run_dtn(plan, traffic, config=AgentConfig(key=TEST_BPSEC_KEY, ttl_s_by_priority=ttl, forwarding=fwd))
         rep = run.report()
         assert rep["dtn.conservation_ok"] and rep["dtn.bundles_created"] == len(dests), (seed, fwd)
         got[fwd] = {e.dest: e.t_ns / S for e in run.events if e.kind == "delivered"}

@@ -66,8 +66,8 @@ def test_satellite_agents_take_the_scenario_forwarding(world):
 
     sat = world.sat_names[0]
     assert world.scenario.isl.forwarding == "multicast"
-    ag = SatelliteLogic(world, sat, "distributed").agent
+    ag = SatelliteLogic(world, sat, "distributed", bpsec_key=TEST_BPSEC_KEY).agent
     assert type(ag) is MulticastAgent and ag.config.forwarding == "multicast"
     isl = msgspec.structs.replace(world.scenario.isl, forwarding="unicast")
     w2 = dataclasses.replace(world, scenario=msgspec.structs.replace(world.scenario, isl=isl))
-    assert type(SatelliteLogic(w2, sat, "distributed").agent) is BundleAgent
+    assert type(SatelliteLogic(w2, sat, "distributed", bpsec_key=TEST_BPSEC_KEY).agent) is BundleAgent
