@@ -45,7 +45,8 @@ __all__ = ["LOCK_NAME", "OUTPUTS", "STATUS_NAME", "RunFolder", "json_text", "wri
 LOCK_NAME = ".run.lock"
 STATUS_NAME = "run_status.json"
 # what a run writes into its folder (bringup/cli/run.py, bringup/engine/ros/launcher.py)
-OUTPUTS = ("bag", "report.json", "report.md", "plots", "logs", "store", "state", "run_spec.json", STATUS_NAME)
+OUTPUTS = ("bag", "report.json", "report.md", "plots", "logs", "store", "state", "run_spec.json", "run.keys",
+           STATUS_NAME)
 
 
 def _finite(obj):

@@ -48,18 +48,22 @@ def test_auto_keeps_small_runs_one_per_process():
 
 
 def test_run_spec_groups_checked_and_built(tmp_path, paper_scenario):
+    from bringup.engine.keys import RunKeys
     from bringup.scenario.world import World
+    from tests.keys import TEST_BPSEC_KEY
 
     world = World.build(paper_scenario.with_overrides(sats=6, hours=0.5))
     path = world.save(tmp_path / "world.pkl")
+    keys = RunKeys(b"r" * 32, TEST_BPSEC_KEY).write(tmp_path / "run.keys")
     groups = process_groups(roles_for(world, "distributed"), world.sat_names, 4)
     spec = RunSpec(factory="bringup.engine.ros.factory:build", roles=list(groups),
-                   groups={g: m for g, m in groups.items() if m != [g]},
+                   groups={g: m for g, m in groups.items() if m != [g]}, keys_file=str(keys),
                    extra={"world": str(path), "world_key": world.key})
     spec.check()
     parts = build(spec, "sats_1")
     assert [p.name for p in parts] == world.sat_names[:4]
     assert parts[0].agent.graph is parts[3].agent.graph  # one contact graph per process
+    assert all(p.agent.config.key == TEST_BPSEC_KEY for p in parts)  # the run's BPSec key
     assert [p.name for p in build(spec, "router")] == ["dtn_router"]
     assert set(prepare(spec, "contacts")) == set()
     for bad in ({"nope": ["sat_11"]}, {"sats_1": ["sat_11"], "sats_2": ["sat_11"]}, {"sats_1": []}):
