@@ -39,10 +39,11 @@ def _bundle(target: str, src: str, i: int) -> bytes:
     from sat_node.dtn.bpsec import add_bib
     from sat_node.dtn.bpv7 import Bundle, encode_bundle, ipn
     from sat_node.dtn.routing_blocks import set_routing
-    from sat_node.satellite import observation_payload
+    from sat_node.inference import Inference, encode_inference
 
     b = Bundle(dest=ipn(node_number(target), 1), src=ipn(node_number(src), 1), creation_ms=946_728_000_000 + i,
-               seq=50_000 + i, lifetime_ms=900_000, payload=observation_payload(src, 7, 1_000_000_000, 99.0))
+               seq=50_000 + i, lifetime_ms=900_000,
+               payload=encode_inference(Inference(src, 7, 1_000_000_000, 99.0, 0)))
     to = node_number(target)
     set_routing(b, [(to, 1, 900_000)], {to: (to,)})
     b.hop_count = (32, 0)
