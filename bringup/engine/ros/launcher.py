@@ -259,8 +259,10 @@ def _bag_after_stop(clock: _Child, spec: RunSpec) -> str:
     if code in (0, 3, 130):
         return f"the clock stopped the run and closed the bag {spec.bag_dir}: it holds the run up to the stop"
     if code is not None and code < 0:
-        return f"the clock was killed by {_signame(-code)} and did not close the bag {spec.bag_dir}"
-    return f"the clock exited with code {code}; the bag {spec.bag_dir} may not be closed"
+        return (f"the clock was killed by {_signame(-code)} and did not close the bag {spec.bag_dir}: "
+                "it reads up to its last closed chunk (at most 2 min of sim time lost)")
+    return (f"the clock exited with code {code}; the bag {spec.bag_dir} may not be closed "
+            "(it reads up to its last closed chunk)")
 
 
 # Wall seconds hosts get to exit after the clock ended the run (they normally take ~0.1 s).
@@ -458,7 +460,8 @@ def launch(spec: RunSpec, out_dir: Path, *, progress: Callable[[LaunchProgress],
                         if crc < 0:  # killed: the recorder with it
                             message = (f"clock killed by {_signame(-crc)}" + (
                                 "" if crashed or not spec.bag_dir else
-                                f": the recorder died with it and did not close the bag {spec.bag_dir}"))
+                                f": the recorder died with it and did not close the bag {spec.bag_dir}; "
+                                "it reads up to its last closed chunk (at most 2 min of sim time lost)"))
                         if crashed:
                             how = f"killed by {_signame(-crc)}" if crc < 0 else f"exited with code {crc}"
                             message = (f"clock {how} and was restarted {restarts.get(CLOCK_ROLE, 0)} of "
