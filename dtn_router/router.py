@@ -38,7 +38,7 @@ from dtn_router.link import LinkModel
 from msgs_json import codec
 from msgs_json import schemas as S
 from msgs_json import topics as T
-from msgs_json.envelope import Emit, Envelope, StepResult
+from msgs_json.envelope import Emit, Envelope, LiveState, StepResult
 from orbit_clock.contact_faults import truth_plan as with_faults
 from orbit_clock.contact_plan import ContactPlan, node_name
 from sat_node.dtn.bpv7 import BundleError, decode_bundle
@@ -105,6 +105,18 @@ class RouterLogic:
 
     def finish(self, t_ns: int) -> list[Emit]:
         return []
+
+    def live_state(self, t_ns: int) -> LiveState:
+        """What the medium shows while a ROS run goes on (msgs_json.envelope.LiveState): the bundle
+        copies travelling, failed transmissions and rejected inputs by reason. Reads only."""
+        v: dict[str, int | float | str] = {"in_flight": len(self.pending), "status_pending": len(self.status_pending),
+                                           "rejected_messages": self.rejected}
+        v.update((f"failed.{k}", n) for k, n in self.failures.items())
+        v.update((f"rejected.{k}", n) for k, n in self.rejected_by_reason.items())
+        msg = f"{len(self.pending)} bundle copies in flight, {sum(self.failures.values())} transmissions failed"
+        if self.rejected:
+            msg += f", {self.rejected} inputs rejected"
+        return LiveState(None, v, 1 if self.rejected else 0, msg)
 
     def _transmit(self, env: Envelope) -> None:
         if not isinstance(env.data, bytes):

@@ -45,7 +45,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import NamedTuple, Protocol, runtime_checkable
 
-__all__ = ["Envelope", "Emit", "StepResult", "Participant"]
+__all__ = ["Emit", "Envelope", "LiveState", "Participant", "StepResult"]
 
 
 class Envelope(NamedTuple):
@@ -80,6 +80,21 @@ class StepResult:
     emits: list[Emit] = field(default_factory=list)
     next_wakeup_ns: int | None = None
     in_flight: int | None = None
+
+
+@dataclass(frozen=True, slots=True)
+class LiveState:
+    """What a participant shows while a run goes on: the optional ``live_state(t_ns)`` returns it (or
+    None) and the ROS engine publishes it every visualisation period (``[viz] period_s``): a
+    sensor_msgs/NavSatFix of ``position_ecef_km`` (None: the participant has no position) and one
+    diagnostic_msgs/DiagnosticStatus with ``values`` (name -> int, float or str: counters, current
+    target, ...), ``level`` (0 ok, 1 warn, 2 error, DiagnosticStatus's levels) and ``message`` (one
+    line). Asking for it changes nothing in the participant."""
+
+    position_ecef_km: tuple[float, float, float] | None = None
+    values: dict[str, int | float | str] = field(default_factory=dict)
+    level: int = 0
+    message: str = ""
 
 
 @runtime_checkable

@@ -52,7 +52,7 @@ import numpy as np
 from msgs_json import codec
 from msgs_json import schemas as S
 from msgs_json import topics as T
-from msgs_json.envelope import Emit, Envelope, StepResult
+from msgs_json.envelope import Emit, Envelope, LiveState, StepResult
 from sat_node import persist
 from sat_node.acs import angle_between_deg, nadir_unit, unit_vectors
 from sat_node.dtn.agent import AgentConfig
@@ -191,6 +191,34 @@ class SatelliteLogic:
             emits += self._radio(t_ns)
             emits.append(self._counters_emit(t_ns))
         return emits
+
+    def live_state(self, t_ns: int) -> LiveState:
+        """What the satellite shows while a ROS run goes on (msgs_json.envelope.LiveState): where it
+        is (the world's SGP4 position, the bag's fix), its plan, what it knows, what it points at and
+        its DTN counters. Reads only."""
+        r = self.world.sat_positions_ecef_km(t_ns / _NS)[self.world.sat_names.index(self.name)]
+        own = sum(1 for k in self.known if k.source == self.name and not k.planned)
+        v: dict[str, int | float | str] = {
+            "mode": self.mode, "plan.version": self.plan_version, "plan.items": len(self.plan),
+            "plan.next_observation_s": round(self.plan[0].t_ns / _NS, 3) if self.plan else -1.0,
+            "observations.own": own, "observations.known": len(self.known),
+            "pointing": "nadir" if self.target_km is None else "last target",
+            "scheduler.cpu_s": round(self.scheduler_cpu_s, 3), "rejected_messages": self.rejected,
+        }
+        for k, n in self.rejected_by_reason.items():
+            v[f"rejected.{k}"] = n
+        held = 0
+        if self.port is not None:
+            c = self.port.counters(rejected=self.rejected, rejected_by_reason=self.rejected_by_reason)
+            held = c["held"]
+            v.update((f"dtn.{k}", n) for k, n in c.items() if k != "rejected_messages" and not k.startswith("rejected."))
+            v.update((f"dtn.events.{k}", n) for k, n in self.agent.counters.items())
+        msg = f"{own} observations, plan v{self.plan_version} ({len(self.plan)} left)"
+        if self.port is not None:
+            msg += f", {held} bundles held"
+        if self.rejected:
+            msg += f", {self.rejected} messages rejected"
+        return LiveState(tuple(float(x) for x in r), v, 1 if self.rejected else 0, msg)
 
     # -- checkpoints (bringup/engine/checkpoint.py calls these; sat_node/persist.py does the work)
     def snapshot(self) -> bytes:

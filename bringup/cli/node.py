@@ -4,7 +4,8 @@ The launcher (bringup/engine/ros/launcher.py) and the compose files (bringup/dep
 start every process with it: role ``clock`` runs the lockstep clock and recorder
 (bringup/engine/ros/clock_node.py) and, when the spec names ``extra.report_dir`` (a container
 run), writes report.json / report.md there from the bag once it is closed; any other role hosts
-the participants the run spec's factory returns for it (bringup/engine/ros/host.py). With the
+the participants the run spec's factory returns for it (bringup/engine/ros/host.py; its nodes
+named, parametrised and shown live as the spec says: namespace, ros_args, the run settings). With the
 spec's ``state_dir`` a host checkpoints every step and, started again after a crash, resumes from
 its checkpoint (bringup/engine/checkpoint.py).
 A process started by a launcher ends with it (bringup/engine/ros/lifeline.py).
@@ -81,7 +82,9 @@ def run(args: argparse.Namespace) -> int:
     return run_host(args.role, participants, run_key=spec.keys().run, ack_timeout_s=spec.ack_timeout_s,
                     startup_timeout_s=spec.startup_timeout_s if bounded else 60.0,
                     idle_timeout_s=idle, first_step_timeout_s=idle if bounded else None,
-                    state_path=str(Path(spec.state_dir) / f"{args.role}.state.sqlite") if spec.state_dir else None)
+                    state_path=str(Path(spec.state_dir) / f"{args.role}.state.sqlite") if spec.state_dir else None,
+                    namespace=spec.namespace, ros_args=spec.ros_args, epoch_ns=spec.epoch_ns(),
+                    parameters=lambda name: spec.parameters(name, process=args.role), live_period_s=spec.live_period_s())
 
 
 def _prepare(spec: RunSpec, role: str | None) -> None:

@@ -21,14 +21,21 @@ import sqlite3
 import sys
 import time
 from concurrent.futures import ThreadPoolExecutor
+from contextlib import nullcontext
 from pathlib import Path
+from types import SimpleNamespace
 
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
 from bringup.analysis.report import ReportBuilder, RunMeta, report_from_bag
 from bringup.analysis.report_md import report_md
-from bringup.cli.common import (add_key_args, add_scenario_args, keys_from_args, overrides_of,
-                                 scenario_from_args)
+from bringup.cli.common import (
+    add_key_args,
+    add_scenario_args,
+    keys_from_args,
+    overrides_of,
+    scenario_from_args,
+)
 from bringup.cli.run_folder import RunFolder, json_text, write_text_atomic
 from bringup.engine.local import run_local
 from bringup.engine.ros.factory import FACTORY, PREPARE
@@ -81,6 +88,14 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                         f"auto: 1 up to {AUTO_SAT_PROCESSES} satellites (and with --restart), else as few "
                         f"as keep {AUTO_SAT_PROCESSES} satellite processes (default auto)")
     add_key_args(p)
+    p.add_argument("--domain-id", type=int, default=None, metavar="N",
+                   help="ros engine: run on ROS_DOMAIN_ID N (0..232), e.g. to attach RViz or Foxglove; the run does "
+                        "not lease it, so no other run may use it (default: a free id 1..101, leased)")
+    p.add_argument("--namespace", default="", metavar="NS",
+                   help="ros engine: push every node into NS (as launch's PushRosNamespace), e.g. /fleet")
+    p.add_argument("--ros-args", nargs=argparse.REMAINDER, default=[], metavar="ARG",
+                   help="ros engine: the rest of the command line is given to every node process as ROS "
+                        "arguments, e.g. --ros-args -r sat_12:__ns:=/moved/sat_12 (must come last)")
     p.add_argument("--restart", type=int, default=0, metavar="N",
                    help="ros engine: restart a crashed process (satellite, router, ground or the clock) up to "
                         "N times; every process checkpoints each step and resumes from it (default 0: a crash "
@@ -127,6 +142,10 @@ def run(args: argparse.Namespace) -> int:
     if not 0 <= args.restart <= MAX_RESTARTS:
         raise UserError(f"--restart {args.restart}: must be in 0..{MAX_RESTARTS}")
     sc = scenario_from_args(args)
+    if args.domain_id is not None and not 0 <= args.domain_id <= 232:
+        raise UserError(f"--domain-id {args.domain_id}: expected 0..232")
+    if args.engine != "ros" and (args.domain_id is not None or args.namespace or args.ros_args):
+        raise UserError("--domain-id, --namespace and --ros-args are for --engine ros")
     if args.viz_period_s is not None:
         if not 0 < args.viz_period_s <= 86400:
             raise UserError(f"--viz-period-s {args.viz_period_s:g}: expected 0 < S <= 86400")
@@ -322,7 +341,8 @@ def _run_ros(world, world_path: Path, args, meta, bag_dir: Path, out: Path, rout
                    # a process steps its K satellites one after the other: K times the one-satellite deadline
                    ack_timeout_s=ACK_TIMEOUT_S * per_process,
                    scenario=str(Path(sc.source_path).resolve()),
-                   overrides=overrides_of(args), mode=args.mode,
+                   overrides={**overrides_of(args), "viz_period_s": args.viz_period_s}, mode=args.mode,
+                   namespace=args.namespace, ros_args=[a for a in args.ros_args if a != "--"],
                    real_time_factor=args.real_time_factor, bag_dir=str(bag_dir.resolve()),
                    max_restarts=args.restart, restart_wait_s=120.0 if args.restart else 0.0,
                    state_dir=str((out / "state").resolve()) if args.restart else None,
@@ -345,7 +365,9 @@ def _run_ros(world, world_path: Path, args, meta, bag_dir: Path, out: Path, rout
             extra += f", {p.in_flight} bundles in flight"
         update(t_ns=p.t_ns, rtf=p.real_time_factor, extra=extra)
 
-    with lease_domain_id() as lease:
+    # --domain-id N: that id, not leased (the user chose it, e.g. to attach RViz); else a leased free one
+    given = nullcontext(SimpleNamespace(domain_id=args.domain_id)) if args.domain_id is not None else None
+    with given or lease_domain_id() as lease:
         # (also in OUT/run_spec.json): what a user needs to look at the live run with ROS tools
         say(f"run: ROS_DOMAIN_ID={lease.domain_id} (ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST)")
         if prog is not None:

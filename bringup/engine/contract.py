@@ -24,6 +24,9 @@ The rules checked here:
   changes nothing in the run.
 * the step rule: ``t_{k+1} = max(t_k + 1, min(next wakeups of step k, t_k + max_step, horizon))``;
   the last step is at the horizon.
+* ``live_state(t_ns)``, optional (the ROS engine asks every visualisation period): ``None`` or a
+  :class:`LiveState` whose position is ``None`` or three finite numbers [km], whose values map
+  non-empty strings to int, float or str, whose level is 0, 1 or 2 and whose message is a string;
 * who is called: every participant at every step, except an event-driven one (``event_driven``
   attribute True), called only when its inbox is not empty or its standing wakeup is due
   (:func:`is_event_driven`, :func:`must_step`); a participant not called keeps its last wakeup and
@@ -40,12 +43,13 @@ run's error.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterable, Sequence
 
-from msgs_json.envelope import Emit, StepResult
+from msgs_json.envelope import Emit, LiveState, StepResult
 
-__all__ = ["ContractError", "EngineError", "check_emits", "check_names", "check_result", "check_subscriptions",
-           "failed", "is_event_driven", "must_step", "next_step_ns"]
+__all__ = ["ContractError", "EngineError", "check_emits", "check_live_state", "check_names", "check_result",
+           "check_subscriptions", "failed", "is_event_driven", "must_step", "next_step_ns"]
 
 
 class EngineError(ValueError):
@@ -117,6 +121,28 @@ def check_emits(name: str, emits, t_max_ns: int, where: str) -> list:
         if type(topic) is not str or not topic.startswith("/"):
             raise ContractError(f"{name} {where}: emit topic {topic!r} is not a name starting with '/'")
     return emits
+
+
+def check_live_state(name: str, s, where: str) -> LiveState | None:
+    """What ``live_state`` returned, checked (``where``: ``live_state at T``)."""
+    if s is None:
+        return None
+    if not isinstance(s, LiveState):
+        raise ContractError(f"{name} {where}: returned {type(s).__name__}, expected LiveState or None")
+    p = s.position_ecef_km
+    if p is not None and (not isinstance(p, (tuple, list)) or len(p) != 3
+                          or not all(isinstance(x, (int, float)) and math.isfinite(x) for x in p)):
+        raise ContractError(f"{name} {where}: position_ecef_km must be None or 3 finite numbers, got {p!r}")
+    if not isinstance(s.values, dict):
+        raise ContractError(f"{name} {where}: values must be a dict, got {type(s.values).__name__}")
+    for k, v in s.values.items():
+        if type(k) is not str or not k or not isinstance(v, (int, float, str)):
+            raise ContractError(f"{name} {where}: value {k!r}: {v!r} is not a name -> int, float or str")
+    if s.level not in (0, 1, 2) or type(s.level) is not int:
+        raise ContractError(f"{name} {where}: level must be 0, 1 or 2, got {s.level!r}")
+    if not isinstance(s.message, str):
+        raise ContractError(f"{name} {where}: message must be a string, got {type(s.message).__name__}")
+    return s
 
 
 def is_event_driven(p) -> bool:

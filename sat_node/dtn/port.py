@@ -219,11 +219,11 @@ class DtnPort:
         while sent and sent[0][0] <= m - 2 and sent[0][1].end_ns <= prev_t:
             settle(sent.popleft()[1])
 
-    def counters_emit(self, t_ns: int, *, rejected: int, rejected_by_reason: dict[str, int]) -> Emit:
-        """The node's DtnCounters at ``t_ns``: overheard copies, bundles held (queued or in flight),
-        the node's rejected messages (total and by reason), the agent's drops and discards by reason,
-        and failed transmissions by reason. (What the engine rejects before a message reaches the
-        node is the engine's count: report.json ``security``.)"""
+    def counters(self, *, rejected: int, rejected_by_reason: dict[str, int]) -> dict[str, int]:
+        """The node's DTN counters now: overheard copies, bundles held (queued or in flight), the
+        node's rejected messages (total and by reason), the agent's drops and discards by reason, and
+        failed transmissions by reason. (What the engine rejects before a message reaches the node is
+        the engine's count: report.json ``security``.) Reads only."""
         c = {"discarded.not_next_hop": self.overheard, "held": self.agent.held_count(),
              "rejected_messages": rejected}
         for k, v in rejected_by_reason.items():
@@ -233,6 +233,11 @@ class DtnPort:
                 c[f"agent.{k}"[:64]] = v
         for k, v in self.tx_failed.items():
             c[f"tx_failed.{k}"] = v
+        return c
+
+    def counters_emit(self, t_ns: int, *, rejected: int, rejected_by_reason: dict[str, int]) -> Emit:
+        """The node's :meth:`counters` at ``t_ns`` as a DtnCounters envelope."""
+        c = self.counters(rejected=rejected, rejected_by_reason=rejected_by_reason)
         return Emit(self.counters_topic, codec.encode(S.DtnCounters(sat=self.name, t_ns=t_ns, counters=c)), t_ns)
 
     # ------------------------------------------------------------------ events -> messages

@@ -120,3 +120,24 @@ def test_event_driven_participant_is_called_only_for_an_inbox_or_a_due_wakeup():
     after_ping = {steps[steps.index(t) + 1] for t in pings}
     assert listener.calls == sorted(after_ping | set(range(13 * S, 60 * S, 13 * S)))
     assert listener.heard == len(pings) == 9 and len(listener.calls) == 11 < res.steps == 25
+
+
+def test_live_state_is_checked():
+    from bringup.engine.contract import check_live_state
+    from msgs_json.envelope import LiveState
+
+    assert check_live_state("sat_11", None, "live_state at 0") is None
+    ok = LiveState((7000.0, 0, 1.5), {"observations": 3, "target": "gp 7", "ratio": 0.5}, 1, "fine")
+    assert check_live_state("sat_11", ok, "live_state at 0") is ok
+    bad = [
+        ({"x": 1}, "expected LiveState"),
+        (LiveState((1.0, 2.0)), "3 finite numbers"),
+        (LiveState((1.0, float("nan"), 2.0)), "3 finite numbers"),
+        (LiveState(values={"": 1}), "not a name"),
+        (LiveState(values={"a": [1]}), "not a name"),
+        (LiveState(level=3), "level must be"),
+        (LiveState(message=None), "message must be"),
+    ]
+    for s, why in bad:
+        with pytest.raises(EngineError, match=f"^sat_11 live_state at 5: .*{why}"):
+            check_live_state("sat_11", s, "live_state at 5")

@@ -24,7 +24,9 @@ time = the step's / the envelope's t_ns. Data topics are those the hosts subscri
 String topic that appears on the graph (polled while waiting); hosts publish on a topic only once
 the recorder's subscription has matched, so the bag holds every envelope. With a scenario the bag
 also gets the visualisation frames and the plotted series (value so far, bundles in flight:
-bringup/recording/metrics_feed.py). SIGINT/SIGTERM (also sent when its launcher dies,
+bringup/recording/metrics_feed.py); the frames' markers and TF tree are also published live, the
+same bytes (``viz/constellation`` under the run's namespace, ``/tf``, ``/tf_static``;
+bringup/engine/ros/live.py). SIGINT/SIGTERM (also sent when its launcher dies,
 bringup/engine/ros/lifeline.py): the clock tells the hosts to stop and closes the bag (readable).
 
 Authenticated traffic: the clock seals its step messages and checks the MAC (msgs_json/auth.py)
@@ -102,6 +104,7 @@ from bringup.engine.lockstep import (
     encode_msg,
 )
 from bringup.engine.ros.host import QOS_DATA, QOS_SYNC_PUB, QOS_SYNC_SUB, exit_now
+from bringup.engine.ros.live import ClockLive
 from bringup.engine.ros.run_spec import CLOCK_ROLE, RunSpec
 from bringup.recording.bag import BagWriter, string_cdr, string_from_cdr
 from bringup.recording.journal import BagJournal
@@ -109,6 +112,7 @@ from bringup.recording.metrics_feed import MetricsFeed
 from bringup.recording.viz_feed import VizFeed
 from bringup.scenario.world import World
 from msgs_json.envelope import Envelope
+from msgs_json.topics import design_topic
 from msgs_json.wire import decode_envelope, encode_envelope
 
 __all__ = ["ClockError", "LockstepClock", "run_clock"]
@@ -138,8 +142,10 @@ class LockstepClock:
         self.host_rejected: dict[str, dict[str, dict[str, int]]] = {}
         self._stop_requested = False
         self.ctx = Context()
-        rclpy.init(context=self.ctx, signal_handler_options=SignalHandlerOptions.NO)
-        self.node = rclpy.create_node("orbit_clock", context=self.ctx, start_parameter_services=False)
+        rclpy.init(context=self.ctx, args=["constellation", "--ros-args", *spec.ros_args] if spec.ros_args else None,
+                   signal_handler_options=SignalHandlerOptions.NO)
+        self.node = rclpy.create_node("orbit_clock", namespace=spec.namespace or "/", context=self.ctx,
+                                      start_parameter_services=False)
         # only the run's messages get in (MAC under the run key); the rest is counted
         self.gate = Gate(run_key, self.node.get_logger().warning)
         self.executor = EventsExecutor(context=self.ctx)
@@ -177,6 +183,8 @@ class LockstepClock:
                 world = World.load(spec.extra["world"], spec.extra.get("world_key"))
                 self.viz = VizFeed(world)
                 self.metrics = MetricsFeed(world.scenario.value.revisit_zero_s)
+        # the visualisation frames live too (bringup/engine/ros/live.py)
+        self.live = ClockLive(self.node) if self.viz is not None else None
         self.rec_topics: dict[str, object] = {}
         self.rec_counts: dict[str, int] = {}
         self.totals: dict[str, int] = {}
@@ -233,7 +241,9 @@ class LockstepClock:
     def _make_rec_cb(self, topic: str):
         def cb(raw: bytes) -> None:
             text = deserialize_message(raw, String).data
-            env = self.gate.envelope(text, topic)
+            # senders seal the participants' own names (DESIGN.md's): a per-satellite topic moved by
+            # a namespace push or remap is checked under that name and recorded under its own
+            env = self.gate.envelope(text, design_topic(topic))
             if env is None:
                 return
             key = (topic, env.source, env.seq)
@@ -350,7 +360,9 @@ class LockstepClock:
             if self.bag is not None:
                 self.bag.write_raw("/clock", _CLOCK, serialize_message(c), msg.t_ns)
                 if self.viz is not None:
-                    self.viz.write(self.bag, msg.t_ns)
+                    for topic, msgtype, cdr in self.viz.frame(msg.t_ns, self.epoch_ns + msg.t_ns):
+                        self.bag.write_raw(topic, msgtype, cdr, msg.t_ns)
+                        self.live.publish(topic, cdr)
                     self.metrics.write(self.bag, msg.t_ns, in_flight=self.in_flight,
                                        complete=self._observations_recorded())
         text = encode_msg(msg)

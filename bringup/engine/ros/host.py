@@ -2,7 +2,19 @@
 
 Each participant (msgs_json/envelope.py) gets its own rclpy node with ``use_sim_time`` whose
 /clock subscription is remapped away: the host sets every node's clock from the step it runs
-(``set_ros_time_override``; ROS2_NOTES trap 2), so all nodes of a process see the same time.
+(``set_ros_time_override``; ROS2_NOTES trap 2), so all nodes of a process see the same time: the
+scenario's UTC instant (epoch + t_ns), as /clock and the bag.
+
+Names (bringup/engine/ros/naming.py): a satellite's node is ``/<sat>/<sat>`` (under the run's push
+namespace, if any) and names its own topics relatively (``dtn/out``); other participants sit in the
+root namespace and name per-satellite topics relatively too; global topics stay absolute. The run's
+ROS arguments (``ros_args``) apply to every node of the process, so a remap such as
+``-r sat_12:__ns:=/moved/sat_12`` moves a satellite as in any ROS 2 program. Participants keep
+their logical topic names (what they subscribe to and emit, and what their inbox envelopes say);
+the lockstep's counts (hellos' subscriptions, acks' ``sent``, publishers' matching) use the
+resolved names, which are what DDS and the recorder see. Every participant node declares the run's
+settings as read-only parameters (parameter services on), and every ``live_period_s`` of sim time
+the host publishes the participants' live state (bringup/engine/ros/live.py: fixes, /diagnostics).
 Data topics are std_msgs/String carrying wire envelopes (msgs_json/wire.py), RELIABLE + KEEP_ALL;
 /sim/step and /sim/ack are RELIABLE + TRANSIENT_LOCAL (traps 3-4). Subscription callbacks only
 buffer envelopes; the step itself runs in one loop, participants in list order, each inbox sorted
@@ -48,7 +60,7 @@ import signal
 import sys
 import time
 from collections import deque
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 import rclpy
 from rclpy.context import Context
@@ -90,6 +102,8 @@ from bringup.engine.lockstep import (
     decode_resend,
     decode_step,
 )
+from bringup.engine.ros.live import HostLive, declare_run_parameters
+from bringup.engine.ros.naming import node_name_and_namespace, ros_topic_name
 from msgs_json.envelope import Envelope, Participant, StepResult
 
 __all__ = ["QOS_DATA", "QOS_SYNC_PUB", "QOS_SYNC_SUB", "HostError", "ParticipantHost", "exit_now", "run_host"]
@@ -103,7 +117,8 @@ QOS_SYNC_PUB = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=16, reliability
 QOS_SYNC_SUB = QoSProfile(history=HistoryPolicy.KEEP_ALL, reliability=ReliabilityPolicy.RELIABLE,
                           durability=DurabilityPolicy.TRANSIENT_LOCAL)
 _CLOCK_REMAP = ["--ros-args", "-r", "/clock:=/_lockstep/unused_clock"]
-# Fewer entities per node = smaller wait sets per spin (no parameter services, no /rosout writer).
+# Fewer entities per node = smaller wait sets per spin: the host's own node has no parameter
+# services; no node has a /rosout writer (participant nodes have parameter services: run settings).
 _LEAN = {"start_parameter_services": False, "enable_rosout": False}
 
 
@@ -120,6 +135,7 @@ class _Slot:
         self.node = node
         self.inboxes: list[TopicInbox] = []
         self.pubs: dict[str, object] = {}
+        self.ros: dict[str, str] = {}  # logical topic -> the resolved name DDS carries
         self.seq = 0
         self.driven = is_event_driven(p)
         self.wake: int | None = None  # the last StepResult's wakeup and in_flight (they stand on a skipped step)
@@ -132,7 +148,9 @@ class ParticipantHost:
     def __init__(self, role: str, participants: Sequence[Participant], *, run_key: bytes,
                  ack_timeout_s: float = 10.0, startup_timeout_s: float = 60.0, idle_timeout_s: float = 300.0,
                  first_step_timeout_s: float | None = 300.0,
-                 state_path: str | None = None, rejoin_period_s: float = 2.0):
+                 state_path: str | None = None, rejoin_period_s: float = 2.0,
+                 namespace: str = "", ros_args: Sequence[str] = (), epoch_ns: int = 0,
+                 parameters: dict | Callable[[str], dict] | None = None, live_period_s: float | None = None):
         try:
             check_names(participants)
             subs = [check_subscriptions(p.name, p.subscriptions()) for p in participants]
@@ -145,8 +163,11 @@ class ParticipantHost:
         # before the first step the clock may still wait for slower hosts (None: no bound)
         self.first_step_timeout_s = first_step_timeout_s
         self._stop_requested = False
+        self.epoch_ns = int(epoch_ns)
         self.ctx = Context()
-        rclpy.init(context=self.ctx, signal_handler_options=SignalHandlerOptions.NO)
+        # the run's ROS arguments (remaps, ...) apply to every node of this process, as global args
+        rclpy.init(context=self.ctx, args=["constellation", "--ros-args", *ros_args] if ros_args else None,
+                   signal_handler_options=SignalHandlerOptions.NO)
         self.executor = EventsExecutor(context=self.ctx)
         self.host_node = rclpy.create_node(f"host_{role}", context=self.ctx, cli_args=_CLOCK_REMAP, **_LEAN)
         # only the run's messages get in (MAC under the run key); the rest is counted
@@ -157,23 +178,25 @@ class ParticipantHost:
         self.executor.add_node(self.host_node)
         self.slots: list[_Slot] = []
         self.inboxes_by_topic: dict[str, list[TopicInbox]] = {}
+        self.duplicates = 0
         for p, topics in zip(participants, subs, strict=True):
+            name, ns = node_name_and_namespace(p.name, namespace)
             node = rclpy.create_node(
-                p.name, context=self.ctx, cli_args=_CLOCK_REMAP, **_LEAN,
+                name, namespace=ns, context=self.ctx, cli_args=_CLOCK_REMAP, enable_rosout=False,
                 parameter_overrides=[Parameter("use_sim_time", Parameter.Type.BOOL, True)],
             )
+            declare_run_parameters(node, parameters(p.name) if callable(parameters) else (parameters or {}))
             slot = _Slot(p, node)
             for topic in topics:
                 box = TopicInbox(topic)
-                node.create_subscription(String, topic, self._make_cb(box), QOS_DATA)
+                node.create_subscription(String, ros_topic_name(topic, p.name), self._make_cb(box), QOS_DATA)
                 slot.inboxes.append(box)
-                self.inboxes_by_topic.setdefault(topic, []).append(box)
+                self.inboxes_by_topic.setdefault(self._resolved(slot, topic), []).append(box)
             self.executor.add_node(node)
             self.slots.append(slot)
         self.seq_end: dict[str, int] = {}
         self.subs: dict[str, int] = {}
         self.subs_default = 0
-        self.duplicates = 0
         self.rejoin_period_s = rejoin_period_s
         self.host_node.create_subscription(String, RESEND_TOPIC, self._on_resend, QOS_DATA)
         # crash/restart: last wire step done (-1 = none), the ack sent for it, the checkpoint store
@@ -187,6 +210,15 @@ class ParticipantHost:
         self.ckpt = None
         if state_path is not None:
             self._open_checkpoint(state_path)
+        self.live = HostLive(self, self.epoch_ns, live_period_s) if live_period_s else None
+
+    @staticmethod
+    def _resolved(slot: _Slot, topic: str) -> str:
+        """The name DDS carries for ``slot``'s logical ``topic`` (its node's remaps and namespace)."""
+        r = slot.ros.get(topic)
+        if r is None:
+            r = slot.ros[topic] = slot.node.resolve_topic_name(ros_topic_name(topic, slot.name))
+        return r
 
     # -- checkpoints (bringup/engine/checkpoint.py) --------------------------------------------------------
     def _open_checkpoint(self, state_path: str) -> None:
@@ -249,7 +281,7 @@ class ParticipantHost:
             return
         for box in self.inboxes_by_topic.get(r.topic, ()):
             for w in r.wires:
-                env = self.gate.envelope(w, r.topic)
+                env = self.gate.envelope(w, box.topic)  # the participant's own (logical) name
                 if env is not None and not box.add(env):
                     self.duplicates += 1
 
@@ -300,10 +332,11 @@ class ParticipantHost:
     def _publisher(self, slot: _Slot, topic: str):
         pub = slot.pubs.get(topic)
         if pub is None:
-            pub = slot.node.create_publisher(String, topic, QOS_DATA)
-            need = self.subs.get(topic, self.subs_default)
+            pub = slot.node.create_publisher(String, ros_topic_name(topic, slot.name), QOS_DATA)
+            resolved = self._resolved(slot, topic)
+            need = self.subs.get(resolved, self.subs_default)
             self._spin_until(lambda: pub.get_subscription_count() >= need, self.startup_timeout_s,
-                             f"{slot.name}: {topic} matched {pub.get_subscription_count()} of {need} subscriptions")
+                             f"{slot.name}: {resolved} matched {pub.get_subscription_count()} of {need} subscriptions")
             slot.pubs[topic] = pub
         return pub
 
@@ -318,7 +351,8 @@ class ParticipantHost:
             self._publisher(slot, e.topic).publish(String(data=text))
             self._step_wires.append((slot.name, e.topic, text))
             slot.seq += 1
-            sent[e.topic] = sent.get(e.topic, 0) + 1
+            resolved = slot.ros.get(e.topic) or self._resolved(slot, e.topic)
+            sent[resolved] = sent.get(resolved, 0) + 1
 
     def _ack(self, **kw) -> None:
         rej = self.gate.rejections.counts()
@@ -357,7 +391,7 @@ class ParticipantHost:
                 except HostError as exc:
                     short = {b.topic: b.missing(seq_end) for b in boxes if b.missing(seq_end)}
                     raise HostError(f"{exc}: {short}") from None
-            tm = Time(nanoseconds=t)
+            tm = Time(nanoseconds=self.epoch_ns + t)
             for slot in self.slots:
                 slot.node.get_clock().set_ros_time_override(tm)
             for slot in self.slots:
@@ -380,6 +414,11 @@ class ParticipantHost:
                     except Exception as exc:
                         raise HostError(str(failed(slot.name, where, exc))) from exc
                     self._emit(slot, emits, t, where, sent)
+        if self.live is not None and not m.start:  # every live period (sim time) and at the end
+            try:
+                self.live.publish(t, final=m.final)
+            except EngineError as exc:  # a participant's live_state failed or broke the contract
+                raise HostError(str(exc)) from None
         wakes = [s.wake for s in self.slots if s.wake is not None]
         flight = [s.flight for s in self.slots if s.flight is not None]
         ack = dict(k=m.k, t_ns=t, next_wakeup_ns=min(wakes) if wakes else None, sent=sent,

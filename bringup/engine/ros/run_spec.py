@@ -10,6 +10,10 @@ tests can plug in toy participants.
 ``domain_id`` the run's ROS_DOMAIN_ID.
 An optional ``prepare`` hook (same form) readies what processes need before they report ready
 (the scenario's: bringup/scenario/participants.py prepare, the satellites' numba kernels).
+ROS naming: ``namespace`` is pushed in front of every participant node's namespace (as launch's
+PushRosNamespace), ``ros_args`` are ROS arguments every node process gets (``-r`` remaps, ...;
+bringup/engine/ros/naming.py); :meth:`RunSpec.parameters` are the run settings every participant
+node declares, :meth:`RunSpec.live_period_s` how often hosts publish live state.
 
 Oracle: round trip (write -> read is identity) and one-line errors on bad files
 (tests/ros/test_launcher.py).
@@ -24,6 +28,7 @@ from typing import Any
 import msgspec
 
 from bringup.engine.keys import RunKeys
+from bringup.engine.ros.naming import check_namespace
 from bringup.errors import UserError
 from bringup.scenario.config import load_scenario
 
@@ -73,6 +78,10 @@ class RunSpec(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
     # The run's ROS_DOMAIN_ID (the launcher writes it here; informative: the processes get it in
     # their environment).
     domain_id: int | None = None
+    # pushed in front of every participant node's namespace ("" = none; e.g. "/fleet")
+    namespace: str = ""
+    # ROS arguments for every node process (global in its rclpy context), e.g. ["-r", "sat_12:__ns:=/x/sat_12"]
+    ros_args: list[str] = []
     extra: dict[str, Any] = {}
 
     def members(self, role: str) -> list[str]:
@@ -114,6 +123,12 @@ class RunSpec(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
             raise UserError(f"{where}: 'groups' must list each participant once, in non-empty groups")
         if self.prepare is not None and ":" not in self.prepare:
             raise UserError(f"{where}: 'prepare' must be 'module:function', got {self.prepare!r}")
+        try:
+            check_namespace(self.namespace)
+        except ValueError as exc:
+            raise UserError(f"{where}: 'namespace': {exc}") from None
+        if not all(isinstance(a, str) for a in self.ros_args) or "--ros-args" in self.ros_args:
+            raise UserError(f"{where}: 'ros_args' must be ROS arguments (strings) without '--ros-args'")
 
     def keys(self) -> RunKeys:
         """The run's keys, read from ``keys_file`` (one-line UserError when there is none)."""
@@ -127,7 +142,9 @@ class RunSpec(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
             return None
 
         sc = load_scenario(self.scenario)
-        ov = {k: self.overrides.get(k) for k in ("sats", "planes", "hours", "seed")}
+        keys = ("sats", "planes", "hours", "seed", "knowledge", "transiency_min", "gp_spacing_km",
+                "joint_planning", "forwarding", "viz_period_s")
+        ov = {k: self.overrides.get(k) for k in keys}
         if self.seed is not None:
             ov["seed"] = self.seed
         if any(v is not None for v in ov.values()):
@@ -140,6 +157,36 @@ class RunSpec(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
         sc = self.load_scenario()
         return 0 if sc is None else sc.epoch_ns
 
+    def live_period_s(self) -> float | None:
+        """Sim seconds between two live publications of the hosts (the scenario's ``[viz]
+        period_s``); None when the spec names no scenario (toy runs: nothing to show)."""
+        sc = self.load_scenario()
+        return None if sc is None else float(sc.viz.period_s)
+
+    def parameters(self, role: str, process: str | None = None) -> dict[str, Any]:
+        """The run settings the participant node ``role`` declares (read-only ROS parameters):
+        ``run.*`` (role, the OS process hosting it, mode, engine, seed, UTC epoch, horizon, step
+        bound, pacing, namespace) and,
+        with a scenario, its scalar settings by section (``scheduler.replan_period_s``,
+        ``isl.rate_bps``, ...; lists of numbers as arrays, tables of tables left out)."""
+        horizon, max_step = self.bounds_ns()
+        out: dict[str, Any] = {"run.role": role, "run.process": process or role, "run.mode": self.mode, "run.engine": "ros",
+                               "run.horizon_s": horizon / 1e9, "run.max_step_s": max_step / 1e9,
+                               "run.real_time_factor": float(self.real_time_factor or 0.0),
+                               "run.namespace": self.namespace, "run.epoch_ns": self.epoch_ns()}
+        sc = self.load_scenario()
+        if sc is not None:
+            out["run.scenario"] = sc.name
+            out["run.seed"] = int(sc.scenario.seed)
+            out["run.epoch_utc"] = sc.scenario.epoch_utc
+            for section, table in msgspec.to_builtins(sc).items():
+                if isinstance(table, dict):
+                    for k, v in table.items():
+                        p = _parameter_value(v)
+                        if p is not None:
+                            out[f"{section}.{k}"] = p
+        return out
+
     def bounds_ns(self) -> tuple[int, int]:
         """(horizon_ns, max_step_ns): explicit values, else the scenario's."""
         horizon, max_step = self.horizon_ns, self.max_step_ns
@@ -150,6 +197,19 @@ class RunSpec(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
             horizon = sc.horizon_ns if horizon is None else horizon
             max_step = int(round(sc.scenario.lockstep_max_step_s * 1e9)) if max_step is None else max_step
         return int(horizon), int(max_step)
+
+
+def _parameter_value(v):
+    """``v`` as a ROS parameter value (bool, int, float, str, or a non-empty list of one of them), or None."""
+    if isinstance(v, (bool, int, float, str)):
+        return v
+    if isinstance(v, list) and v:
+        for kind in (bool, int, float, str):
+            if all(type(x) is kind for x in v):
+                return list(v)
+        if all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in v):
+            return [float(x) for x in v]
+    return None
 
 
 def load_factory(dotted: str):
