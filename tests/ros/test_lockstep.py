@@ -76,6 +76,22 @@ def test_stalled_participant_is_named(tmp_path):
     assert waited < 60  # bounded: ack timeout (2 s) + start-up + shutdown, not forever
 
 
+def test_slow_first_step_is_waited_for(tmp_path):
+    """Step 0 includes the discovery of every data topic: its ack deadline is at least the clock's
+    _FIRST_STEP_ACK_S (30 s), not the per-step 2 s, so a host 5 s slow in step 0 (its participants'
+    start) is waited for; the same host 5 s slow at a later step is named (the per-step deadline
+    still holds there)."""
+    def run(at_ns):
+        spec = RunSpec(factory="tests.ros.toy_participants:make", roles=toy.roles(3, pingpong=False),
+                       horizon_ns=60 * S, max_step_ns=10 * S, ack_timeout_s=2.0,
+                       extra={"n_counters": 3, "stall": {"role": "c1", "at_ns": at_ns, "sleep_s": 5.0}})
+        return launch(spec, tmp_path / f"at{at_ns}")
+    first = run(-1)
+    assert first.ok, first.message
+    later = run(30 * S)
+    assert not later.ok and "c1" in later.message and "no ack" in later.message, later.message
+
+
 def test_bad_message_is_counted_not_fatal(monkeypatch):
     """A subscription callback fed junk, envelopes without a MAC or with a wrong one counts each by
     reason and keeps going (no exception escapes); only the run's own envelope is buffered."""

@@ -13,14 +13,15 @@ split steps by stamp alone.
 * :class:`Listener` (event-driven, msgs_json/envelope.py rule 1): reads /toy/ping and wakes itself
   every 13 s; it is called only for an inbox or at its wakeup, and reports in finish how often and
   when it was called (role ``pingpong`` hosts it beside ping and pong).
-* :class:`Staller`: a counter that stops answering (sleeps) once sim time passes ``stall_at_ns``.
+* :class:`Staller`: a counter that stops answering (sleeps, once, ``sleep_s``: an hour by default)
+  once sim time passes ``stall_at_ns`` (negative: in its start, the lockstep's step 0).
 * :class:`Breaker`: a counter that breaks the engine contract one way (:data:`BREAKS`) once sim
   time reaches ``at_ns`` (``spec.extra["break"] = {"role": ..., "kind": ..., "at_ns": ...}``).
 
 ``make(spec, role)`` is the run-spec factory: role ``pingpong`` hosts ping and pong in one process,
 role ``c<i>`` hosts counter i (``spec.extra["n_counters"]`` counters in the ring;
 ``blob_every`` (0: no blobs) and ``period_s`` tune the counters;
-``spec.extra["stall"] = {"role": ..., "at_ns": ...}`` makes one a Staller; ``spec.extra["linger"] = role``
+``spec.extra["stall"] = {"role": ..., "at_ns": ..., "sleep_s": ...}`` makes one a Staller; ``spec.extra["linger"] = role``
 makes that role's process ignore SIGTERM and not exit after its run). ``all_participants``
 returns fresh instances of every role's participants, for the local engine reference run.
 ``slow_prepare`` is a run-spec prepare hook that makes chosen processes slow to get ready.
@@ -144,13 +145,22 @@ class Counter:
 
 
 class Staller(Counter):
-    def __init__(self, i: int, n: int, at_ns: int):
+    def __init__(self, i: int, n: int, at_ns: int, sleep_s: float = 3600.0):
         super().__init__(i, n)
         self.at_ns = at_ns
+        self.sleep_s = sleep_s
+        self.slept = False
+
+    def start(self, t0_ns: int) -> StepResult:
+        if self.at_ns < 0:  # slow in the start step (step 0)
+            self.slept = True
+            time.sleep(self.sleep_s)
+        return super().start(t0_ns)
 
     def step(self, t_ns: int, inbox: list[Envelope]) -> StepResult:
-        if t_ns >= self.at_ns:
-            time.sleep(3600)
+        if t_ns >= self.at_ns and not self.slept:
+            self.slept = True
+            time.sleep(self.sleep_s)
         return super().step(t_ns, inbox)
 
 
@@ -213,7 +223,7 @@ def make(spec, role: str, host: bool = True) -> list:
         i = int(role[1:])
         stall = spec.extra.get("stall")
         if stall and stall.get("role") == role:
-            return [Staller(i, n, int(stall["at_ns"]))]
+            return [Staller(i, n, int(stall["at_ns"]), float(stall.get("sleep_s", 3600.0)))]
         brk = spec.extra.get("break")
         if brk and brk.get("role") == role:
             return [Breaker(i, n, brk["kind"], int(brk["at_ns"]))]

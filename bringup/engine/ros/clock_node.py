@@ -15,7 +15,11 @@ Ready is not a step: before step 0 the clock waits for every host's hello (sent 
 participants are built and their numba kernels loaded, bringup/cli/node.py), as long as it takes
 unless the spec bounds it (``startup_timeout_s``), naming every ``_READY_REPORT_S`` the hosts not
 ready yet and how long it has waited (stderr, and a ``waiting`` record on stdout for the launcher's
-progress display); the per-step ack deadline starts with step 0. Oracle for the cold start:
+progress display). Step 0 (the start step) is where the hosts' data publishers wait until the
+subscriptions counted in the hellos have matched (DDS discovery between every pair of endpoints, which
+grows with the endpoints each node has: topics, parameter services), so its ack deadline is at least
+``_FIRST_STEP_ACK_S``; the per-step ``ack_timeout_s`` applies from step 1 on
+(tests/ros/test_lockstep.py: a host 5 s slow in step 0 is waited for, at a later step it is named). Oracle for the cold start:
 tests/system/test_cold_start.py (24 satellites from an empty numba cache).
 
 The same process records every topic into a rosbag2 MCAP bag (bringup/recording/bag.py BagWriter):
@@ -121,6 +125,7 @@ _STRING = "std_msgs/msg/String"
 _CLOCK = "rosgraph_msgs/msg/Clock"
 _QOS_CLOCK = QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT)
 _RESEND_STEPS = 6
+_FIRST_STEP_ACK_S = 30.0  # the start step's ack deadline at least (discovery of the data topics)
 # Wall seconds the clock waits for the recorder before re-announcing the step (clock restart).
 _REANNOUNCE_S = 1.0
 # Wall seconds between two reports of the hosts not ready yet (before step 0).
@@ -495,7 +500,7 @@ class LockstepClock:
                 due = wall0 + (t - self.t0_ns) / 1e9 / spec.real_time_factor
                 self._spin_until(lambda: time.monotonic() >= due, float("inf"), lambda: "")
             self._publish_step(msg)
-            self._wait_acks(k, t)
+            self._wait_acks(k, t, first=msg.start)
             failed = [a for a in self.acks.values() if a.error]
             if failed:
                 raise ClockError("; ".join(f"host {a.participant} failed at step {k}: {a.error}" for a in failed))
@@ -560,8 +565,9 @@ class LockstepClock:
         """How many times this run's clock was restarted (0 without a journal)."""
         return self._incarnation
 
-    def _wait_acks(self, k: int, t: int) -> None:
+    def _wait_acks(self, k: int, t: int, first: bool = False) -> None:
         spec = self.spec
+        timeout = max(spec.ack_timeout_s, _FIRST_STEP_ACK_S) if first else spec.ack_timeout_s
 
         def all_acked() -> bool:
             return len(self.acks) == len(self.roles)
@@ -570,7 +576,7 @@ class LockstepClock:
             return (f"no ack for step {k} (t = {t / 1e9:.3f} s) within {{:g}} s from "
                     + self._who(r for r in self.roles if r not in self.acks))
         try:
-            self._spin_until(all_acked, spec.ack_timeout_s, lambda: who().format(spec.ack_timeout_s))
+            self._spin_until(all_acked, timeout, lambda: who().format(timeout))
         except ClockError as exc:
             if not self.restart:
                 raise
