@@ -54,34 +54,7 @@ import msgspec
 from bench_run import _mem_mib, _tree
 
 from bringup.scenario.config import load_scenario
-
-
-def _toml_value(v) -> str:
-    if isinstance(v, bool):
-        return "true" if v else "false"
-    if isinstance(v, (int, float)):
-        return repr(v)
-    if isinstance(v, str):
-        return json.dumps(v)
-    if isinstance(v, list):
-        return "[" + ", ".join(_toml_value(x) for x in v) + "]"
-    raise TypeError(f"no TOML for {type(v).__name__}")
-
-
-def scenario_toml(raw: dict) -> str:
-    """TOML text of a scenario dict (tables of scalars and lists, and arrays of tables)."""
-    lines = []
-    for table, body in raw.items():
-        scalars = {k: v for k, v in body.items() if not (isinstance(v, list) and v and isinstance(v[0], dict))}
-        lines.append(f"[{table}]")
-        lines += [f"{k} = {_toml_value(v)}" for k, v in scalars.items()]
-        for k, v in body.items():
-            if k not in scalars:
-                for item in v:
-                    lines.append(f"[[{table}.{k}]]")
-                    lines += [f"{kk} = {_toml_value(vv)}" for kk, vv in item.items()]
-        lines.append("")
-    return "\n".join(lines)
+from bringup.scenario.toml_text import to_toml
 
 
 def global_regions() -> list[dict]:
@@ -98,7 +71,7 @@ def scenario_file(regions: str, folder: Path) -> str:
     raw["scenario"]["name"] = "paper-global"
     raw["regions"]["list"] = global_regions()
     path = folder / "paper-global.toml"
-    path.write_text(scenario_toml(raw))
+    path.write_text(to_toml(raw))
     load_scenario(path)  # validated like any scenario file
     return str(path)
 

@@ -3,9 +3,9 @@ through the loader, tests/faults/test_faults_scenario_cli.py through each comman
 
 from __future__ import annotations
 
-import json
-
 import msgspec
+
+from bringup.scenario.toml_text import to_toml  # noqa: F401  (re-exported for the tests)
 
 
 def raw_scenario(sc) -> dict:
@@ -47,36 +47,3 @@ def bad_value(v):
     return "not a list"
 
 
-def _scalar(v) -> str:
-    if isinstance(v, bool):
-        return "true" if v else "false"
-    if isinstance(v, (int, float)):
-        return repr(v)
-    if isinstance(v, str):
-        return json.dumps(v)
-    if isinstance(v, list):
-        return "[" + ", ".join(_scalar(x) for x in v) + "]"
-    raise TypeError(f"cannot write {v!r} as TOML")
-
-
-def to_toml(d: dict, prefix: str = "") -> str:
-    """Minimal TOML writer for the scenario's shape (tables, arrays of tables, scalars, lists)."""
-    lines, subs = [], []
-    for k, v in d.items():
-        if v is None:
-            continue
-        if isinstance(v, dict):
-            subs.append((k, v, False))
-        elif isinstance(v, list) and v and isinstance(v[0], dict):
-            subs.append((k, v, True))
-        else:
-            lines.append(f"{k} = {_scalar(v)}")
-    out = "\n".join(lines) + ("\n" if lines else "")
-    for k, v, many in subs:
-        name = f"{prefix}{k}"
-        if many:
-            for item in v:
-                out += f"\n[[{name}]]\n" + to_toml(item, name + ".")
-        else:
-            out += f"\n[{name}]\n" + to_toml(v, name + ".")
-    return out

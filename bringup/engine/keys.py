@@ -67,20 +67,27 @@ def _check_private(path: Path, st: os.stat_result) -> None:
                         f"readable by others than its owner (chmod 600 {path})")
 
 
-def read_key_file(path: Path) -> bytes:
-    """The BPSec key in ``path`` (hex on one line; owner-only permissions)."""
-    path = Path(path)
+def _read_private(path: Path, what: str, missing: str) -> bytes:
+    """Up to 4097 bytes of an owner-only file (one more than any key file may hold, so the caller
+    sees an oversized one); one-line UserError naming ``what`` when missing, unreadable or open to
+    others."""
     try:
         fd = os.open(path, os.O_RDONLY)
     except FileNotFoundError:
-        raise UserError(f"BPSec key file {path}: no such file") from None
+        raise UserError(f"{what}: {missing}") from None
     except OSError as exc:
-        raise UserError(f"BPSec key file {path}: {exc.strerror}") from None
+        raise UserError(f"{what}: {exc.strerror}") from None
     try:
         _check_private(path, os.fstat(fd))
-        raw = os.read(fd, 4097)
+        return os.read(fd, 4097)
     finally:
         os.close(fd)
+
+
+def read_key_file(path: Path) -> bytes:
+    """The BPSec key in ``path`` (hex on one line; owner-only permissions)."""
+    path = Path(path)
+    raw = _read_private(path, f"BPSec key file {path}", "no such file")
     if len(raw) > 4096:
         raise UserError(f"BPSec key file {path}: larger than 4 KiB: not a key")
     try:
@@ -145,17 +152,7 @@ class RunKeys:
         """Read a file written by :meth:`write`; one-line UserError when missing, open to others or
         malformed."""
         path = Path(path)
-        try:
-            fd = os.open(path, os.O_RDONLY)
-        except FileNotFoundError:
-            raise UserError(f"run keys {path}: no such file (the launcher writes it; is the run over?)") from None
-        except OSError as exc:
-            raise UserError(f"run keys {path}: {exc.strerror}") from None
-        try:
-            _check_private(path, os.fstat(fd))
-            raw = os.read(fd, 4097)
-        finally:
-            os.close(fd)
+        raw = _read_private(path, f"run keys {path}", "no such file (the launcher writes it; is the run over?)")
         try:
             d = json.loads(raw)
             keys = cls(bytes.fromhex(d["run"]), bytes.fromhex(d["bpsec"]), str(d.get("bpsec_from", "")))
