@@ -92,12 +92,7 @@ def store_forward_bound_mean(plan: ContactPlan, traffic: list[TrafficItem], bund
     if per_observation:
         return _per_observation_bound(plan, traffic, bundle_bits, ttl_s_by_priority)
     known = set(plan.nodes)
-    tx_min = bundle_bits / max(c.rate_bps for c in plan.contacts)
-    light_min = min(c.range_light_s for c in plan.contacts)
-    rate_by_src: dict[str, float] = {}
-    for c in plan.contacts:
-        rate_by_src[c.src] = max(rate_by_src.get(c.src, 0.0), c.rate_bps)
-    hops = _hops_within_ttl(plan, traffic, ttl_s_by_priority)
+    tx_min, light_min, rate_by_src, hops = _bound_inputs(plan, traffic, bundle_bits, ttl_s_by_priority)
     radio_free: dict[str, float] = {}
     total, count = 0.0, 0
     for item, h in sorted(zip(traffic, hops), key=lambda x: x[0].t_s):  # the radio serves in creation order
@@ -166,15 +161,22 @@ def floor_mean(plan: ContactPlan, traffic: list[TrafficItem], bundle_bits: int,
     return float(np.mean(hops)) * (tx_min + light_min) if hops else None
 
 
-def _per_observation_bound(plan: ContactPlan, traffic: list[TrafficItem], bundle_bits: int,
-                           ttl_s_by_priority: dict[int, float]) -> float | None:
-    """store_forward_bound_mean with one radio job per observation (module docstring)."""
+def _bound_inputs(plan: ContactPlan, traffic: list[TrafficItem], bundle_bits: int,
+                  ttl_s_by_priority: dict[int, float]):
+    """What both store-and-forward bounds start from: the fastest transmission time, the shortest light
+    time, each source's fastest rate and each bundle's fewest hops within its TTL."""
     tx_min = bundle_bits / max(c.rate_bps for c in plan.contacts)
     light_min = min(c.range_light_s for c in plan.contacts)
     rate_by_src: dict[str, float] = {}
     for c in plan.contacts:
         rate_by_src[c.src] = max(rate_by_src.get(c.src, 0.0), c.rate_bps)
-    hops = _hops_within_ttl(plan, traffic, ttl_s_by_priority)
+    return tx_min, light_min, rate_by_src, _hops_within_ttl(plan, traffic, ttl_s_by_priority)
+
+
+def _per_observation_bound(plan: ContactPlan, traffic: list[TrafficItem], bundle_bits: int,
+                           ttl_s_by_priority: dict[int, float]) -> float | None:
+    """store_forward_bound_mean with one radio job per observation (module docstring)."""
+    tx_min, light_min, rate_by_src, hops = _bound_inputs(plan, traffic, bundle_bits, ttl_s_by_priority)
     obs: dict[tuple, list] = {}  # (source, row, t) -> [t, n deliverable pairs]
     total, count = 0.0, 0
     for item, h in zip(traffic, hops):

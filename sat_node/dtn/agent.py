@@ -222,6 +222,37 @@ class _Group:
         self.parked_bits: Counter = Counter()  # priority -> bits counted on the parked contact
 
 
+def buffered_route(graph, node: str, dest: str, t_s: float, bits: int, deadline_s: float,
+                   parked: dict, priority: int, excluded_contacts, excluded_node, hop_tolerance_s: float,
+                   backlog_buf: np.ndarray, excluded_buf: np.ndarray):
+    """One CGR query with its per-contact inputs in the agent's reusable buffers: the bits parked on
+    each contact at this priority or higher (SABR's first-hop backlog) and the excluded contacts are
+    set for this query and cleared after it (a fresh array per query would cost O(contacts) each: the
+    graph is the constellation's, shared by the process). Both agents route through it."""
+    fb = None
+    fb_set = []
+    if parked:
+        fb = backlog_buf
+        for c, byp in parked.items():
+            x = sum(byp[: priority + 1])
+            if x > 0:
+                fb[c] = x
+                fb_set.append(c)
+    excluded = None
+    if excluded_contacts:
+        excluded = excluded_buf
+        excluded[list(excluded_contacts)] = True
+    try:
+        return graph.route(node, dest, t_s, bits, deadline_s=deadline_s, excluded=excluded,
+                           excluded_nodes=(excluded_node,) if excluded_node else (),
+                           first_backlog_bits=fb, hop_tolerance_s=hop_tolerance_s)
+    finally:
+        if fb_set:
+            fb[fb_set] = 0.0
+        if excluded is not None:
+            excluded[list(excluded_contacts)] = False
+
+
 class BundleAgent:
     def __init__(self, node: str, plan: ContactPlan | ContactGraph, config: AgentConfig, *,
                  store: BundleStore | None = None, on_event: Callable[[BundleEvent], None] | None = None,
@@ -474,32 +505,10 @@ class BundleAgent:
             if (r is not None and r.arrival_s <= deadline_s) or (r is None and deadline_s <= d):
                 h.route_memo = (t_ns, self._version, len(h.excluded), r)
                 return r
-        # the per-contact inputs live in this agent's buffers, set for this query and cleared after
-        # it (a fresh array per query would cost O(contacts) each: the graph is the constellation's)
-        fb = None
-        fb_set = []
-        if self._parked:
-            fb = self._backlog_buf
-            p = h.priority
-            for c, byp in self._parked.items():
-                x = sum(byp[: p + 1])
-                if x > 0:
-                    fb[c] = x
-                    fb_set.append(c)
-        excluded = None
-        if h.excluded:
-            excluded = self._excluded_buf
-            excluded[list(h.excluded)] = True
         self.cgr_queries += 1
-        try:
-            r = self.graph.route(self.node, h.dest, t_ns / _NS, h.bits, deadline_s=deadline_s,
-                                 excluded=excluded, excluded_nodes=(h.excluded_node,) if h.excluded_node else (),
-                                 first_backlog_bits=fb, hop_tolerance_s=self.config.hop_tolerance_s)
-        finally:
-            if fb_set:
-                fb[fb_set] = 0.0
-            if excluded is not None:
-                excluded[list(h.excluded)] = False
+        r = buffered_route(self.graph, self.node, h.dest, t_ns / _NS, h.bits, deadline_s, self._parked,
+                           h.priority, h.excluded, h.excluded_node, self.config.hop_tolerance_s,
+                           self._backlog_buf, self._excluded_buf)
         h.route_memo = (t_ns, self._version, len(h.excluded), r)
         shared[2][key] = (r, deadline_s)
         return r

@@ -63,7 +63,7 @@ import numpy as np
 
 from orbit_clock.contact_plan import ContactPlan, node_name, node_number
 
-from .agent import AgentConfig, BundleAgent, BundleEvent, Transmission, ttl_s_for_priority
+from .agent import AgentConfig, BundleAgent, BundleEvent, Transmission, buffered_route, ttl_s_for_priority
 from .bpsec import IntegrityError, add_bib, verify_bib
 from .bpv7 import Bundle, BundleError, decode_bundle, encode_bundle, ipn
 from .cgr import ContactGraph
@@ -383,31 +383,10 @@ class MulticastAgent:
         h.parked = {}
 
     def _route(self, h: _MHeld, r: _Rcpt, s: int, bits: int):
-        # per-contact inputs in this agent's buffers, set for this query and cleared after it (a fresh
-        # array per query costs O(contacts): the graph is the constellation's, shared by the process)
-        fb = None
-        fb_set = []
-        if self._parked_bits:
-            fb = self._backlog_buf
-            for c, byp in self._parked_bits.items():
-                x = sum(byp[: r.priority + 1])
-                if x > 0:
-                    fb[c] = x
-                    fb_set.append(c)
-        excluded = None
-        if h.excluded:
-            excluded = self._excluded_buf
-            excluded[list(h.excluded)] = True
         self.cgr_queries += 1
-        try:
-            return self.graph.route(self.node, r.name, s / _NS, bits, deadline_s=r.deadline_ns / _NS,
-                                    excluded=excluded, excluded_nodes=(r.from_node,) if r.from_node else (),
-                                    first_backlog_bits=fb, hop_tolerance_s=self.config.hop_tolerance_s)
-        finally:
-            if fb_set:
-                fb[fb_set] = 0.0
-            if excluded is not None:
-                excluded[list(h.excluded)] = False
+        return buffered_route(self.graph, self.node, r.name, s / _NS, bits, r.deadline_ns / _NS,
+                              self._parked_bits, r.priority, h.excluded, r.from_node,
+                              self.config.hop_tolerance_s, self._backlog_buf, self._excluded_buf)
 
     def _next_decision_ns(self) -> int | None:
         while self._wake and self._stale(self._wake[0]):
