@@ -43,6 +43,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from orbit_clock import access_kernels
 from orbit_clock.frames import WGS84_B_KM, geodetic_to_ecef_km
 from orbit_clock.ground_points import GroundPoints
 from orbit_clock.propagation import MU_WGS84_KM3_S2, Constellation
@@ -100,20 +101,27 @@ def for_mask(sat_pos_km: np.ndarray, gp_ecef_km: np.ndarray, max_off_nadir_deg: 
     """(T, G) True where GP g is in the field of regard of the satellite at sat_pos_km[t] (ECEF km):
     within ``max_off_nadir_deg`` of nadir (:func:`off_nadir_deg`) and on the near side of the Earth.
 
-    Only the time rows where some GP may be in the FOR are computed (:func:`_for_rows`, from
-    :func:`for_central_angle_rad`); the others are False. The rows computed get the same per-element
-    arithmetic as the whole array would (tests/unit/test_orbit_access.py compares with
-    :func:`_for_mask_all`).
+    Only the (time, GP chunk) pairs where some GP may be in the FOR are tested (:func:`_for_chunks`,
+    from :func:`for_central_angle_rad`), by the compiled :func:`orbit_clock.access_kernels.for_codes`;
+    the pairs it leaves undecided (near the FOR's edge or the horizon) get the reference arithmetic of
+    :func:`_for_mask_all`, so the mask is the same as :func:`_for_mask_all`'s bit for bit
+    (tests/unit/test_orbit_access.py compares them).
     """
-    sat = np.asarray(sat_pos_km, np.float64)
-    gp = np.asarray(gp_ecef_km, np.float64)
-    rows = _for_rows(sat, gp, max_off_nadir_deg)
-    if rows is None:
+    sat = np.ascontiguousarray(sat_pos_km, np.float64)
+    gp = np.ascontiguousarray(gp_ecef_km, np.float64)
+    chunks = _for_chunks(sat, gp, max_off_nadir_deg)
+    if chunks is None:
         return _for_mask_all(sat, gp, max_off_nadir_deg)
-    out = np.zeros((sat.shape[0], gp.shape[0]), dtype=bool)
+    starts, ends, ok = chunks
+    rows = np.flatnonzero(ok.any(axis=1))
+    codes = np.zeros((sat.shape[0], gp.shape[0]), dtype=np.uint8)
     if len(rows):
-        out[rows] = _for_mask_all(sat[rows], gp, max_off_nadir_deg)
-    return out
+        cos_lim = math.cos(math.radians(float(max_off_nadir_deg)))
+        if access_kernels.for_codes(sat, gp, rows, starts, ends, np.ascontiguousarray(ok[rows]), cos_lim, codes):
+            tt, gg = np.nonzero(codes == 2)
+            s, g = sat[tt], gp[gg]
+            codes[tt, gg] = (off_nadir_deg(s, g) <= max_off_nadir_deg) & (np.sum((s - g) * g, axis=-1) > 0.0)
+    return codes.view(bool)
 
 
 def _for_mask_all(sat_pos_km: np.ndarray, gp_ecef_km: np.ndarray, max_off_nadir_deg: float) -> np.ndarray:
@@ -130,16 +138,25 @@ _FOR_ROWS_MARGIN_DEG = 1.0
 
 
 def _for_rows(sat: np.ndarray, gp: np.ndarray, max_off_nadir_deg: float, chunk: int = 64) -> np.ndarray | None:
-    """Time rows where some GP may be in the FOR (a superset), or None to test every row.
+    """Time rows where some GP may be in the FOR (a superset, :func:`_for_chunks`), or None to test
+    every row."""
+    chunks = _for_chunks(sat, gp, max_off_nadir_deg, chunk)
+    return None if chunks is None else np.flatnonzero(chunks[2].any(axis=1))
 
-    A row is kept when some GP is within :func:`for_central_angle_rad` (largest satellite radius,
-    smallest GP radius) plus ``_FOR_ROWS_MARGIN_DEG`` of the sub-satellite point. The GPs are taken
-    in chunks of ``chunk`` consecutive ids (a region's GPs are consecutive): a chunk is a spherical
-    cap (the mean of its unit vectors and the largest angle from it to one of them), and by the
-    triangle inequality no GP of it is within the bound of a sub-satellite point farther than the
-    bound plus the cap's radius from the cap's centre - one cosine per time and chunk instead of one
-    per time and GP. A chunk also ends where consecutive GPs are more than 0.5 deg apart (the next
-    region), so caps stay small.
+
+def _for_chunks(sat: np.ndarray, gp: np.ndarray, max_off_nadir_deg: float,
+                chunk: int = 64) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """GP chunks and, per time row, the chunks some GP of which may be in the FOR (a superset):
+    ``(starts, ends, ok)`` with ``ok`` (T, chunks) bool, or None to test every pair.
+
+    A chunk is kept at a row when some GP of it may be within :func:`for_central_angle_rad` (largest
+    satellite radius, smallest GP radius) plus ``_FOR_ROWS_MARGIN_DEG`` of the sub-satellite point.
+    The GPs are taken in chunks of ``chunk`` consecutive ids (a region's GPs are consecutive): a chunk
+    is a spherical cap (the mean of its unit vectors and the largest angle from it to one of them),
+    and by the triangle inequality no GP of it is within the bound of a sub-satellite point farther
+    than the bound plus the cap's radius from the cap's centre - one cosine per time and chunk
+    instead of one per time and GP. A chunk also ends where consecutive GPs are more than 0.5 deg
+    apart (the next region), so caps stay small.
     """
     if sat.ndim != 2 or gp.ndim != 2 or sat.shape[1] != 3 or gp.shape[1] != 3 or len(sat) < 2 or len(gp) == 0:
         return None
@@ -149,7 +166,7 @@ def _for_rows(sat: np.ndarray, gp: np.ndarray, max_off_nadir_deg: float, chunk: 
         return None
     r, rho = float(r_s.max()), float(r_g.min())
     if r <= rho:
-        return None  # a satellite at or below a GP's radius: no simple bound, test every row
+        return None  # a satellite at or below a GP's radius: no simple bound, test every pair
     lam = min(math.pi, for_central_angle_rad(r, rho, max_off_nadir_deg) + math.radians(_FOR_ROWS_MARGIN_DEG))
     ug = gp / r_g[:, None]
     n = len(ug)
@@ -163,7 +180,8 @@ def _for_rows(sat: np.ndarray, gp: np.ndarray, max_off_nadir_deg: float, chunk: 
     np.maximum.at(radius, which, np.arccos(cos_to_centre))
     reach = np.minimum(math.pi, lam + radius + 1e-9)
     cos_ang = (sat / r_s[:, None]) @ centre.T  # (T, chunks)
-    return np.flatnonzero((cos_ang >= np.cos(reach)[None, :]).any(axis=1))
+    ends = np.append(starts[1:], n)
+    return starts.astype(np.int64), ends.astype(np.int64), cos_ang >= np.cos(reach)[None, :]
 
 
 def _eta_grid(sat_ecef_km: np.ndarray, gp_ecef_km: np.ndarray):

@@ -1,6 +1,7 @@
 """The satellite's numba kernels, compiled or loaded from numba's cache before their first real use.
 
-The DP scheduler's inner loop (:mod:`sat_node.scheduler.dp_kernels`) and contact graph routing
+The DP scheduler's inner loop (:mod:`sat_node.scheduler.dp_kernels`), the field-of-regard test its
+instances are built with (:mod:`orbit_clock.access_kernels`) and contact graph routing
 (:mod:`sat_node.dtn.cgr`) are ``numba.njit(cache=True)`` functions: the first call in a process
 compiles them (seconds of CPU: ~3 s for the DP on this project's 2-core machine) unless numba's
 on-disk cache holds them (``__pycache__`` beside the sources, or ``NUMBA_CACHE_DIR``); then it loads
@@ -9,8 +10,8 @@ clock of a ROS run, bringup/engine/ros/clock_node.py) calls :func:`warm_up` befo
 ready, and the launcher runs it once before it starts the satellites, so that 24 processes load the
 kernels from the cache instead of all compiling them at once.
 
-:func:`warm_up` runs each kernel through its ordinary caller (``solve_dp`` on a two-step, two-GP
-instance; a CGR route and a one-to-all query on a three-contact plan), so it compiles exactly the
+:func:`warm_up` runs each kernel through its ordinary caller (``solve_dp`` and ``for_mask`` on a
+two-step, two-GP instance; a CGR route and a one-to-all query on a three-contact plan), so it compiles exactly the
 argument types a run uses. How we know it is right: tests/unit/test_kernels_warm_up.py (after
 ``warm_up``, a paper run on the local engine adds no signature to any kernel; a second process with
 the same cache finds every kernel there: cache hits, no misses).
@@ -22,6 +23,8 @@ import time
 
 import numpy as np
 
+from orbit_clock import access_kernels
+from orbit_clock.access import for_mask
 from orbit_clock.contact_plan import Contact, ContactPlan
 from sat_node.acs import SlewModel
 from sat_node.dtn import cgr
@@ -30,10 +33,11 @@ from sat_node.scheduler import build_problem, dp_kernels, solve_dp
 
 __all__ = ["KERNELS", "dispatchers", "warm_up"]
 
-# name -> the kernels it warms (module, function names), for the stats and the tests
+# name -> the kernels it warms ((module, function names), ...), for the stats and the tests; the
+# planner's group holds the DP and the field-of-regard test its instances are built with
 KERNELS = {
-    "dp": (dp_kernels, ("dp_forward", "path_gain", "table_gain", "bit_gain")),
-    "cgr": (cgr, ("_dijkstra", "_first_open")),
+    "dp": ((dp_kernels, ("dp_forward", "path_gain", "table_gain", "bit_gain")), (access_kernels, ("for_codes",))),
+    "cgr": ((cgr, ("_dijkstra", "_first_open")),),
 }
 
 
@@ -41,9 +45,9 @@ def dispatchers(which=tuple(KERNELS)) -> dict[str, object]:
     """``{"module.function": numba dispatcher}`` of the kernels named in ``which``."""
     out = {}
     for name in which:
-        mod, fns = KERNELS[name]
-        for fn in fns:
-            out[f"{mod.__name__}.{fn}"] = getattr(mod, fn)
+        for mod, fns in KERNELS[name]:
+            for fn in fns:
+                out[f"{mod.__name__}.{fn}"] = getattr(mod, fn)
     return out
 
 
@@ -56,6 +60,7 @@ def _dp() -> None:
     solve_dp(p, check=True)  # path bitsets (the window is within the revisit window)
     solve_dp(p, check=True, bit_words=0)  # path tables (same signature)
     solve_dp(p, check=True, table_cells=0, bit_words=0)  # the branch that walks back-pointers
+    for_mask(sat, gp, 55.0)  # the compiled field-of-regard test (both GPs within its bound)
 
 
 def _cgr() -> None:

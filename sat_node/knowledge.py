@@ -106,6 +106,11 @@ class RegionPersistenceView:
         self._info = np.asarray(info_s, np.float64)
         self._t = float(t_now_s)
 
+    @property
+    def frozen_after_s(self) -> float:
+        """Every time from the planning time (or the latest information time, if later) on reads the same."""
+        return max(self._t, float(self._info.max())) if len(self._info) else self._t
+
     def value_at(self, gp_idx, t_s):
         gp, t = np.broadcast_arrays(np.asarray(gp_idx), np.asarray(t_s, np.float64))
         return self._field.value_at(gp, np.minimum(t, self._info[gp]))

@@ -59,7 +59,9 @@ __all__ = ["SOLVERS", "Knowledge", "PersistenceView", "Planner", "PlannerSetting
 
 
 class ValueSource(Protocol):
-    """A value field as a planner knows it: values per GP and time, on 15-min slots."""
+    """A value field as a planner knows it: values per GP and time, on 15-min slots. A view may
+    also say ``frozen_after_s``: from that time on it reads the same at every time (the planner then
+    reads one instant for a window that starts there)."""
 
     def value_at(self, gp_idx, t_s) -> np.ndarray: ...
 
@@ -75,6 +77,11 @@ class PersistenceView:
 
     @property
     def t_known_s(self) -> float:
+        return self._t
+
+    @property
+    def frozen_after_s(self) -> float:
+        """Every time from this one on reads the same values and slot (persistence)."""
         return self._t
 
     def value_at(self, gp_idx, t_s):
@@ -217,11 +224,17 @@ class Planner:
         else:
             ids = np.asarray(gp_ids, dtype=np.int64)
         value = knowledge.value
-        forecast = value.value_at(ids[None, :], times[:, None]).astype(np.float64)
+        # a view that reads every time from ``frozen_after_s`` on as that instant (a persistence
+        # view) has one row for the whole window: computed once, the same numbers as row by row
+        frozen = getattr(value, "frozen_after_s", None)
+        at = times[:1] if frozen is not None and times[0] >= frozen else times
+        forecast = value.value_at(ids[None, :], at[:, None]).astype(np.float64)
         if knowledge.belief is not None and len(ids):
-            absval = knowledge.belief.absval(forecast, ids[None, :], value.slot_of(times)[:, None])
+            absval = knowledge.belief.absval(forecast, ids[None, :], value.slot_of(at)[:, None])
         else:
             absval = forecast
+        if len(at) < len(times):
+            absval = absval[0]  # (G,): build_problem spreads it over the window
         count, recent = prior_state(knowledge.known, ids, times, sat, st.revisit_zero_s)
         init_pos = None
         if init_target_km is not None and init_t_s is not None:

@@ -191,9 +191,8 @@ def plan_violations(p: SchedulingProblem, steps, cols, rule: str = "sequential",
         out.append("steps not strictly increasing")
     if steps.min() < 0 or steps.max() >= p.n_steps or cols.min() < 0 or cols.max() >= p.n_gp:
         return out + ["index out of range"]
-    for k, j in zip(steps, cols):
-        if not p.in_for[k, j]:
-            out.append(f"GP {p.gp_ids[j]} outside the FOR at step {k}")
+    for k, j in zip(steps[~p.in_for[steps, cols]], cols[~p.in_for[steps, cols]]):
+        out.append(f"GP {p.gp_ids[j]} outside the FOR at step {k}")
     u = p.pointing(steps, cols)
     t = p.t0_s + p.step_s * steps
     a0 = angle_between_deg(p.init_unit[None, :], u)
@@ -202,10 +201,18 @@ def plan_violations(p: SchedulingProblem, steps, cols, rule: str = "sequential",
     for i in first:
         if t[i] - p.ready_t_s + tol_s < need0[i]:
             out.append(f"obs {i}: {t[i] - p.ready_t_s:.3f} s from the initial attitude < slew {need0[i]:.3f} s")
-    for i in range(len(steps)):
-        js = range(i + 1, len(steps)) if rule == "pairwise" else range(i + 1, min(i + 2, len(steps)))
-        for jx in js:
-            need = float(p.slew.time_s(angle_between_deg(u[i], u[jx])))
-            if t[jx] - t[i] + tol_s < need:
-                out.append(f"obs {i}->{jx}: {t[jx] - t[i]:.3f} s < slew {need:.3f} s")
+    # each observation against the later ones (pairwise) or the next one (sequential), one array per i
+    # (the same per-pair arithmetic as one pair at a time)
+    last = len(steps) - 1
+    if rule == "sequential" and last > 0:
+        need = p.slew.time_s(angle_between_deg(u[:-1], u[1:]))
+        dt = t[1:] - t[:-1]
+        for i in np.flatnonzero(dt + tol_s < need):
+            out.append(f"obs {i}->{i + 1}: {dt[i]:.3f} s < slew {need[i]:.3f} s")
+    elif rule == "pairwise":
+        for i in range(last):
+            need = p.slew.time_s(angle_between_deg(u[i][None, :], u[i + 1:]))
+            dt = t[i + 1:] - t[i]
+            for jx in np.flatnonzero(dt + tol_s < need):
+                out.append(f"obs {i}->{i + 1 + jx}: {dt[jx]:.3f} s < slew {need[jx]:.3f} s")
     return out

@@ -11,6 +11,7 @@ from orbit_clock import access_windows, access_windows_bruteforce, build_constel
 from orbit_clock.access import (
     RegionPrefilter,
     _eta_grid,
+    _for_chunks,
     _for_mask_all,
     _for_rows,
     for_central_angle_rad,
@@ -118,6 +119,44 @@ def test_for_mask_row_prefilter_equals_full_test():
             b = off_nadir_deg(s[sub][:, None, :], gp[None, :, :])
             assert a.tobytes() == b.tobytes()
     assert kept < total  # the filter drops rows
+
+
+@pytest.mark.parametrize("for_deg", [55.0, 70.0, 0.0])
+def test_for_mask_edge_pairs_use_the_reference(for_deg):
+    """GPs placed on the FOR's edge (off-nadir = the limit, to rounding) and on the horizon of a
+    satellite: the compiled test leaves them undecided (orbit_clock/access_kernels.py) and the mask,
+    which decides them with the reference arithmetic, equals the test of every pair. At 70 deg the FOR
+    reaches past the horizon, so the horizon GPs are the edge; at 0 deg only nadir is in it."""
+    from orbit_clock import access_kernels
+
+    rng = np.random.default_rng(11)
+    rho = 6371.0
+    sats, gps = [], []
+    for _ in range(40):
+        r = rho + float(rng.uniform(400.0, 1500.0))
+        u = rng.normal(size=3)
+        u /= np.linalg.norm(u)
+        sats.append(r * u)
+        eta = np.radians(for_deg)
+        x = r * np.sin(eta) / rho
+        lam_for = np.arcsin(x) - eta if x < 1.0 and eta < np.pi / 2 else np.inf
+        lam_hor = np.arccos(rho / r)
+        for lam in (min(lam_for, lam_hor), lam_hor, 0.0):
+            w = np.cross(u, rng.normal(size=3))
+            w /= np.linalg.norm(w)
+            gps.append(rho * (np.cos(lam) * u + np.sin(lam) * w))
+    sat = np.array(sats)
+    gp = np.array(gps)
+    starts, ends, ok = _for_chunks(sat, gp, for_deg)
+    rows = np.flatnonzero(ok.any(axis=1))
+    codes = np.zeros((len(sat), len(gp)), np.uint8)
+    undecided = access_kernels.for_codes(sat, gp, rows, starts, ends, np.ascontiguousarray(ok[rows]),
+                                         float(np.cos(np.radians(for_deg))), codes)
+    assert undecided >= 40  # every satellite has an edge GP the kernel does not decide
+    full = _for_mask_all(sat, gp, for_deg)
+    assert np.array_equal(for_mask(sat, gp, for_deg), full)
+    if for_deg > 0:  # (at 0 deg the reference's arccos near 1 puts nadir itself ~1e-6 deg off)
+        assert full[np.arange(40), 3 * np.arange(40) + 2].all()  # the nadir GPs
 
 
 @pytest.mark.parametrize("for_deg", [55.0, 70.0])

@@ -166,3 +166,39 @@ def test_solvers_by_name(world):
 def test_settings_from_the_scenario(paper_scenario):
     st = PlannerSettings.from_scenario(paper_scenario)
     assert st.for_off_nadir_deg == 55.0 and st.revisit_zero_s == 900.0 and st.footprint_km == 8.0
+
+
+class _RowByRow:
+    """A view that hides ``frozen_after_s``: the planner reads it at every time of the window."""
+
+    def __init__(self, view):
+        self._view = view
+
+    def value_at(self, gp_idx, t_s):
+        return self._view.value_at(gp_idx, t_s)
+
+    def slot_of(self, t_s):
+        return self._view.slot_of(t_s)
+
+
+def test_frozen_view_is_read_once_with_the_same_instance(world):
+    """A persistence view (PersistenceView, RegionPersistenceView) says it reads every time from its
+    ``frozen_after_s`` on as that instant; the planner then reads one row for the window. Oracle: the
+    same view read row by row gives the same absolute values and the same plan, through a belief and
+    for information times before, at and (a view built by hand) after the window's start."""
+    from sat_node.knowledge import RegionPersistenceView
+
+    SAT, t0 = _busy_starts(world)[0]
+    sat = SatelliteLogic(world, SAT, "distributed", dtn=False)
+    info = np.linspace(0.0, t0 + 300.0, world.n_gp)
+    views = [PersistenceView(world.osse, t0), RegionPersistenceView(world.osse, np.minimum(info, t0), t0),
+             RegionPersistenceView(world.osse, info, t0)]
+    assert views[0].frozen_after_s == views[1].frozen_after_s == t0  # read once
+    assert views[2].frozen_after_s == t0 + 300.0  # later information: not frozen at the window's start
+    for view in views:
+        for belief in (sat.belief, None):
+            a = world.planner.instance(SAT, t0, Knowledge(view, (), belief))
+            b = world.planner.instance(SAT, t0, Knowledge(_RowByRow(view), (), belief))
+            assert a.absval.shape == b.absval.shape and a.absval.tobytes() == b.absval.tobytes()
+            pa, pb = solve_dp(a), solve_dp(b)
+            assert pa.as_list() == pb.as_list() and pa.value == pb.value
