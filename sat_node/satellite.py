@@ -61,7 +61,7 @@ from sat_node.dtn.port import DtnPort, count_rejection
 from sat_node.dtn.store import BundleStore
 from sat_node.inference import Inference, decode_inference, encode_inference
 from sat_node.knowledge import KnowledgeParams, KnowledgeState
-from sat_node.value import Belief, KnownObservation
+from sat_node.value import Belief, KnownLog, KnownObservation
 
 __all__ = ["SatelliteLogic"]
 
@@ -91,7 +91,7 @@ class SatelliteLogic:
         self.sc = sc
         self.belief = Belief.from_scenario(sc, name, world.n_gp, world.osse.n_slots)
         self.kstate = KnowledgeState(KnowledgeParams.from_scenario(sc), name)
-        self.known: list[KnownObservation] = []
+        self.known: KnownLog = KnownLog()  # appended to only (prior_state keeps its columns)
         self._known_keys: set[tuple[int, int, str]] = set()
         self.plan: list[_Item] = []
         self.plan_version = 0

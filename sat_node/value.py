@@ -47,6 +47,7 @@ import numpy as np
 
 __all__ = [
     "Belief",
+    "KnownLog",
     "KnownObservation",
     "ValueLedger",
     "belief_sigma",
@@ -162,6 +163,31 @@ class KnownObservation:
     planned: bool = False
 
 
+class KnownLog(list):
+    """The observations a planner knows of (a list of :class:`KnownObservation`, appended to), with
+    their columns as arrays for :func:`prior_state`, extended as the list grows rather than rebuilt
+    at every plan. Any other iterable of observations works too (its columns built at each call)."""
+
+    def __getstate__(self):
+        return {}  # a checkpoint holds the observations; the columns are rebuilt from them
+
+    def columns(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """(gp int64, t_s float64, source str, planned bool) of every observation, in list order."""
+        n = len(self)
+        c = self.__dict__.get("_columns")
+        if c is None or c[0] > n or (c[0] and self[c[0] - 1] is not c[5]):
+            c = (0, np.zeros(0, np.int64), np.zeros(0, np.float64), np.zeros(0, str), np.zeros(0, bool), None)
+        have = c[0]
+        if have < n:
+            new = self[have:]
+            c = (n, np.concatenate([c[1], np.fromiter((o.gp for o in new), np.int64, n - have)]),
+                 np.concatenate([c[2], np.fromiter((o.t_s for o in new), np.float64, n - have)]),
+                 np.concatenate([c[3], np.array([o.source for o in new], dtype=str)]),
+                 np.concatenate([c[4], np.fromiter((o.planned for o in new), bool, n - have)]), self[n - 1])
+            self.__dict__["_columns"] = c
+        return c[1], c[2], c[3], c[4]
+
+
 def prior_state(known: Iterable[KnownObservation], gp_ids: np.ndarray, times_s: np.ndarray,
                 me: str, revisit_zero_s: float) -> tuple[np.ndarray, np.ndarray]:
     """Per (time, GP): how many known observations come before, and whether one is recent.
@@ -180,25 +206,23 @@ def prior_state(known: Iterable[KnownObservation], gp_ids: np.ndarray, times_s: 
     gp_ids = np.asarray(gp_ids, dtype=np.int64)
     times_s = np.asarray(times_s, dtype=np.float64)
     T, G = len(times_s), len(gp_ids)
-    col = {int(g): j for j, g in enumerate(gp_ids.tolist())}
-    rows = []
-    for ob in known:
-        j = col.get(int(ob.gp))
-        if j is None:
-            continue
-        if ob.planned and ob.source >= me:
-            continue  # own plan or a lower-ranked satellite's: it yields to us
-        rows.append((j, float(ob.t_s), ob.source <= me, bool(ob.planned)))
-    if not rows or T == 0:
+    k_gp, k_t, k_src, k_planned = (known.columns() if isinstance(known, KnownLog)
+                                   else KnownLog(known).columns())
+    col_of = np.full(max(int(gp_ids.max(initial=-1)), int(k_gp.max(initial=-1))) + 1, -1, np.int64)
+    col_of[gp_ids] = np.arange(G)
+    j = np.where(k_gp >= 0, col_of[np.maximum(k_gp, 0)], -1)
+    # own plans and a lower-ranked satellite's yield to us
+    keep = (j >= 0) & ~(k_planned & (k_src >= me)) if len(k_gp) else np.zeros(0, bool)
+    if not keep.any() or T == 0:
         return np.zeros((T, G), dtype=np.int64), np.zeros((T, G), dtype=bool)
     order = None
     if T > 1 and not np.all(times_s[1:] >= times_s[:-1]):
         order = np.argsort(times_s, kind="stable")
         times_s = times_s[order]
-    cols = np.fromiter((r[0] for r in rows), np.int64, len(rows))
-    ts = np.fromiter((r[1] for r in rows), np.float64, len(rows))
-    wins = np.fromiter((r[2] for r in rows), bool, len(rows))  # counts at equal time
-    planned = np.fromiter((r[3] for r in rows), bool, len(rows))
+    cols = j[keep]
+    ts = k_t[keep]
+    wins = k_src[keep] <= me  # counts at equal time
+    planned = k_planned[keep]
     r = float(revisit_zero_s)
     # first time the observation is "before": t > ts, or t == ts when it wins the tie
     start = np.where(wins, np.searchsorted(times_s, ts, "left"), np.searchsorted(times_s, ts, "right"))
@@ -207,7 +231,7 @@ def prior_state(known: Iterable[KnownObservation], gp_ids: np.ndarray, times_s: 
     lo = _first_index(times_s, ts, r, lambda d: d > -r, np.searchsorted(times_s, ts - r, "right"))
     rec_lo = np.where(planned, lo, start)
     rec_hi = np.maximum(end, rec_lo)
-    count = _runs(cols, start, np.full(len(rows), T), T, G)
+    count = _runs(cols, start, np.full(len(cols), T), T, G)
     recent = _runs(cols, rec_lo, rec_hi, T, G) > 0
     if order is not None:
         c2, r2 = np.empty_like(count), np.empty_like(recent)

@@ -6,7 +6,7 @@ import sys
 import numpy as np
 import pytest
 
-from sat_node.value import Belief, KnownObservation, ValueLedger, belief_sigma, prior_state, true_value
+from sat_node.value import Belief, KnownLog, KnownObservation, ValueLedger, belief_sigma, prior_state, true_value
 
 
 def _scalar_eq1(absval, t, last, n, rz):
@@ -121,7 +121,8 @@ def _prior_state_pairwise(known, gp_ids, times_s, me, revisit_zero_s):
 def test_prior_state_equals_pairwise_definition():
     """Random histories on the DP's grid and on unsorted, repeated times, with observations exactly at
     grid times and at grid times +- revisit_zero_s (the boundaries), all source ranks, plans and GPs
-    outside the instance: the run-based prior_state gives the pairwise definition's arrays."""
+    outside the instance: the run-based prior_state gives the pairwise definition's arrays, from a
+    plain list and from a KnownLog that grows between calls."""
     rng = np.random.default_rng(11)
     sats = ["sat_11", "sat_12", "sat_21", "sat_22", "sat_31"]
     for trial in range(60):
@@ -144,6 +145,13 @@ def test_prior_state_equals_pairwise_definition():
         c0, r0 = _prior_state_pairwise(known, gp_ids, times, me, rz)
         assert c.dtype == c0.dtype and r.dtype == r0.dtype
         assert np.array_equal(c, c0) and np.array_equal(r, r0), trial
+        # the same history as a KnownLog grown in three appends (its columns extended, not rebuilt)
+        log = KnownLog()
+        for part in (known[: len(known) // 3], known[len(known) // 3: len(known) // 2], known[len(known) // 2:]):
+            log.extend(part)
+            cl, rl = prior_state(log, gp_ids, times, me, rz)
+            cp, rp = _prior_state_pairwise(list(log), gp_ids, times, me, rz)
+            assert np.array_equal(cl, cp) and np.array_equal(rl, rp), trial
     c, r = prior_state([], np.array([1, 2]), np.array([0.0, 1.0]), "sat_11", 900.0)
     assert c.shape == r.shape == (2, 2) and not c.any() and not r.any()
 
