@@ -64,3 +64,20 @@ def test_max_angle_monotone():
 def test_bad_coefficients_refused(coeffs, margin):
     with pytest.raises(SlewModelError, match="acs.slew_"):
         SlewModel(coeffs, margin)
+
+
+def test_unit_vectors_and_angles_are_the_reductions_bit_for_bit():
+    """unit_vectors and angle_between_deg add a 3-vector's components in order instead of calling
+    numpy's reduction; oracle: the reduction itself (np.linalg.norm's and np.sum's arithmetic) on
+    random vectors of every scale, in 1-D, 2-D and broadcast 3-D shapes - the same bits."""
+    from sat_node.acs import unit_vectors
+
+    rng = np.random.default_rng(3)
+    for shape in [(3,), (5000, 3), (40, 60, 3)]:
+        v = rng.normal(size=shape) * rng.uniform(1e-3, 1e4, size=shape[:-1] + (1,))
+        w = rng.normal(size=shape[-1:] if len(shape) == 3 else shape) * 7000.0
+        ref_u = v / np.sqrt(np.add.reduce(v * v, axis=-1, keepdims=True))
+        assert unit_vectors(v).tobytes() == ref_u.tobytes()
+        ref_w = w / np.sqrt(np.add.reduce(w * w, axis=-1, keepdims=True))
+        ref_a = np.degrees(np.arccos(np.clip(np.sum(ref_u * ref_w, axis=-1), -1.0, 1.0)))
+        assert angle_between_deg(v, w).tobytes() == ref_a.tobytes()
