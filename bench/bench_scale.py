@@ -12,7 +12,9 @@ paper scenario's orbits; `--planes 3` keeps the paper's planes, as `--sats` alon
 child process from this checkout. Printed per size: wall time, CPU time of the process tree (the
 run and its recorder), peak memory (sum of the tree's PSS, sampled every 0.25 s from /proc, as
 bench/bench_run.py does), the run's own figures (observations, bundles created / delivered, envelopes
-on the bus, CGR queries: report.json ``runtime.cgr_queries``, the bundle agents' route searches)
+on the bus, CGR queries: report.json ``runtime.cgr_queries``, the bundle agents' route searches;
+plans: ``schedules.count``, per satellite-hour, and the planners' own CPU seconds,
+``runtime.scheduler_cpu_s_per_sat`` x N)
 and the ratios to the first size, which is the baseline of the same call (24 satellites unless
 ``--sats`` says otherwise). Then the fitted growth exponent b of wall = a * N^b (least squares in
 log-log over every size) and the exponent between the baseline and each size.
@@ -102,6 +104,9 @@ def run_size(n: int, planes: int, args, scenario: str, out: Path) -> dict:
             "peak_pss_mib": round(peak), "observations": rep["observations"]["count"],
             "bundles_created": rep["dtn"]["bundles_created"], "bundles_delivered": rep["dtn"]["bundles_delivered"],
             "envelopes": rt.get("envelopes"), "cgr_queries": rt.get("cgr_queries"),
+            "plans": rep["schedules"]["count"],
+            "plans_per_sat_h": round(rep["schedules"]["count"] / (n * args.hours), 1),
+            "planning_cpu_s": round(rt["scheduler_cpu_s_per_sat"] * n, 1),
             "value": round(rep["value"]["cumulative"]), "load_before": round(load0, 1),
             "load_after": round(os.getloadavg()[0], 1)}
 
@@ -143,7 +148,7 @@ def main() -> int:
         ns = [r["sats"] for r in rows]
         fit = {"wall": round(exponent(ns, [r["wall_s"] for r in rows]), 2),
                "cpu": round(exponent(ns, [r["cpu_s"] for r in rows]), 2)}
-        for k in ("bundles_created", "cgr_queries", "envelopes"):
+        for k in ("bundles_created", "cgr_queries", "envelopes", "plans", "planning_cpu_s"):
             if all(r.get(k) for r in rows):
                 fit[k] = round(exponent(ns, [r[k] for r in rows]), 2)
     doc = {"hours": args.hours, "regions": args.regions, "planning": args.planning, "rows": rows, "fitted_exponent": fit}
@@ -151,11 +156,12 @@ def main() -> int:
         print(json.dumps(doc, indent=2))
         return 0
     print(f"\n{'sats':>5} {'planes':>6} {'wall s':>8} {'x':>6} {'cpu s':>8} {'PSS MiB':>8} {'obs':>6} {'bundles':>8} "
-          f"{'cgr':>9} {'env':>10} {'exp(wall)':>9} {'load':>9}")
+          f"{'cgr':>9} {'env':>10} {'plans/sat-h':>11} {'plan cpu s':>10} {'exp(wall)':>9} {'exp(cpu)':>8} {'load':>9}")
     for r in rows:
         print(f"{r['sats']:>5} {r['planes']:>6} {r['wall_s']:>8.1f} {r['wall_x']:>6.2f} {r['cpu_s']:>8.1f} "
               f"{r['peak_pss_mib']:>8} {r['observations']:>6} {r['bundles_created']:>8} {r['cgr_queries'] or 0:>9} "
-              f"{r['envelopes'] or 0:>10} {r['exp_wall_from_base'] or 0:>9.2f} "
+              f"{r['envelopes'] or 0:>10} {r['plans_per_sat_h']:>11.1f} {r['planning_cpu_s']:>10.1f} "
+              f"{r['exp_wall_from_base'] or 0:>9.2f} {r['exp_cpu_from_base'] or 0:>8.2f} "
               f"{r['load_before']:>4}/{r['load_after']:<4}")
     print(f"{args.hours:g} h, regions {args.regions}, planning {args.planning}")
     print(f"fitted growth exponents (y = a N^b over {', '.join(str(r['sats']) for r in rows)}): {fit}")
