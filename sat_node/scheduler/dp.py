@@ -20,8 +20,9 @@ Exactness (the oracle statements the tests check):
   instances from the paper scenario the DP must reach >= 90 % (the study's figure);
 * the same results with numba compiled and with ``NUMBA_DISABLE_JIT=1`` (subprocess test).
 
-Anytime: steps are processed in chunks; when ``budget_s`` runs out the best node reached so far gives
-a valid plan covering the steps done (``Plan.complete`` is False and ``Plan.steps_done`` says how far).
+Anytime: with ``budget_s``, steps are processed in chunks (without one, in a single kernel call); when
+it runs out the best node reached so far gives a valid plan covering the steps done
+(``Plan.complete`` is False and ``Plan.steps_done`` says how far).
 
 Cost control: predecessors older than ``w_steps`` (the largest possible slew: twice the largest
 off-nadir angle plus the nadir's own rotation over the gap, by the triangle inequality) are always
@@ -129,6 +130,21 @@ def _states(p: SchedulingProblem):
     return ks.astype(np.int64), gs.astype(np.int64), np.ascontiguousarray(u), vf[ks, gs], t_off
 
 
+def _forward(T, budget_s, t_start, t_off, st_k, st_g, st_u, st_vf, st_n1, root_ok, cos_thr, w_steps,
+             revisit_steps, V, bp, order, pref, seen_n, seen_k, seen_b, *, chunk_steps=64) -> int:
+    """Run the kernel over steps 0..T-1 (in chunks of chunk_steps, checking budget_s after each; in
+    one call without a budget); returns the number of steps done."""
+    k = 0
+    while k < T:
+        k_hi = T if budget_s is None else min(T, k + chunk_steps)
+        dp_kernels.dp_forward(k, k_hi, t_off, st_k, st_g, st_u, st_vf, st_n1, root_ok, cos_thr,
+                              w_steps, revisit_steps, V, bp, order, pref, seen_n, seen_k, seen_b)
+        k = k_hi
+        if budget_s is not None and time.perf_counter() - t_start > budget_s:
+            break
+    return k
+
+
 def solve_dp(p: SchedulingProblem, *, budget_s: float | None = None, chunk_steps: int = 64,
              check: bool = True, table_cells: int = TABLE_CELLS, bit_words: int = BIT_WORDS) -> Plan:
     """Best plan the DP finds; anytime with budget_s [s of wall time]; check: verify invariants.
@@ -165,14 +181,8 @@ def solve_dp(p: SchedulingProblem, *, budget_s: float | None = None, chunk_steps
     seen_k = np.zeros(shape, dtype=np.int32)
     seen_b = np.zeros(bshape, dtype=np.uint64)
     T = p.n_steps
-    k = 0
-    while k < T:
-        k_hi = min(T, k + chunk_steps)
-        dp_kernels.dp_forward(k, k_hi, t_off, st_k, st_g, st_u, st_vf, st_n1, root_ok, cos_thr,
-                              w_steps, revisit_steps, V, bp, order, pref, seen_n, seen_k, seen_b)
-        k = k_hi
-        if budget_s is not None and time.perf_counter() - t_start > budget_s:
-            break
+    k = _forward(T, budget_s, t_start, t_off, st_k, st_g, st_u, st_vf, st_n1, root_ok, cos_thr, w_steps,
+                 revisit_steps, V, bp, order, pref, seen_n, seen_k, seen_b, chunk_steps=chunk_steps)
     done = int(t_off[k])
     steps, cols = [], []
     if done > 0 and np.isfinite(V[:done]).any():
