@@ -31,6 +31,7 @@ __all__ = [
     "SlewModel",
     "SlewModelError",
     "angle_between_deg",
+    "dot3",
     "nadir_unit",
     "pointing_unit",
     "slew_angle_deg",
@@ -47,9 +48,9 @@ def unit_vectors(v: np.ndarray) -> np.ndarray:
     v = np.asarray(v, dtype=np.float64)
     # np.linalg.norm(v, axis=-1, keepdims=True) computes exactly this for real input:
     # sqrt(add.reduce(v * v, axis=-1)), which adds a 3-vector's squares in order; written out per
-    # component it is the same sum (tests/unit/test_acs.py checks the bits) without a strided
+    # component (dot3) it is the same sum (tests/unit/test_acs.py checks the bits) without a strided
     # reduction over millions of short rows (this runs for every DP state, plan check and slew)
-    n = np.sqrt(_dot3(v, v))[..., None] if v.ndim and v.shape[-1] == 3 else np.sqrt(
+    n = np.sqrt(dot3(v, v))[..., None] if v.ndim and v.shape[-1] == 3 else np.sqrt(
         np.add.reduce(v * v, axis=-1, keepdims=True))
     if (n == 0.0).any():
         raise ValueError("unit_vectors: zero-length vector (satellite on its target?)")
@@ -70,11 +71,11 @@ def angle_between_deg(u: np.ndarray, v: np.ndarray) -> np.ndarray:
     """Angle [deg] between (not necessarily unit) vectors along the last axis."""
     u = unit_vectors(u)
     v = unit_vectors(v)
-    dot = _dot3(u, v) if u.shape[-1] == 3 and v.shape[-1] == 3 else np.sum(u * v, axis=-1)
+    dot = dot3(u, v) if u.shape[-1] == 3 and v.shape[-1] == 3 else np.sum(u * v, axis=-1)
     return np.degrees(np.arccos(np.clip(dot, -1.0, 1.0)))
 
 
-def _dot3(u: np.ndarray, v: np.ndarray) -> np.ndarray:
+def dot3(u: np.ndarray, v: np.ndarray) -> np.ndarray:
     """``np.sum(u * v, axis=-1)`` of 3-vectors, bit for bit: the products added in order."""
     return (u[..., 0] * v[..., 0] + u[..., 1] * v[..., 1]) + u[..., 2] * v[..., 2]
 

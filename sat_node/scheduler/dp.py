@@ -42,7 +42,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sat_node.acs import angle_between_deg, nadir_unit
+from sat_node.acs import angle_between_deg, dot3, nadir_unit
 from sat_node.scheduler import dp_kernels
 from sat_node.scheduler.problem import SchedulingProblem, evaluate_plan, plan_violations
 
@@ -90,9 +90,10 @@ def make_plan(p: SchedulingProblem, steps, cols, *, complete=True, steps_done=No
                 solve_s=solve_s)
 
 
-def slew_window_steps(p: SchedulingProblem, max_off_nadir_deg: float) -> int:
-    """Smallest gap (steps) after which any slew between FOR targets fits (triangle inequality)."""
-    nad = nadir_unit(p.sat_pos_km)
+def slew_window_steps(p: SchedulingProblem, max_off_nadir_deg: float, nad: np.ndarray | None = None) -> int:
+    """Smallest gap (steps) after which any slew between FOR targets fits (triangle inequality);
+    ``nad``: the instance's nadir unit vectors per step, if the caller has them."""
+    nad = nadir_unit(p.sat_pos_km) if nad is None else nad
     if p.n_steps > 1:
         rate = float(np.max(angle_between_deg(nad[:-1], nad[1:]))) / p.step_s
     else:
@@ -161,9 +162,11 @@ def solve_dp(p: SchedulingProblem, *, budget_s: float | None = None, chunk_steps
     t_s = p.t0_s + p.step_s * st_k
     a0 = angle_between_deg(p.init_unit[None, :], st_u)
     root_ok = p.slew.time_s(a0) <= (t_s - p.ready_t_s) + 1e-9
-    nad = nadir_unit(p.sat_pos_km[st_k])
-    max_off = float(np.max(np.degrees(np.arccos(np.clip(np.sum(nad * st_u, axis=1), -1, 1)))))
-    w_steps = slew_window_steps(p, max_off)
+    nad_t = nadir_unit(p.sat_pos_km)  # per step, then per state (the same numbers, T instead of S rows)
+    nad = nad_t[st_k]
+    # np.sum(nad * st_u, axis=1) added in order (sat_node/acs.py _dot3, bit for bit)
+    max_off = float(np.max(np.degrees(np.arccos(np.clip(dot3(nad, st_u), -1, 1)))))
+    w_steps = slew_window_steps(p, max_off, nad_t)
     amax = _max_angles(p.slew, p.step_s, w_steps)
     # tiny safety margin so the compiled test never accepts what time_s would refuse
     cos_thr = np.where(amax < 0, 2.0, np.cos(np.radians(np.maximum(amax - 1e-9, 0.0))))

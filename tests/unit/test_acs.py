@@ -70,7 +70,7 @@ def test_unit_vectors_and_angles_are_the_reductions_bit_for_bit():
     """unit_vectors and angle_between_deg add a 3-vector's components in order instead of calling
     numpy's reduction; oracle: the reduction itself (np.linalg.norm's and np.sum's arithmetic) on
     random vectors of every scale, in 1-D, 2-D and broadcast 3-D shapes - the same bits."""
-    from sat_node.acs import unit_vectors
+    from sat_node.acs import dot3, unit_vectors
 
     rng = np.random.default_rng(3)
     for shape in [(3,), (5000, 3), (40, 60, 3)]:
@@ -81,3 +81,4 @@ def test_unit_vectors_and_angles_are_the_reductions_bit_for_bit():
         ref_w = w / np.sqrt(np.add.reduce(w * w, axis=-1, keepdims=True))
         ref_a = np.degrees(np.arccos(np.clip(np.sum(ref_u * ref_w, axis=-1), -1.0, 1.0)))
         assert angle_between_deg(v, w).tobytes() == ref_a.tobytes()
+        assert dot3(v, w).tobytes() == np.sum(v * w, axis=-1).tobytes()
