@@ -109,7 +109,7 @@ def for_mask(sat_pos_km: np.ndarray, gp_ecef_km: np.ndarray, max_off_nadir_deg: 
     """
     sat = np.ascontiguousarray(sat_pos_km, np.float64)
     gp = np.ascontiguousarray(gp_ecef_km, np.float64)
-    chunks = _for_chunks(sat, gp, max_off_nadir_deg)
+    chunks = _for_chunks(sat, gp, max_off_nadir_deg) if 0.0 <= max_off_nadir_deg <= 180.0 else None
     if chunks is None:
         return _for_mask_all(sat, gp, max_off_nadir_deg)
     starts, ends, ok = chunks

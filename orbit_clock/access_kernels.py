@@ -8,8 +8,11 @@ in cosine space: ``cos(eta) > cos(limit)`` instead of ``degrees(arccos(cos(eta))
 Its arithmetic is not the reference's (:func:`orbit_clock.access._for_mask_all`, numpy on whole
 arrays), so a pair it finds within ``COS_BAND`` of the limit's cosine, or within ``DOT_BAND`` (relative)
 of the horizon, is marked undecided (2) and the caller decides it with the reference arithmetic: the
-mask is the reference's bit for bit. Both bands are millions of times the rounding of either
-arithmetic (~1e-16 relative), so a pair decided here is decided the same way there.
+mask is the reference's bit for bit. The cosine band is ~1e7 times the rounding of either
+arithmetic (a few 1e-16), the horizon band over a thousand times (its error is at most
+~7e-16 |r_gp| (|r_sat| + |r_gp|)), so a pair decided here is decided the same way there. A pair with
+the satellite on the GP (zero distance) is left undecided too; a field of regard outside 0..180 deg
+never reaches the kernel.
 
 How we know it is right: tests/unit/test_orbit_access.py (test_for_mask_row_prefilter_equals_full_test:
 random orbits and regions, the mask equal to the reference on every pair;
@@ -57,7 +60,12 @@ def for_codes(sat, gp, rows, starts, ends, ok, cos_lim, out):
                 rg = math.sqrt(gx * gx + gy * gy + gz * gz)
                 near = -(dx * gx + dy * gy + dz * gz)  # (r_sat - r_gp) . r_gp
                 band = DOT_BAND * rg * (rs + rg)
-                cos_eta = -(sx * dx + sy * dy + sz * dz) / (rs * dd)
+                den = rs * dd
+                if den == 0.0:  # the satellite on the GP (or at the centre): the reference decides
+                    out[t, g] = 2
+                    undecided += 1
+                    continue
+                cos_eta = -(sx * dx + sy * dy + sz * dz) / den
                 if near > band and cos_eta > cos_lim + COS_BAND:
                     out[t, g] = 1
                 elif not (near < -band or cos_eta < cos_lim - COS_BAND):  # near an edge, or NaN

@@ -76,7 +76,9 @@ def angle_between_deg(u: np.ndarray, v: np.ndarray) -> np.ndarray:
 
 
 def dot3(u: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """``np.sum(u * v, axis=-1)`` of 3-vectors, bit for bit: the products added in order."""
+    """``np.sum(u * v, axis=-1)`` of 3-vectors: the products added in order, as numpy's reduction
+    does - the same bits, but for the sign of an all-zero sum (-0.0 here, +0.0 there: equal
+    numbers, and every caller takes a square root or an arccos of it)."""
     return (u[..., 0] * v[..., 0] + u[..., 1] * v[..., 1]) + u[..., 2] * v[..., 2]
 
 

@@ -33,6 +33,7 @@ import sqlite3
 
 from sat_node.dtn.bpv7 import encode_bundle
 from sat_node.dtn.store import StoredBundle
+from sat_node.value import KnownLog
 
 __all__ = ["persistent_connection", "restore", "snapshot"]
 
@@ -74,6 +75,8 @@ def restore(sat, blob: bytes) -> None:
         port_state["_ev_info"] = {id(ev): info for ev, info in port_state["_ev_info"]}
         vars(sat.port).update(port_state)
     vars(sat).update(state)
+    if not isinstance(sat.known, KnownLog):  # a snapshot from before KnownLog: a plain list
+        sat.known = KnownLog(sat.known)
     report = {"store_rows_added": 0, "store_rows_removed": 0}
     ag = sat.agent
     if ag is not None and agent_state is not None:

@@ -166,10 +166,39 @@ class KnownObservation:
 class KnownLog(list):
     """The observations a planner knows of (a list of :class:`KnownObservation`, appended to), with
     their columns as arrays for :func:`prior_state`, extended as the list grows rather than rebuilt
-    at every plan. Any other iterable of observations works too (its columns built at each call)."""
+    at every plan (any change other than an append drops them). Any other iterable of observations
+    works too (its columns built at each call)."""
 
     def __getstate__(self):
         return {}  # a checkpoint holds the observations; the columns are rebuilt from them
+
+    def _changed(self) -> None:
+        self.__dict__.pop("_columns", None)
+
+    # anything but appending drops the columns (appends extend them at the next read)
+    def __setitem__(self, *a):
+        self._changed()
+        return super().__setitem__(*a)
+
+    def __delitem__(self, *a):
+        self._changed()
+        return super().__delitem__(*a)
+
+    def insert(self, *a):
+        self._changed()
+        return super().insert(*a)
+
+    def remove(self, *a):
+        self._changed()
+        return super().remove(*a)
+
+    def pop(self, *a):
+        self._changed()
+        return super().pop(*a)
+
+    def clear(self):
+        self._changed()
+        return super().clear()
 
     def columns(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """(gp int64, t_s float64, source str, planned bool) of every observation, in list order."""
@@ -206,6 +235,8 @@ def prior_state(known: Iterable[KnownObservation], gp_ids: np.ndarray, times_s: 
     gp_ids = np.asarray(gp_ids, dtype=np.int64)
     times_s = np.asarray(times_s, dtype=np.float64)
     T, G = len(times_s), len(gp_ids)
+    if G and gp_ids.min() < 0:
+        raise ValueError(f"prior_state: GP ids must be >= 0, got {int(gp_ids.min())}")
     k_gp, k_t, k_src, k_planned = (known.columns() if isinstance(known, KnownLog)
                                    else KnownLog(known).columns())
     col_of = np.full(max(int(gp_ids.max(initial=-1)), int(k_gp.max(initial=-1))) + 1, -1, np.int64)

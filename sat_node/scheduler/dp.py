@@ -164,7 +164,7 @@ def solve_dp(p: SchedulingProblem, *, budget_s: float | None = None, chunk_steps
     root_ok = p.slew.time_s(a0) <= (t_s - p.ready_t_s) + 1e-9
     nad_t = nadir_unit(p.sat_pos_km)  # per step, then per state (the same numbers, T instead of S rows)
     nad = nad_t[st_k]
-    # np.sum(nad * st_u, axis=1) added in order (sat_node/acs.py _dot3, bit for bit)
+    # np.sum(nad * st_u, axis=1) added in order (sat_node/acs.py dot3, the same numbers)
     max_off = float(np.max(np.degrees(np.arccos(np.clip(dot3(nad, st_u), -1, 1)))))
     w_steps = slew_window_steps(p, max_off, nad_t)
     amax = _max_angles(p.slew, p.step_s, w_steps)

@@ -155,6 +155,12 @@ def test_for_mask_edge_pairs_use_the_reference(for_deg):
     assert undecided >= 40  # every satellite has an edge GP the kernel does not decide
     full = _for_mask_all(sat, gp, for_deg)
     assert np.array_equal(for_mask(sat, gp, for_deg), full)
+    # a satellite on a GP, and fields of regard outside 0..180 deg: the reference's answer, no error
+    on = np.array([[7000.0, 0.0, 0.0], [6371.0, 10.0, 0.0]])
+    g3 = np.array([[6371.0, 0.0, 0.0], [6371.0, 10.0, 0.0], [0.0, 6371.0, 0.0]])
+    with np.errstate(invalid="ignore", divide="ignore"):  # the reference's 0 / 0 on the GP
+        for deg in (for_deg, -5.0, np.inf):
+            assert np.array_equal(for_mask(on, g3, deg), _for_mask_all(on, g3, deg))
     if for_deg > 0:  # (at 0 deg the reference's arccos near 1 puts nadir itself ~1e-6 deg off)
         assert full[np.arange(40), 3 * np.arange(40) + 2].all()  # the nadir GPs
 

@@ -152,8 +152,16 @@ def test_prior_state_equals_pairwise_definition():
             cl, rl = prior_state(log, gp_ids, times, me, rz)
             cp, rp = _prior_state_pairwise(list(log), gp_ids, times, me, rz)
             assert np.array_equal(cl, cp) and np.array_equal(rl, rp), trial
+        if len(log) > 1:  # a change other than an append: the columns follow it
+            log[0] = KnownObservation(float(times[0]) - 1.0, int(gp_ids[0]), "sat_00")
+            del log[-1]
+            cl, rl = prior_state(log, gp_ids, times, me, rz)
+            cp, rp = _prior_state_pairwise(list(log), gp_ids, times, me, rz)
+            assert np.array_equal(cl, cp) and np.array_equal(rl, rp), trial
     c, r = prior_state([], np.array([1, 2]), np.array([0.0, 1.0]), "sat_11", 900.0)
     assert c.shape == r.shape == (2, 2) and not c.any() and not r.any()
+    with pytest.raises(ValueError, match="GP ids must be >= 0"):
+        prior_state([KnownObservation(1.0, 3, "sat_11")], np.array([-1, 0]), np.array([0.0]), "sat_12", 900.0)
 
 
 def test_value_ledger_equals_eq1_on_each_history():
