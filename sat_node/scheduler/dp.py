@@ -131,6 +131,43 @@ def _states(p: SchedulingProblem):
     return ks.astype(np.int64), gs.astype(np.int64), np.ascontiguousarray(u), vf[ks, gs], t_off
 
 
+def _prepared(p: SchedulingProblem):
+    """The DP's per-state inputs of ``p`` - states (step, column) with a positive first-visit value
+    in row-major order, their pointing vectors, values, prior counts + 1, whether the initial attitude
+    reaches them, their off-nadir angles, and the nadir vectors per step - remembered in the instance.
+
+    An instance derived from another by making some GP columns worth nothing
+    (:func:`sat_node.scheduler.joint.with_forbidden`, ``_cache["forbidden_of"] = (parent, columns)``:
+    the joint planner's branches) has exactly the parent's states without those columns, each with
+    the same numbers: they are taken from the parent's by a mask instead of being computed again
+    (tests/unit/test_speed_paths.py compares the two)."""
+    got = p._cache.get("dp_states")
+    if got is not None:
+        return got
+    derived = p._cache.get("forbidden_of")
+    if derived is not None:
+        parent, cols = derived
+        st_k, st_g, st_u, st_vf, st_n1, root_ok, off_deg, nad_t, _ = _prepared(parent)
+        keep = ~np.isin(st_g, cols)
+        st_k, st_g, st_u, st_vf, st_n1, root_ok, off_deg = (
+            a[keep] for a in (st_k, st_g, st_u, st_vf, st_n1, root_ok, off_deg))
+    else:
+        st_k, st_g, st_u, st_vf, _ = _states(p)
+        st_n1 = (p.prior_count[st_k, st_g] + 1.0).astype(np.float64)
+        t_s = p.t0_s + p.step_s * st_k
+        a0 = angle_between_deg(p.init_unit[None, :], st_u)
+        root_ok = p.slew.time_s(a0) <= (t_s - p.ready_t_s) + 1e-9
+        nad_t = nadir_unit(p.sat_pos_km)  # per step, then per state (the same numbers, T instead of S rows)
+        # np.sum(nad * st_u, axis=1) added in order (sat_node/acs.py dot3, the same numbers)
+        off_deg = np.degrees(np.arccos(np.clip(dot3(nad_t[st_k], st_u), -1, 1)))
+    t_off = np.zeros(p.n_steps + 1, dtype=np.int64)
+    np.cumsum(np.bincount(st_k, minlength=p.n_steps), out=t_off[1:])
+    got = p._cache["dp_states"] = (np.ascontiguousarray(st_k), np.ascontiguousarray(st_g),
+                                   np.ascontiguousarray(st_u), np.ascontiguousarray(st_vf),
+                                   np.ascontiguousarray(st_n1), np.ascontiguousarray(root_ok), off_deg, nad_t, t_off)
+    return got
+
+
 def _forward(T, budget_s, t_start, t_off, st_k, st_g, st_u, st_vf, st_n1, root_ok, cos_thr, w_steps,
              revisit_steps, V, bp, order, pref, seen_n, seen_k, seen_b, *, chunk_steps=64) -> int:
     """Run the kernel over steps 0..T-1 (in chunks of chunk_steps, checking budget_s after each; in
@@ -154,18 +191,11 @@ def solve_dp(p: SchedulingProblem, *, budget_s: float | None = None, chunk_steps
     words for its path bitsets, used when the window lies within the revisit window (beyond both: it
     walks the paths; the same plan every way)."""
     t_start = time.perf_counter()
-    st_k, st_g, st_u, st_vf, t_off = _states(p)
+    st_k, st_g, st_u, st_vf, st_n1, root_ok, off_deg, nad_t, t_off = _prepared(p)
     S = len(st_k)
     if S == 0:
         return make_plan(p, [], [], solve_s=time.perf_counter() - t_start)
-    st_n1 = (p.prior_count[st_k, st_g] + 1.0).astype(np.float64)
-    t_s = p.t0_s + p.step_s * st_k
-    a0 = angle_between_deg(p.init_unit[None, :], st_u)
-    root_ok = p.slew.time_s(a0) <= (t_s - p.ready_t_s) + 1e-9
-    nad_t = nadir_unit(p.sat_pos_km)  # per step, then per state (the same numbers, T instead of S rows)
-    nad = nad_t[st_k]
-    # np.sum(nad * st_u, axis=1) added in order (sat_node/acs.py dot3, the same numbers)
-    max_off = float(np.max(np.degrees(np.arccos(np.clip(dot3(nad, st_u), -1, 1)))))
+    max_off = float(np.max(off_deg))
     w_steps = slew_window_steps(p, max_off, nad_t)
     amax = _max_angles(p.slew, p.step_s, w_steps)
     # tiny safety margin so the compiled test never accepts what time_s would refuse

@@ -72,7 +72,8 @@ def with_forbidden(p: SchedulingProblem, gp_ids) -> SchedulingProblem:
         return p
     a = p.absval.copy()
     a[:, cols] = 0.0
-    return dataclasses.replace(p, absval=a, _cache={})
+    # the DP takes this instance's states from p's (sat_node/scheduler/dp.py _prepared)
+    return dataclasses.replace(p, absval=a, _cache={"forbidden_of": (p, cols)})
 
 
 def with_claims(p: SchedulingProblem, claims) -> SchedulingProblem:

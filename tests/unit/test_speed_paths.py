@@ -333,6 +333,38 @@ def test_dp_path_tables_equal_path_walks():
     assert bitsets >= 3  # and the multi-word bitsets
 
 
+def test_dp_states_of_a_forbidden_branch_equal_fresh_ones():
+    """The joint planner's branches (joint.with_forbidden: some GPs worth nothing) take their DP
+    states from the parent instance's by a mask (sat_node/scheduler/dp.py _prepared); oracle: the
+    same branch with that link cut (its states computed from its own arrays) - the same per-state
+    arrays bit for bit and the same plan, for forbidden sets small and large."""
+    import dataclasses
+
+    import numpy as np
+    from dp_instances import random_instance
+
+    from sat_node.scheduler import solve_dp
+    from sat_node.scheduler.dp import _prepared
+    from sat_node.scheduler.joint import with_forbidden
+
+    rng = np.random.default_rng(4)
+    checked = 0
+    for seed in range(24):
+        p = random_instance(seed, n_gp=3 + (seed * 7) % 90, n_steps=60 + 7 * seed, max_window=10 + 4 * seed,
+                            revisit_zero_s=[12.0, 900.0][seed % 2], spread_deg=6.0, prior=seed % 2 == 0)
+        solve_dp(p)  # the parent's states are made and kept first, as in the joint planner
+        for frac in (0.1, 0.5, 0.9):
+            gone = rng.choice(p.gp_ids, size=max(1, int(frac * p.n_gp)), replace=False)
+            child = with_forbidden(p, gone.tolist())
+            fresh = dataclasses.replace(child, _cache={})
+            for a, b in zip(_prepared(child), _prepared(fresh)):
+                assert a.dtype == b.dtype and a.tobytes() == b.tobytes(), seed
+            x, y = solve_dp(child), solve_dp(fresh)
+            assert x.as_list() == y.as_list() and x.value == y.value, seed
+            checked += len(x) > 0
+    assert checked >= 30
+
+
 def test_viz_feed_links_equal_contact_scan():
     from types import SimpleNamespace
 
