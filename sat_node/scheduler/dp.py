@@ -122,6 +122,7 @@ def _max_angles(slew, step_s: float, w_steps: int) -> np.ndarray:
 
 
 def _states(p: SchedulingProblem):
+    """The DP's states from the instance's arrays in numpy (the reference of dp_kernels.dp_states)."""
     vf = p.v_first
     ks, gs = np.nonzero(vf > 0.0)  # row-major: sorted by step then GP column
     T = p.n_steps
@@ -133,8 +134,9 @@ def _states(p: SchedulingProblem):
 
 def _prepared(p: SchedulingProblem):
     """The DP's per-state inputs of ``p`` - states (step, column) with a positive first-visit value
-    in row-major order, their pointing vectors, values, prior counts + 1, whether the initial attitude
-    reaches them, their off-nadir angles, and the nadir vectors per step - remembered in the instance.
+    in row-major order (one compiled pass, :func:`dp_kernels.dp_states`), their pointing vectors,
+    values, prior counts + 1, whether the initial attitude reaches them, their off-nadir angles, and
+    the nadir vectors per step - remembered in the instance.
 
     An instance derived from another by making some GP columns worth nothing
     (:func:`sat_node.scheduler.joint.with_forbidden`, ``_cache["forbidden_of"] = (parent, columns)``:
@@ -152,7 +154,10 @@ def _prepared(p: SchedulingProblem):
         st_k, st_g, st_u, st_vf, st_n1, root_ok, off_deg = (
             a[keep] for a in (st_k, st_g, st_u, st_vf, st_n1, root_ok, off_deg))
     else:
-        st_k, st_g, st_u, st_vf, _ = _states(p)
+        st_k, st_g, st_u, st_vf, _, zero = dp_kernels.dp_states(p.in_for, p.prior_recent, p.absval, p.prior_count,
+                                                                p.sat_pos_km, p.gp_ecef_km)
+        if zero:
+            raise ValueError("unit_vectors: zero-length vector (satellite on its target?)")
         st_n1 = (p.prior_count[st_k, st_g] + 1.0).astype(np.float64)
         t_s = p.t0_s + p.step_s * st_k
         a0 = angle_between_deg(p.init_unit[None, :], st_u)

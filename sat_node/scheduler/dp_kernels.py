@@ -43,10 +43,12 @@ tests/unit/test_speed_paths.py (path tables equal path walks).
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from numba import config, njit
 
-__all__ = ["bit_gain", "dp_forward", "path_gain", "table_gain"]
+__all__ = ["bit_gain", "dp_forward", "dp_states", "path_gain", "table_gain"]
 
 
 @njit(cache=True)
@@ -368,3 +370,50 @@ def dp_forward(k_lo, k_hi, t_off, st_k, st_g, st_u, st_vf, st_n1, root_ok, cos_t
             plo = lo
             phi = hi
         _index_step(k, t_off, order, V, st_u, w_steps, Vs, us, seen_b, first_off, cum)
+
+
+@njit(cache=True)
+def dp_states(in_for, prior_recent, absval, prior_count, sat, gp):
+    """The DP's states in one pass over the instance's (step, GP column) grid: those with a positive
+    first-visit value ``absval / (prior_count + 1)`` in the FOR and not recently seen, in row-major
+    order, with that value and the unit satellite-to-GP vector - the numbers of
+    :func:`sat_node.scheduler.dp._states` (``SchedulingProblem.v_first`` and ``pointing``: the same
+    IEEE operations in the same order, tests/unit/test_speed_paths.py compares the bits).
+    Returns (st_k, st_g, st_u, st_vf, t_off, zero_length) - the last True if a satellite sat on a GP."""
+    T, G = in_for.shape
+    n = 0
+    for k in range(T):
+        for g in range(G):
+            if in_for[k, g] and not prior_recent[k, g]:
+                if absval[k, g] / (prior_count[k, g] + 1.0) > 0.0:
+                    n += 1
+    st_k = np.empty(n, np.int64)
+    st_g = np.empty(n, np.int64)
+    st_u = np.empty((n, 3))
+    st_vf = np.empty(n)
+    t_off = np.zeros(T + 1, np.int64)
+    zero = False
+    i = 0
+    for k in range(T):
+        t_off[k] = i
+        sx = sat[k, 0]
+        sy = sat[k, 1]
+        sz = sat[k, 2]
+        for g in range(G):
+            if in_for[k, g] and not prior_recent[k, g]:
+                v = absval[k, g] / (prior_count[k, g] + 1.0)
+                if v > 0.0:
+                    dx = gp[g, 0] - sx
+                    dy = gp[g, 1] - sy
+                    dz = gp[g, 2] - sz
+                    nn = math.sqrt((dx * dx + dy * dy) + dz * dz)
+                    zero = zero or nn == 0.0
+                    st_k[i] = k
+                    st_g[i] = g
+                    st_vf[i] = v
+                    st_u[i, 0] = dx / nn
+                    st_u[i, 1] = dy / nn
+                    st_u[i, 2] = dz / nn
+                    i += 1
+    t_off[T] = i
+    return st_k, st_g, st_u, st_vf, t_off, zero

@@ -333,6 +333,29 @@ def test_dp_path_tables_equal_path_walks():
     assert bitsets >= 3  # and the multi-word bitsets
 
 
+def test_compiled_dp_states_equal_the_numpy_ones():
+    """dp_kernels.dp_states (one compiled pass over the grid) gives the states of dp._states
+    (SchedulingProblem.v_first and pointing in numpy): the same steps, columns, first-visit values
+    and unit vectors, bit for bit, on random instances with and without prior observations."""
+    import numpy as np
+    from dp_instances import random_instance
+
+    from sat_node.scheduler import dp_kernels
+    from sat_node.scheduler.dp import _states
+
+    n = 0
+    for seed in range(30):
+        p = random_instance(seed, n_gp=3 + (seed * 11) % 120, n_steps=40 + 9 * seed, max_window=10 + 4 * seed,
+                            revisit_zero_s=[12.0, 900.0][seed % 2], spread_deg=6.0, prior=seed % 3 != 0)
+        ref = _states(p)
+        got = dp_kernels.dp_states(p.in_for, p.prior_recent, p.absval, p.prior_count, p.sat_pos_km, p.gp_ecef_km)
+        assert not got[5]
+        for a, b in zip(got[:5], (ref[0], ref[1], ref[2], ref[3], ref[4])):
+            assert a.dtype == b.dtype and a.shape == b.shape and a.tobytes() == b.tobytes(), seed
+        n += len(ref[0])
+    assert n > 1000
+
+
 def test_dp_states_of_a_forbidden_branch_equal_fresh_ones():
     """The joint planner's branches (joint.with_forbidden: some GPs worth nothing) take their DP
     states from the parent instance's by a mask (sat_node/scheduler/dp.py _prepared); oracle: the
