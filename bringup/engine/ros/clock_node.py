@@ -59,7 +59,9 @@ transaction, everything recorded through step k-1 plus its checkpoint: k, t_ns, 
 the hosts' hellos, the recorded topics and the visualisation cursor. It commits only once the
 recorder holds every envelope the acks of step k-1 counted, so the journal has no gap. The
 launcher restarts a clock that crashed; the new one loads the checkpoint (its dedupe keys, counts
-and re-send buffer come from the journal's rows) and publishes step k again. Hosts that had not run
+and re-send buffer come from the journal's rows) and publishes step k again, every ``_REANNOUNCE_S``
+until every host has acked it (a host whose subscription had not matched the new clock's publisher
+yet would miss a single publication, and its ack the new clock's subscription). Hosts that had not run
 step k run it; hosts that had (``k == done_k``) answer with their saved ack and re-publish the
 envelopes of that step (bringup/engine/ros/host.py), which receivers drop as duplicates and the new
 recorder records once; no step runs twice. Envelopes the new recorder still misses after 1 s (its
@@ -487,6 +489,7 @@ class LockstepClock:
             wall_done = 0.0
         wall0 = time.monotonic() - wall_done
         next_progress = time.monotonic() + spec.progress_period_s
+        resumed_step = self.resumed is not None
         self.running = True
         while True:
             self.acks.clear()
@@ -500,7 +503,11 @@ class LockstepClock:
                 due = wall0 + (t - self.t0_ns) / 1e9 / spec.real_time_factor
                 self._spin_until(lambda: time.monotonic() >= due, float("inf"), lambda: "")
             self._publish_step(msg)
-            self._wait_acks(k, t, first=msg.start)
+            # the first step of a restarted clock is published before every host's subscription has
+            # matched the new publisher (and their acks before its subscription has): re-announced
+            # until every ack is in (hosts that ran it answer with their saved ack)
+            self._wait_acks(k, t, first=msg.start, reannounce=msg if resumed_step else None)
+            resumed_step = False
             failed = [a for a in self.acks.values() if a.error]
             if failed:
                 raise ClockError("; ".join(f"host {a.participant} failed at step {k}: {a.error}" for a in failed))
@@ -565,7 +572,9 @@ class LockstepClock:
         """How many times this run's clock was restarted (0 without a journal)."""
         return self._incarnation
 
-    def _wait_acks(self, k: int, t: int, first: bool = False) -> None:
+    def _wait_acks(self, k: int, t: int, first: bool = False, reannounce: StepMsg | None = None) -> None:
+        """Every host's ack of step k within the ack deadline (then, with restarts, the restart wait);
+        ``reannounce``: the step message, published again every ``_REANNOUNCE_S`` while acks miss."""
         spec = self.spec
         timeout = max(spec.ack_timeout_s, _FIRST_STEP_ACK_S) if first else spec.ack_timeout_s
 
@@ -576,6 +585,20 @@ class LockstepClock:
             return (f"no ack for step {k} (t = {t / 1e9:.3f} s) within {{:g}} s from "
                     + self._who(r for r in self.roles if r not in self.acks))
         try:
+            if reannounce is not None:
+                deadline = time.monotonic() + timeout
+                while True:
+                    try:
+                        self._spin_until(all_acked, min(_REANNOUNCE_S, max(0.0, deadline - time.monotonic())),
+                                         lambda: who().format(timeout))
+                        break
+                    except ClockError:
+                        if time.monotonic() >= deadline:
+                            raise
+                        self.reannounces += 1
+                        print(f"clock: {who().format(_REANNOUNCE_S)} after the restart; step re-announced",
+                              file=sys.stderr, flush=True)
+                        self.step_pub.publish(String(data=self.gate.sealed(STEP_TOPIC, reannounce)))
             self._spin_until(all_acked, timeout, lambda: who().format(timeout))
         except ClockError as exc:
             if not self.restart:
