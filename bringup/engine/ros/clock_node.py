@@ -453,17 +453,25 @@ class LockstepClock:
         Every ``_REANNOUNCE_S`` without them the step is published again (not recorded): hosts that
         ran it re-send its envelopes."""
         spec = self.spec
-        deadline = time.monotonic() + spec.ack_timeout_s + spec.restart_wait_s
-        while not self._recorded_all():
+        self._spin_reannouncing(self._recorded_all, spec.ack_timeout_s + spec.restart_wait_s, msg,
+                                lambda: f"recorder is missing envelopes of step {msg.k}: {self._missing()}",
+                                lambda: f"recorder misses {self._missing()} after step {msg.k}")
+
+    def _spin_reannouncing(self, cond, timeout_s: float, msg: StepMsg, on_timeout, why) -> None:
+        """:meth:`_spin_until`, publishing the step ``msg`` again every ``_REANNOUNCE_S`` while
+        ``cond`` is false (hosts that ran it answer with their saved ack and re-send its envelopes);
+        ``why()``: what is missing, for the stderr line of each re-announcement."""
+        deadline = time.monotonic() + timeout_s
+        while True:
             try:
-                self._spin_until(self._recorded_all, _REANNOUNCE_S, lambda: "")
+                self._spin_until(cond, min(_REANNOUNCE_S, max(0.0, deadline - time.monotonic())), on_timeout)
+                return
             except ClockError:
-                if time.monotonic() > deadline:
-                    raise ClockError(f"recorder is missing envelopes of step {msg.k}: {self._missing()}") from None
-                self.reannounces += 1
-                print(f"clock: recorder misses {self._missing()} after step {msg.k}; step re-announced",
-                      file=sys.stderr, flush=True)
-                self.step_pub.publish(String(data=self.gate.sealed(STEP_TOPIC, msg)))
+                if time.monotonic() >= deadline:
+                    raise
+            self.reannounces += 1
+            print(f"clock: {why()}; step re-announced", file=sys.stderr, flush=True)
+            self.step_pub.publish(String(data=self.gate.sealed(STEP_TOPIC, msg)))
 
     # -- the run ------------------------------------------------------------------------------------
     def run(self) -> int:
@@ -586,20 +594,10 @@ class LockstepClock:
                     + self._who(r for r in self.roles if r not in self.acks))
         try:
             if reannounce is not None:
-                deadline = time.monotonic() + timeout
-                while True:
-                    try:
-                        self._spin_until(all_acked, min(_REANNOUNCE_S, max(0.0, deadline - time.monotonic())),
-                                         lambda: who().format(timeout))
-                        break
-                    except ClockError:
-                        if time.monotonic() >= deadline:
-                            raise
-                        self.reannounces += 1
-                        print(f"clock: {who().format(_REANNOUNCE_S)} after the restart; step re-announced",
-                              file=sys.stderr, flush=True)
-                        self.step_pub.publish(String(data=self.gate.sealed(STEP_TOPIC, reannounce)))
-            self._spin_until(all_acked, timeout, lambda: who().format(timeout))
+                self._spin_reannouncing(all_acked, timeout, reannounce, lambda: who().format(timeout),
+                                        lambda: who().format(_REANNOUNCE_S) + " after the restart")
+            else:
+                self._spin_until(all_acked, timeout, lambda: who().format(timeout))
         except ClockError as exc:
             if not self.restart:
                 raise
