@@ -225,10 +225,19 @@ class _Group:
 def buffered_route(graph, node: str, dest: str, t_s: float, bits: int, deadline_s: float,
                    parked: dict, priority: int, excluded_contacts, excluded_node, hop_tolerance_s: float,
                    backlog_buf: np.ndarray, excluded_buf: np.ndarray):
-    """One CGR query with its per-contact inputs in the agent's reusable buffers: the bits parked on
-    each contact at this priority or higher (SABR's first-hop backlog) and the excluded contacts are
-    set for this query and cleared after it (a fresh array per query would cost O(contacts) each: the
-    graph is the constellation's, shared by the process). Both agents route through it."""
+    """:func:`buffered_routes` to one destination."""
+    return buffered_routes(graph, node, [(dest, deadline_s)], t_s, bits, parked, priority, excluded_contacts,
+                           excluded_node, hop_tolerance_s, backlog_buf, excluded_buf)[0]
+
+
+def buffered_routes(graph, node: str, dests, t_s: float, bits: int, parked: dict, priority: int,
+                    excluded_contacts, excluded_node, hop_tolerance_s: float, backlog_buf: np.ndarray,
+                    excluded_buf: np.ndarray) -> list:
+    """CGR routes to ``dests`` [(node, deadline [s])] from one search (ContactGraph.routes), with the
+    per-contact inputs in the agent's reusable buffers: the bits parked on each contact at this
+    priority or higher (SABR's first-hop backlog) and the excluded contacts are set for this query
+    and cleared after it (a fresh array per query would cost O(contacts) each: the graph is the
+    constellation's, shared by the process). Both agents route through it."""
     fb = None
     fb_set = []
     if parked:
@@ -243,9 +252,9 @@ def buffered_route(graph, node: str, dest: str, t_s: float, bits: int, deadline_
         excluded = excluded_buf
         excluded[list(excluded_contacts)] = True
     try:
-        return graph.route(node, dest, t_s, bits, deadline_s=deadline_s, excluded=excluded,
-                           excluded_nodes=(excluded_node,) if excluded_node else (),
-                           first_backlog_bits=fb, hop_tolerance_s=hop_tolerance_s)
+        return graph.routes(node, dests, t_s, bits, excluded=excluded,
+                            excluded_nodes=(excluded_node,) if excluded_node else (),
+                            first_backlog_bits=fb, hop_tolerance_s=hop_tolerance_s)
     finally:
         if fb_set:
             fb[fb_set] = 0.0

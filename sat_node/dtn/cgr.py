@@ -15,8 +15,14 @@ through a loop is dominated by the same path without the loop (no earlier, more 
 never repeat a node (checked on every route returned): no loops. Contacts
 missed or failed are excluded by the caller (``excluded`` mask) and the route recomputed.
 
+One search serves every destination that shares the query's source, time, size, backlog and
+exclusions (:meth:`ContactGraph.routes`: a multicast bundle's recipients at one node), with the same
+route for each as its own search: the search runs to the latest of their deadlines and stops once
+every destination has been reached (the argument is in :func:`_dijkstra`'s docstring).
+
 Not done: Yen's k-shortest route lists (we recompute per bundle, which is cheap enough: see
-bench/bench_dtn.py), multicast, anticipatory fragmentation.
+bench/bench_dtn.py), route reuse across instants (a route found at t is not kept for a bundle at
+t' > t: the queues and contacts it depends on change), anticipatory fragmentation.
 
 How we know it is right: hand-worked drawn plans (tests/unit/test_cgr.py), an independent
 brute-force search over every simple path on random plans with zero mismatches in arrival and hop
@@ -46,24 +52,35 @@ INF = np.inf
 
 @numba.njit(cache=True)
 def _dijkstra(start, end, src, dst, rate, owlt, residual, out_ptr, out_idx, out_maxend, excluded,
-              node_excluded, source, dest, t0, bits, backlog_bits, deadline, arr, pred, first_backlog,
-              hop_tol, stamp, qid):
+              node_excluded, source, is_dest, n_dests, t0, bits, backlog_bits, deadline, arr, pred, first_backlog,
+              hop_tol, stamp, qid, found_c, found_h):
     """Label-setting search over (contact, hop count) states with Pareto pruning.
 
     First hop on contact c starts at max(t0 + backlog_bits / rate, start) + first_backlog[c] / rate
     (first_backlog: bits already waiting for that very contact, sent when it opens).
-    hop_tol >= 0: among routes arriving no later than the earliest arrival + hop_tol, the one with
-    fewest hops (then earliest arrival) is chosen; hop_tol = 0 is the plain SABR order.
 
     arr[c, h]: earliest arrival at dst[c] over routes ending with contact c after h hops; pred[c, h]:
     the contact before c on that route (-1 first hop). A label is kept only if no label of the same
     contact with fewer-or-equal hops arrives no later. States pop in (arrival, hops, contact) order,
-    so the first one reaching ``dest`` is the SABR choice. Returns (contact, hops) or (-1, 0).
-    dest < 0: no early stop (one-to-all). arr/pred rows are valid only where stamp[c] == qid (rows are
-    reset on first touch, so the arrays are reused across queries without clearing them).
+    so the first one popped at a destination is the SABR choice for it: (found_c, found_h)[node]
+    (the caller sets them to -1 at the destinations first; ``is_dest`` marks them, ``n_dests`` counts
+    them). The search stops when every destination has been found; a destination still wanted is a
+    relay towards the others like any node. n_dests = 0: no early stop (one-to-all).
+    hop_tol > 0 (one destination only): among routes arriving no later than the earliest arrival +
+    hop_tol, the one with fewest hops (then earliest arrival) is chosen; hop_tol = 0 is the plain SABR
+    order. arr/pred rows are valid only where stamp[c] == qid (rows are reset on first touch, so the
+    arrays are reused across queries without clearing them).
     A node's outgoing contacts are scanned from the first that may still be open (out_maxend: the
     running maximum of their end times, in start order) up to the first that starts after the
-    deadline (no arrival through it or a later one can meet it)."""
+    deadline (no arrival through it or a later one can meet it).
+
+    Several destinations in one search give each the route its own search would (``deadline`` the
+    latest of theirs; the caller drops a route arriving after its destination's own deadline): every
+    label one search has and the other has not arrives after the first pop at that destination -
+    the labels past a destination's own deadline, and the labels made by expanding the destination
+    itself (each hop adds a transmission time > 0) - so the labels popped up to that first pop, the
+    prunings among them, and with them its route and arrival, are the same in both
+    (tests/unit/test_cgr_random.py test_one_search_for_many_destinations_equals_one_each)."""
     H = arr.shape[1] - 1
     heap = [(np.inf, 0, 0)]
     heap.pop()
@@ -90,6 +107,8 @@ def _dijkstra(start, end, src, dst, rate, owlt, residual, out_ptr, out_idx, out_
     best_c = -1
     best_h = 0
     best_a = np.inf
+    tol = hop_tol > 0.0
+    left = n_dests
     # fewest hops of a label already expanded at each node: states pop in (arrival, hops) order, so
     # one expanded there with <= h hops arrived no later, and it can take every contact this one
     # could (earlier start, same residual volume): expanding this one adds no better label
@@ -98,7 +117,7 @@ def _dijkstra(start, end, src, dst, rate, owlt, residual, out_ptr, out_idx, out_
         a, h, c = heapq.heappop(heap)
         if a > arr[c, h]:
             continue
-        if best_c >= 0 and a > best_a + hop_tol:
+        if tol and best_c >= 0 and a > best_a + hop_tol:
             break
         dominated = False
         for hh in range(1, h):
@@ -108,19 +127,23 @@ def _dijkstra(start, end, src, dst, rate, owlt, residual, out_ptr, out_idx, out_
         if dominated:
             continue
         v = dst[c]
-        if v != dest:
-            if node_min_h[v] <= h:
+        if is_dest[v]:
+            if tol:  # (one destination) the fewest hops within the tolerance of the first arrival
+                if best_c < 0:
+                    best_c, best_h, best_a = c, h, a
+                elif h < best_h:
+                    best_c, best_h = c, h
                 continue
-            node_min_h[v] = h
-        if v == dest:
-            if best_c < 0:
-                best_c, best_h, best_a = c, h, a
-                if hop_tol <= 0.0:
+            if found_c[v] < 0:
+                found_c[v] = c
+                found_h[v] = h
+                left -= 1
+                if left == 0:
                     break
-            elif h < best_h:
-                best_c, best_h = c, h
+        if node_min_h[v] <= h:
             continue
-        if best_c >= 0 and h + 1 >= best_h:
+        node_min_h[v] = h
+        if tol and best_c >= 0 and h + 1 >= best_h:
             continue  # within the tolerance only a route with fewer hops could still win
         if h >= H:
             continue
@@ -152,7 +175,11 @@ def _dijkstra(start, end, src, dst, rate, owlt, residual, out_ptr, out_idx, out_
             arr[e, h + 1] = na
             pred[e, h + 1] = c
             heapq.heappush(heap, (na, h + 1, e))
-    return best_c, best_h
+    if tol and best_c >= 0:
+        for v in range(is_dest.shape[0]):
+            if is_dest[v]:
+                found_c[v] = best_c
+                found_h[v] = best_h
 
 
 @numba.njit(cache=True)
@@ -227,6 +254,11 @@ class ContactGraph:
         self._pred = np.full((n, H + 1), -1, dtype=np.int64)
         self._stamp = np.zeros(n, dtype=np.int64)
         self._qid = 0
+        self.searches = 0  # searches run (a route, a routes() call without hop tolerance, one-to-all: one each)
+        # per node: a destination of the running search, and the (contact, hops) found there
+        self._is_dest = np.zeros(len(self.node_names), dtype=np.bool_)
+        self._found_c = np.full(len(self.node_names), -1, dtype=np.int64)
+        self._found_h = np.zeros(len(self.node_names), dtype=np.int64)
         # per node: its outgoing contacts' start times, sorted (when a new first hop appears)
         self.out_starts = {name: np.sort(self.start_s[self.out_idx[self.out_ptr[i]:self.out_ptr[i + 1]]])
                            for i, name in enumerate(self.node_names)}
@@ -235,10 +267,13 @@ class ContactGraph:
         i = self.node_index[node]
         return self.out_idx[self.out_ptr[i]:self.out_ptr[i + 1]]
 
-    def _run(self, source, dest, t_s, bits, backlog_bits, deadline_s, residual, excluded, excluded_nodes,
+    def _run(self, source, dests, t_s, bits, backlog_bits, deadline_s, residual, excluded, excluded_nodes,
              first_backlog=None, hop_tol_s=0.0):
+        """One search from ``source`` towards the node indices ``dests`` (empty: one-to-all); the
+        (found contact, hops) of each destination are left in ``self._found_c`` / ``_found_h``."""
         arr, pred, stamp = self._arr, self._pred, self._stamp
         self._qid += 1
+        self.searches += 1
         node_ex = self._no_node_exclusion
         if excluded_nodes:
             key = tuple(excluded_nodes)
@@ -249,14 +284,38 @@ class ContactGraph:
                     if x in self.node_index:
                         node_ex[self.node_index[x]] = True
                 self._node_masks[key] = node_ex
-        best, hops = _dijkstra(self.start_s, self.end_s, self.src, self.dst, self.rate_bps, self.owlt_s,
-                               self.volume_bits if residual is None else residual, self.out_ptr, self.out_idx, self.out_maxend,
-                               self._no_exclusion if excluded is None else excluded, node_ex,
-                               self.node_index[source], -1 if dest is None else self.node_index[dest],
-                               float(t_s), float(bits), float(backlog_bits), float(deadline_s), arr, pred,
-                               self._no_backlog if first_backlog is None else first_backlog, float(hop_tol_s),
-                               stamp, self._qid)
-        return best, hops, arr, pred
+        is_dest, found_c = self._is_dest, self._found_c
+        is_dest[dests] = True
+        found_c[dests] = -1
+        try:
+            _dijkstra(self.start_s, self.end_s, self.src, self.dst, self.rate_bps, self.owlt_s,
+                      self.volume_bits if residual is None else residual, self.out_ptr, self.out_idx, self.out_maxend,
+                      self._no_exclusion if excluded is None else excluded, node_ex,
+                      self.node_index[source], is_dest, len(dests), float(t_s), float(bits), float(backlog_bits),
+                      float(deadline_s), arr, pred, self._no_backlog if first_backlog is None else first_backlog,
+                      float(hop_tol_s), stamp, self._qid, found_c, self._found_h)
+        finally:
+            is_dest[dests] = False
+        return arr, pred
+
+    def _route_to(self, source, d, t_s, bits, backlog_bits, deadline_s, first_backlog_bits) -> Route | None:
+        """The route the last search found to node index ``d`` (None: none by ``deadline_s``)."""
+        best = int(self._found_c[d])
+        if best < 0:
+            return None
+        hops = int(self._found_h[d])
+        arrival = float(self._arr[best, hops])
+        if arrival > deadline_s:
+            return None
+        path = []
+        c, h = best, hops
+        while c >= 0:
+            path.append(int(c))
+            c, h = self._pred[c, h], h - 1
+        path.reverse()
+        fb = 0.0 if first_backlog_bits is None else float(first_backlog_bits[path[0]])
+        self._check(path, source, self.node_names[d], t_s, bits, backlog_bits, arrival, fb)
+        return Route(tuple(path), self.contacts[path[0]].dst, arrival)
 
     def route(self, source: str, dest: str, t_s: float, bits: float, *, backlog_bits: float = 0.0,
               deadline_s: float = INF, residual_bits: np.ndarray | None = None,
@@ -268,28 +327,42 @@ class ContactGraph:
         ``first_backlog_bits``: per contact, bits already waiting for it at ``source`` (sent after it
         opens, before this bundle); ``hop_tolerance_s``: prefer fewer hops among routes arriving within
         this many seconds of the earliest."""
-        if source == dest:
-            raise ValueError(f"route from {source} to itself")
-        if source not in self.node_index or dest not in self.node_index:
-            return None
-        best, hops, arr, pred = self._run(source, dest, t_s, bits, backlog_bits, deadline_s, residual_bits,
-                                          excluded, excluded_nodes, first_backlog_bits, hop_tolerance_s)
-        if best < 0:
-            return None
-        arrival = float(arr[best, hops])
-        path = []
-        c, h = best, hops
-        while c >= 0:
-            path.append(int(c))
-            c, h = pred[c, h], h - 1
-        path.reverse()
-        fb = 0.0 if first_backlog_bits is None else float(first_backlog_bits[path[0]])
-        self._check(path, source, dest, t_s, bits, backlog_bits, arrival, fb)
-        return Route(tuple(path), self.contacts[path[0]].dst, arrival)
+        return self.routes(source, [(dest, deadline_s)], t_s, bits, backlog_bits=backlog_bits,
+                           residual_bits=residual_bits, excluded=excluded, excluded_nodes=excluded_nodes,
+                           first_backlog_bits=first_backlog_bits, hop_tolerance_s=hop_tolerance_s)[0]
+
+    def routes(self, source: str, dests, t_s: float, bits: float, *, backlog_bits: float = 0.0,
+               residual_bits: np.ndarray | None = None, excluded: np.ndarray | None = None, excluded_nodes=(),
+               first_backlog_bits: np.ndarray | None = None, hop_tolerance_s: float = 0.0) -> list[Route | None]:
+        """:meth:`route` to each of ``dests`` [(node, deadline [s])], in that order, from ONE search
+        (the same routes as one :meth:`route` each: :func:`_dijkstra`'s docstring says why). The
+        other arguments are :meth:`route`'s, shared by every destination. With a hop tolerance the
+        choice at one destination depends on the search stopping there: one search each then."""
+        out: list[Route | None] = [None] * len(dests)
+        idx = []  # (position in dests, node index, deadline)
+        for k, (d, deadline_s) in enumerate(dests):
+            if source == d:
+                raise ValueError(f"route from {source} to itself")
+            if source in self.node_index and d in self.node_index:
+                idx.append((k, self.node_index[d], float(deadline_s)))
+        if not idx:
+            return out
+        kw = dict(residual=residual_bits, excluded=excluded, excluded_nodes=excluded_nodes,
+                  first_backlog=first_backlog_bits, hop_tol_s=hop_tolerance_s)
+        if hop_tolerance_s > 0.0 and len(idx) > 1:
+            for k, d, dl in idx:
+                self._run(source, [d], t_s, bits, backlog_bits, dl, **kw)
+                out[k] = self._route_to(source, d, t_s, bits, backlog_bits, dl, first_backlog_bits)
+            return out
+        nodes = sorted({d for _k, d, _dl in idx})
+        self._run(source, nodes, t_s, bits, backlog_bits, max(dl for _k, _d, dl in idx), **kw)
+        for k, d, dl in idx:
+            out[k] = self._route_to(source, d, t_s, bits, backlog_bits, dl, first_backlog_bits)
+        return out
 
     def earliest_arrivals(self, source: str, t_s: float, bits: float) -> dict[str, float]:
         """One-to-all earliest arrival [s] with full volumes and no backlog (lower bounds)."""
-        _best, _h, arr2, _pred = self._run(source, None, t_s, bits, 0.0, INF, None, None, ())
+        arr2, _pred = self._run(source, [], t_s, bits, 0.0, INF, None, None, ())
         arr = np.where(self._stamp == self._qid, arr2.min(axis=1), INF)
         by_node = np.full(len(self.node_names), INF)
         np.minimum.at(by_node, self.dst, arr)  # per node: the earliest over the contacts into it

@@ -22,7 +22,9 @@ bundle is the responsibility of exactly one node at a time):
   their most urgent remaining recipient (strict priority, then creation; or the earliest virtual
   deadline with ``priority_delay_s``). For a bundle, each remaining recipient is routed by CGR
   (cgr.py; the recipient's own deadline, the previous node excluded, the bits already waiting for a
-  contact counted as SABR backlog); a recipient no route reaches in time is dropped (``no_route``).
+  contact counted as SABR backlog; the recipients that share all of that but the deadline are routed
+  by one search, which gives each the route of its own: ContactGraph.routes); a recipient no route
+  reaches in time is dropped (``no_route``).
   The recipients whose best route leaves on a contact open now are grouped by that contact's node
   (the next hop), and ONE transmission carries them all, lasting the bundle's on-air bits over the
   slowest of those contacts. Recipients whose route waits for a later contact stay; a bundle with no
@@ -63,7 +65,7 @@ import numpy as np
 
 from orbit_clock.contact_plan import ContactPlan, node_name, node_number
 
-from .agent import AgentConfig, BundleAgent, BundleEvent, Transmission, buffered_route, ttl_s_for_priority
+from .agent import AgentConfig, BundleAgent, BundleEvent, Transmission, buffered_routes, ttl_s_for_priority
 from .bpsec import IntegrityError, add_bib, verify_bib
 from .bpv7 import Bundle, BundleError, decode_bundle, encode_bundle, ipn
 from .cgr import ContactGraph
@@ -382,11 +384,30 @@ class MulticastAgent:
                 del self._parked_bits[c]
         h.parked = {}
 
-    def _route(self, h: _MHeld, r: _Rcpt, s: int, bits: int):
-        self.cgr_queries += 1
-        return buffered_route(self.graph, self.node, r.name, s / _NS, bits, r.deadline_ns / _NS,
-                              self._parked_bits, r.priority, h.excluded, r.from_node,
-                              self.config.hop_tolerance_s, self._backlog_buf, self._excluded_buf)
+    def _routes(self, h: _MHeld, rs: list, s: int, bits: int) -> list:
+        """The CGR routes of recipients ``rs`` at ``s`` (in that order; None: no route in time), one
+        search per set of recipients whose query differs only in destination and deadline: the same
+        node they came from (not routed back there) and the same first-hop backlog (the bits parked
+        at their priority or higher; every priority shares it when nothing is parked)."""
+        parked = self._parked_bits
+        sig_of: dict[int, tuple] = {}
+        groups: dict[tuple, list[int]] = {}
+        for i, r in enumerate(rs):
+            sig = sig_of.get(r.priority)
+            if sig is None:
+                sig = sig_of[r.priority] = tuple(sum(byp[: r.priority + 1]) for byp in parked.values())
+            groups.setdefault((sig, r.from_node), []).append(i)
+        out: list = [None] * len(rs)
+        n0 = self.graph.searches
+        for ii in groups.values():
+            r0 = rs[ii[0]]
+            found = buffered_routes(self.graph, self.node, [(rs[i].name, rs[i].deadline_ns / _NS) for i in ii],
+                                    s / _NS, bits, parked, r0.priority, h.excluded, r0.from_node,
+                                    self.config.hop_tolerance_s, self._backlog_buf, self._excluded_buf)
+            for i, route in zip(ii, found):
+                out[i] = route
+        self.cgr_queries += self.graph.searches - n0
+        return out
 
     def _next_decision_ns(self) -> int | None:
         while self._wake and self._stale(self._wake[0]):
@@ -436,13 +457,15 @@ class MulticastAgent:
         waits: dict[int, tuple[int, int]] = {}
         wait_until = _NEVER
         dropped = False
-        for r in sorted(h.queued.values(), key=lambda x: (x.priority, x.num)):
+        rs = sorted(h.queued.values(), key=lambda x: (x.priority, x.num))
+        routes = iter(self._routes(h, [r for r in rs if s < r.deadline_ns], s, bits))
+        for r in rs:
             if s >= r.deadline_ns:
                 del h.queued[r.num]
                 self._emit(s, "dropped", h.bid, r, "ttl", h.created_ns)
                 dropped = True
                 continue
-            route = self._route(h, r, s, bits)
+            route = next(routes)
             if route is None:  # cannot arrive before its deadline any more: drop it now
                 del h.queued[r.num]
                 self._emit(s, "dropped", h.bid, r, "no_route", h.created_ns)
