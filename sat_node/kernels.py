@@ -37,7 +37,7 @@ __all__ = ["KERNELS", "dispatchers", "warm_up"]
 # planner's group holds the DP and the field-of-regard test its instances are built with
 KERNELS = {
     "dp": ((dp_kernels, ("dp_forward", "dp_states", "path_gain", "table_gain", "bit_gain")), (access_kernels, ("for_codes",))),
-    "cgr": ((cgr, ("_dijkstra", "_first_open")),),
+    "cgr": ((cgr, ("_dijkstra", "_first_open", "_node_dominated", "_node_label")),),
 }
 
 

@@ -12,8 +12,10 @@ the smallest contact index (a stable key: the plan is sorted by (start, src, dst
 (arrival, hops) per contact, kept Pareto-optimal (a later arrival with fewer hops can tie at the
 destination after a wait, so one label per contact is not enough for the hop tie-break); a path
 through a loop is dominated by the same path without the loop (no earlier, more hops), so routes
-never repeat a node (checked on every route returned): no loops. Contacts
-missed or failed are excluded by the caller (``excluded`` mask) and the route recomputed.
+never repeat a node (checked on every route returned): no loops. A label is not even made when
+its node already has one that arrives no later with no more hops (or as early with fewer): it
+could never be the first to reach that node, nor reach anything the other does not reach as soon.
+Contacts missed or failed are excluded by the caller (``excluded`` mask) and the route recomputed.
 
 One search serves every destination that shares the query's source, time, size, backlog and
 exclusions (:meth:`ContactGraph.routes`: a multicast bundle's recipients at one node), with the same
@@ -26,8 +28,10 @@ t' > t: the queues and contacts it depends on change), anticipatory fragmentatio
 
 How we know it is right: hand-worked drawn plans (tests/unit/test_cgr.py), an independent
 brute-force search over every simple path on random plans with zero mismatches in arrival and hop
-count (tests/unit/test_cgr_random.py), properties (arrival never before contact start + light
-time + transmission time; no node repeated).
+count, with and without a hop tolerance, and one search for many destinations against one each
+(tests/unit/test_cgr_random.py), properties (arrival never before contact start + light time +
+transmission time; no node repeated); on a whole run's queries, the routes of the kernel before
+route reuse and node-level pruning, query for query (bench/bench_cgr.py).
 
 The kernel is numba (cache=True) over flat arrays; :class:`ContactGraph` builds them and checks the
 route it returns (contiguous, time-feasible) before handing it out. Its scratch arrays (labels per
@@ -84,6 +88,14 @@ def _dijkstra(start, end, src, dst, rate, owlt, residual, out_ptr, out_idx, out_
     H = arr.shape[1] - 1
     heap = [(np.inf, 0, 0)]
     heap.pop()
+    # per node and hop count: the earliest arrival of a label made there with exactly that many hops
+    # (nb), and with at most that many (pm, the running minimum over hops): a new label at a node
+    # where an earlier one with no more hops - or as early with fewer - was made is never the first
+    # pop there, and all it could reach the earlier one reaches no later (node_min_h's argument), so
+    # it is not made (_node_dominated)
+    n_nodes = node_excluded.shape[0]
+    nb = np.full((n_nodes, H + 1), np.inf)
+    pm = np.full((n_nodes, H + 1), np.inf)
     for k in range(_first_open(out_maxend, out_ptr[source], out_ptr[source + 1], t0), out_ptr[source + 1]):
         c = out_idx[k]
         if start[c] > deadline:
@@ -97,6 +109,9 @@ def _dijkstra(start, end, src, dst, rate, owlt, residual, out_ptr, out_idx, out_
         a = te + owlt[c]
         if a > deadline:
             continue
+        if _node_dominated(nb, pm, dst[c], 1, a):
+            continue
+        _node_label(nb, pm, dst[c], 1, a)
         if stamp[c] != qid:
             stamp[c] = qid
             arr[c, :] = np.inf
@@ -159,7 +174,7 @@ def _dijkstra(start, end, src, dst, rate, owlt, residual, out_ptr, out_idx, out_
             if te > end[e] or residual[e] < bits:
                 continue
             na = te + owlt[e]
-            if na > deadline:
+            if na > deadline or _node_dominated(nb, pm, w, h + 1, na):
                 continue
             if stamp[e] != qid:
                 stamp[e] = qid
@@ -172,6 +187,7 @@ def _dijkstra(start, end, src, dst, rate, owlt, residual, out_ptr, out_idx, out_
                     break
             if dom:
                 continue
+            _node_label(nb, pm, w, h + 1, na)
             arr[e, h + 1] = na
             pred[e, h + 1] = c
             heapq.heappush(heap, (na, h + 1, e))
@@ -180,6 +196,25 @@ def _dijkstra(start, end, src, dst, rate, owlt, residual, out_ptr, out_idx, out_
             if is_dest[v]:
                 found_c[v] = best_c
                 found_h[v] = best_h
+
+
+@numba.njit(cache=True)
+def _node_dominated(nb, pm, w, h, a):
+    """A label (arrival a, h hops) at node w is beaten there by one already made: arriving earlier
+    with no more hops, or as early with fewer (it pops first: the (arrival, hops) order)."""
+    return pm[w, h - 1] <= a or nb[w, h] < a
+
+
+@numba.njit(cache=True)
+def _node_label(nb, pm, w, h, a):
+    """Record a label (arrival a, h hops) made at node w (nb, pm of _dijkstra)."""
+    if a < nb[w, h]:
+        nb[w, h] = a
+    for k in range(h, pm.shape[1]):
+        if a < pm[w, k]:
+            pm[w, k] = a
+        else:
+            break
 
 
 @numba.njit(cache=True)

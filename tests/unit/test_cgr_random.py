@@ -108,3 +108,48 @@ def test_one_search_for_many_destinations_equals_one_each():
 @given(st.integers(min_value=1000, max_value=10**6))
 def test_one_search_for_many_destinations_hypothesis(seed):
     assert _many_vs_one_each(seed) == 0
+
+
+def brute_force_paths(plan, src, dst, t, bits):
+    """(arrival, hops) of every simple path from src to dst (depth-first enumeration)."""
+    out = []
+    cs = plan.contacts
+
+    def dfs(node, t_at, visited, hops):
+        for c in cs:
+            if c.src != node or c.dst in visited:
+                continue
+            te = max(t_at, c.start_s) + bits / c.rate_bps
+            if te > c.end_s:
+                continue
+            arr = te + c.range_light_s
+            if c.dst == dst:
+                out.append((arr, hops + 1))
+            else:
+                dfs(c.dst, arr, visited | {c.dst}, hops + 1)
+
+    dfs(src, t, {src}, 0)
+    return out
+
+
+def test_hop_tolerance_against_brute_force():
+    """With a hop tolerance, the route CGR returns has the fewest hops among every simple path that
+    arrives within the tolerance of the earliest, and the earliest arrival among those."""
+    bad = 0
+    for seed in range(300):
+        rng = np.random.default_rng(seed)
+        plan = random_plan(rng, int(rng.integers(5, 26)))
+        g = ContactGraph(plan)
+        for _ in range(3):
+            a, b = rng.choice(len(NODES), 2, replace=False)
+            t = float(rng.integers(0, 60))
+            tol = float(rng.choice([0.5, 5.0, 20.0]))
+            paths = brute_force_paths(plan, NODES[a], NODES[b], t, 2.0)
+            r = g.route(NODES[a], NODES[b], t, 2.0, hop_tolerance_s=tol)
+            if not paths:
+                bad += r is not None
+                continue
+            first = min(p[0] for p in paths)
+            want = min((h, arr) for arr, h in paths if arr <= first + tol)
+            bad += r is None or r.hops != want[0] or not np.isclose(r.arrival_s, want[1])
+    assert bad == 0
