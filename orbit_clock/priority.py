@@ -23,16 +23,44 @@ __all__ = ["next_access_s", "priority_order"]
 
 def next_access_s(windows: AccessWindows, region, t_s: float) -> dict[str, float]:
     """Per satellite name, the time [s] its next access to ``region`` (name or index) starts
-    (t_s if it is in access at t_s); satellites with none before the horizon end are absent."""
+    (t_s if it is in access at t_s); satellites with none before the horizon end are absent.
+
+    That is, per satellite, max(t_s, the earliest start among its windows over the region that end
+    after t_s). Each region's windows are put once in a table (:func:`_region_table`: per satellite,
+    its window ends in order and the earliest start of the windows ending at or after each), so a
+    query costs O(satellites x windows per satellite over the region), not a pass over every window
+    of the constellation (a query per observation: tests/unit/test_orbit_isl.py
+    test_next_access_equals_the_definition_on_random_windows)."""
     r = windows.region_id(region)
-    m = (windows.region == r) & (windows.end_s > t_s)
-    if not np.any(m):
+    names, ends, min_start = _region_table(windows, r)
+    if len(names) == 0:
         return {}
-    sat = windows.sat[m]
-    start = np.maximum(windows.start_s[m], t_s)
-    best = np.full(len(windows.sat_names), np.inf)
-    np.minimum.at(best, sat, start)
-    return {windows.sat_names[i]: float(best[i]) for i in np.flatnonzero(np.isfinite(best))}
+    k = np.sum(ends <= t_s, axis=1)  # per satellite: its windows that have ended by t_s
+    first = min_start[np.arange(len(names)), k]
+    ok = np.isfinite(first)
+    return {names[i]: max(float(first[i]), float(t_s)) for i in np.flatnonzero(ok)}
+
+
+def _region_table(windows: AccessWindows, r: int):
+    """(satellite names, ends [n, K] ascending per row padded with +inf, earliest start of the
+    windows from each column on [n, K + 1], +inf past the last) for the satellites with windows over
+    region ``r``, in satellite index order; made once per (windows, region)."""
+    cache = windows.__dict__.setdefault("_next_access_tables", {})
+    tab = cache.get(r)
+    if tab is None:
+        m = windows.region == r
+        sat, start, end = windows.sat[m], windows.start_s[m], windows.end_s[m]
+        order = np.lexsort((end, sat))
+        sat, start, end = sat[order], start[order], end[order]
+        ids, first, counts = np.unique(sat, return_index=True, return_counts=True)
+        K = int(counts.max(initial=0))
+        ends = np.full((len(ids), K), np.inf)
+        min_start = np.full((len(ids), K + 1), np.inf)
+        for i, (f, c) in enumerate(zip(first, counts)):
+            ends[i, :c] = end[f:f + c]
+            min_start[i, :c] = np.minimum.accumulate(start[f:f + c][::-1])[::-1]
+        tab = cache[r] = ([windows.sat_names[int(i)] for i in ids], ends, min_start)
+    return tab
 
 
 def priority_order(windows: AccessWindows, region, t_s: float, *, source: str | None = None,

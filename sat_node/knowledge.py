@@ -246,12 +246,13 @@ class KnowledgeState:
         """(omega, delta) of ``region`` at ``t_s`` from every inference known (sat_node/inference.py):
         omega = the age-weighted mean of ln(inferred / forecast) there, delta = its change since the
         newest insight held before [1/h] (0 without one within the memory)."""
-        sel = [i for i, r in enumerate(self._region) if r == region and self._t[i] <= t_s]
-        if not sel:
+        t_all = np.asarray(self._t, np.float64)
+        sel = np.flatnonzero((np.asarray(self._region, np.int64) == region) & (t_all <= t_s))
+        if len(sel) == 0:
             return 0.0, 0.0
-        gp = np.array([self._gp[i] for i in sel])
-        t = np.array([self._t[i] for i in sel])
-        v = np.array([self._v[i] for i in sel])
+        gp = np.asarray(self._gp, np.int64)[sel]
+        t = t_all[sel]
+        v = np.asarray(self._v, np.float64)[sel]
         d = np.log(np.maximum(v, 1.0) / field.forecast_at(gp, t).astype(np.float64))
         w = np.exp(-(t_s - t) / self.params.memory_s)
         omega = float(np.clip((w @ d) / w.sum(), -_LN_MAX, _LN_MAX))

@@ -17,6 +17,7 @@ from orbit_clock import (
     isl_contact_plan,
     isl_windows,
     los_clear,
+    next_access_s,
     priority_order,
 )
 from orbit_clock.access import AccessWindows
@@ -161,6 +162,30 @@ def test_priority_order_hand_built():
     assert priority_order(w, "A", 0.0, max_priority=2) == [("sat_12", 1), ("sat_11", 2)]
     with pytest.raises(ValueError, match="not one of"):
         priority_order(w, "C", 0.0)
+
+
+def test_next_access_equals_the_definition_on_random_windows():
+    """next_access_s (a per-region table made once) against its definition - per satellite, the
+    least max(start, t) over its windows on the region that end after t - at window edges and
+    between them, on random windows (overlapping, nested, several per satellite and GP)."""
+    rng = np.random.default_rng(7)
+    for _ in range(40):
+        n_sat, n_gp, n_w = int(rng.integers(1, 7)), int(rng.integers(1, 6)), int(rng.integers(0, 40))
+        start = rng.integers(0, 900, n_w).astype(float)
+        w = AccessWindows([f"sat_1{i + 1}" for i in range(n_sat)], sat=rng.integers(0, n_sat, n_w),
+                          gp=rng.integers(0, n_gp, n_w), start_s=start, end_s=start + rng.integers(1, 200, n_w),
+                          min_off_nadir_deg=np.zeros(n_w), gp_region=rng.integers(0, 2, n_gp),
+                          region_names=["A", "B"])
+        times = np.concatenate([w.start_s, w.end_s, rng.uniform(-10, 1200, 10)])
+        for region in (0, 1):
+            for t in times:
+                want: dict[str, float] = {}
+                for k in range(len(w)):
+                    if w.gp_region[w.gp[k]] == region and w.end_s[k] > t:
+                        name = w.sat_names[w.sat[k]]
+                        want[name] = min(want.get(name, np.inf), max(float(w.start_s[k]), float(t)))
+                got = next_access_s(w, region, float(t))
+                assert got == want and list(got) == sorted(want, key=w.sat_names.index)
 
 
 def test_priority_order_paper_bruteforce(paper_scenario):
