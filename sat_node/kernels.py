@@ -10,8 +10,8 @@ clock of a ROS run, bringup/engine/ros/clock_node.py) calls :func:`warm_up` befo
 ready, and the launcher runs it once before it starts the satellites, so that 24 processes load the
 kernels from the cache instead of all compiling them at once.
 
-:func:`warm_up` runs each kernel through its ordinary caller (``solve_dp`` and ``for_mask`` on a
-two-step, two-GP instance; a CGR route and a one-to-all query on a three-contact plan), so it compiles exactly the
+:func:`warm_up` runs each kernel through its ordinary caller (``solve_dp``, ``for_mask`` and
+``prior_state`` on a two-step, two-GP instance; a CGR route and a one-to-all query on a three-contact plan), so it compiles exactly the
 argument types a run uses. How we know it is right: tests/unit/test_kernels_warm_up.py (after
 ``warm_up``, a paper run on the local engine adds no signature to any kernel; a second process with
 the same cache finds every kernel there: cache hits, no misses).
@@ -29,14 +29,17 @@ from orbit_clock.contact_plan import Contact, ContactPlan
 from sat_node.acs import SlewModel
 from sat_node.dtn import cgr
 from sat_node.dtn.cgr import ContactGraph
+from sat_node import value_kernels
 from sat_node.scheduler import build_problem, dp_kernels, solve_dp
+from sat_node.value import KnownObservation, prior_state
 
 __all__ = ["KERNELS", "dispatchers", "warm_up"]
 
 # name -> the kernels it warms ((module, function names), ...), for the stats and the tests; the
-# planner's group holds the DP and the field-of-regard test its instances are built with
+# planner's group holds the DP and the field-of-regard test and prior-state runs its instances are built with
 KERNELS = {
-    "dp": ((dp_kernels, ("dp_forward", "dp_states", "path_gain", "table_gain", "bit_gain")), (access_kernels, ("for_codes",))),
+    "dp": ((dp_kernels, ("dp_forward", "dp_states", "path_gain", "table_gain", "bit_gain")), (access_kernels, ("for_codes",)),
+           (value_kernels, ("prior_runs",))),
     "cgr": ((cgr, ("_dijkstra", "_first_open", "_node_dominated", "_node_label")),),
 }
 
@@ -61,6 +64,7 @@ def _dp() -> None:
     solve_dp(p, check=True, bit_words=0)  # path tables (same signature)
     solve_dp(p, check=True, table_cells=0, bit_words=0)  # the branch that walks back-pointers
     for_mask(sat, gp, 55.0)  # the compiled field-of-regard test (both GPs within its bound)
+    prior_state([KnownObservation(5.0, 1, "sat_12")], np.array([0, 1]), np.array([0.0, 10.0]), "sat_11", 900.0)
 
 
 def _cgr() -> None:

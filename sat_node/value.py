@@ -45,6 +45,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from sat_node.value_kernels import prior_runs
+
 __all__ = [
     "Belief",
     "KnownLog",
@@ -229,7 +231,8 @@ def prior_state(known: Iterable[KnownObservation], gp_ids: np.ndarray, times_s: 
 
     Each observation covers a run of consecutive times once the times are sorted (every test below
     is monotone in the time: ``ts < t``, ``fl(t - ts) < r``, ``fl(t - ts) > -r``), so it is found by
-    binary search and the runs are summed with a difference array: O(N log T + T G) instead of one
+    binary search and the runs are summed with a difference array (sat_node/value_kernels.py
+    prior_runs): O(N log T + T G) instead of one
     (T, N) comparison per GP column, and the same booleans as the pairwise tests.
     """
     gp_ids = np.asarray(gp_ids, dtype=np.int64)
@@ -262,8 +265,8 @@ def prior_state(known: Iterable[KnownObservation], gp_ids: np.ndarray, times_s: 
     lo = _first_index(times_s, ts, r, lambda d: d > -r, np.searchsorted(times_s, ts - r, "right"))
     rec_lo = np.where(planned, lo, start)
     rec_hi = np.maximum(end, rec_lo)
-    count = _runs(cols, start, np.full(len(cols), T), T, G)
-    recent = _runs(cols, rec_lo, rec_hi, T, G) > 0
+    count, recent = prior_runs(cols.astype(np.int64), start.astype(np.int64), rec_lo.astype(np.int64),
+                               rec_hi.astype(np.int64), T, G)
     if order is not None:
         c2, r2 = np.empty_like(count), np.empty_like(recent)
         c2[order], r2[order] = count, recent
@@ -290,9 +293,3 @@ def _first_index(times: np.ndarray, ts: np.ndarray, r: float, ok, guess: np.ndar
             break
         i[m] += 1
     return i
-
-
-def _runs(cols: np.ndarray, lo: np.ndarray, hi: np.ndarray, T: int, G: int) -> np.ndarray:
-    """(T, G) number of runs [lo, hi) of column ``cols`` covering each time (difference array)."""
-    diff = np.bincount(lo * G + cols, minlength=(T + 1) * G) - np.bincount(hi * G + cols, minlength=(T + 1) * G)
-    return np.cumsum(diff.reshape(T + 1, G)[:T], axis=0)

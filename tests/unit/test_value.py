@@ -183,3 +183,27 @@ def test_value_ledger_equals_eq1_on_each_history():
             assert got == want and recent == (want == 0.0)
             total += want
         assert ledger.total == total
+
+
+def _runs_numpy(cols, lo, hi, T, G):
+    """(T, G) number of runs [lo, hi) of column ``cols`` covering each time: numpy's difference array."""
+    diff = np.bincount(lo * G + cols, minlength=(T + 1) * G) - np.bincount(hi * G + cols, minlength=(T + 1) * G)
+    return np.cumsum(diff.reshape(T + 1, G)[:T], axis=0)
+
+
+def test_prior_runs_equals_difference_arrays():
+    """The compiled runs (sat_node/value_kernels.py) against numpy's bincount and cumsum: random runs,
+    empty ones (lo == hi), runs from 0 and to the end (T), columns hit many times or never."""
+    from sat_node.value_kernels import prior_runs
+
+    rng = np.random.default_rng(5)
+    for _ in range(200):
+        T, G, n = int(rng.integers(1, 40)), int(rng.integers(1, 12)), int(rng.integers(0, 60))
+        cols = rng.integers(0, G, n)
+        start = rng.integers(0, T + 1, n)
+        lo = rng.integers(0, T + 1, n)
+        hi = np.maximum(lo, rng.integers(0, T + 1, n))
+        count, recent = prior_runs(cols, start, lo, hi, T, G)
+        assert count.dtype == np.int64 and recent.dtype == np.bool_
+        assert np.array_equal(count, _runs_numpy(cols, start, np.full(n, T), T, G))
+        assert np.array_equal(recent, _runs_numpy(cols, lo, hi, T, G) > 0)
