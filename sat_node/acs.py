@@ -117,7 +117,16 @@ class SlewModel:
         return float(self.time_s(0.0))
 
     def time_s(self, angle_deg) -> np.ndarray:
-        """Slew time [s] (margin included) for angle(s) [deg]; vectorized."""
+        """Slew time [s] (margin included) for angle(s) [deg]; vectorized. A single float is
+        evaluated with Python floats in np.polyval's order (Horner from 0.0: the same operations,
+        the same bits; tests/unit/test_acs.py), without numpy's per-call overhead (the DP's slew
+        window is found by stepping through scalar angles)."""
+        if type(angle_deg) is float or type(angle_deg) is np.float64:
+            a = abs(float(angle_deg))
+            y = 0.0
+            for c in self.coeffs_s:
+                y = y * a + c
+            return np.float64(y + self.margin_s)
         a = np.abs(np.asarray(angle_deg, dtype=np.float64))
         return np.polyval(self.coeffs_s, a) + self.margin_s
 

@@ -82,3 +82,19 @@ def test_unit_vectors_and_angles_are_the_reductions_bit_for_bit():
         ref_a = np.degrees(np.arccos(np.clip(np.sum(ref_u * ref_w, axis=-1), -1.0, 1.0)))
         assert angle_between_deg(v, w).tobytes() == ref_a.tobytes()
         assert dot3(v, w).tobytes() == np.sum(v * w, axis=-1).tobytes()
+
+
+def test_scalar_slew_time_is_polyval_bit_for_bit():
+    """A float angle goes through Python floats, an array through np.polyval: the same bits, for the
+    study's coefficients and random ones, at 0, 180, negative angles and random ones."""
+    rng = np.random.default_rng(3)
+    models = [PAPER] + [
+        SlewModel(tuple(rng.uniform(0.01, 1.0, int(rng.integers(2, 6)))), float(rng.uniform(0.0, 1.0)))
+        for _ in range(20)]
+    angles = np.concatenate([[0.0, 180.0, -37.25, 1e-300], rng.uniform(-180.0, 180.0, 200)])
+    for m in models:
+        vec = m.time_s(angles)
+        for a, want in zip(angles, vec):
+            for x in (float(a), np.float64(a)):
+                got = m.time_s(x)
+                assert type(got) is np.float64 and got.tobytes() == np.float64(want).tobytes()
