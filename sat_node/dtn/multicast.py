@@ -77,6 +77,13 @@ __all__ = ["MulticastAgent", "new_agent"]
 
 _NS = 1_000_000_000
 _NEVER = 1 << 62
+# bytes of recently received copies -> (the key they were verified with, or None unverified; the
+# decoded bundle; its recipients by node; its next-hops split): one transmission reaches every next
+# hop in view, and what receive() reads of a copy is a pure function of its bytes and the key, so
+# the agents of one process decode, verify and parse each transmission once. receive() never alters
+# the decoded bundle (it copies it before keeping it), nor does the port (DtnPort.receive).
+_VERIFIED: dict[bytes, tuple] = {}
+_VERIFIED_MAX = 1024
 
 
 @dataclass
@@ -274,26 +281,40 @@ class MulticastAgent:
         got it now), queued, discarded.* or dropped.*."""
         self._settle_by_time(now_ns)
         self.last_received = None
-        try:
-            nhs = peek_next_hops(bundle_bytes)
-            if nhs and self.number not in nhs:
+        key = self.config.key if self.config.verify_integrity else None
+        hit = _VERIFIED.get(bundle_bytes) if type(bundle_bytes) is bytes else None
+        if hit is not None and hit[0] == key:  # the same bytes, checked the same way, by another node here
+            _key, b, rs, split = hit
+            if split and self.number not in split:
                 self._emit(now_ns, "discarded", "?", reason="not_next_hop")
                 return "discarded.not_next_hop"
-            b = decode_bundle(bundle_bytes)
             self.last_received = b
-        except BundleError as exc:
-            self._emit(now_ns, "dropped", "?", reason="integrity")
-            self.last_error = str(exc)
-            return "dropped.integrity"
-        try:
-            if self.config.verify_integrity:
-                verify_bib(b, self.config.key)
-            rs = {r[0]: r for r in recipients_of(b)}
-            split = next_hops_of(b)
-        except (IntegrityError, BundleError, ValueError) as exc:
-            self.last_error = str(exc)
-            self._emit(now_ns, "dropped", b.bundle_id, reason="integrity")
-            return "dropped.integrity"
+        else:
+            try:
+                nhs = peek_next_hops(bundle_bytes)
+                if nhs and self.number not in nhs:
+                    self._emit(now_ns, "discarded", "?", reason="not_next_hop")
+                    return "discarded.not_next_hop"
+                b = decode_bundle(bundle_bytes)
+                self.last_received = b
+            except BundleError as exc:
+                self._emit(now_ns, "dropped", "?", reason="integrity")
+                self.last_error = str(exc)
+                return "dropped.integrity"
+            try:
+                if key is not None:
+                    verify_bib(b, key)
+                rcpts = recipients_of(b)
+                rs = {r[0]: r for r in rcpts}
+                split = next_hops_of(b, rcpts)
+            except (IntegrityError, BundleError, ValueError) as exc:
+                self.last_error = str(exc)
+                self._emit(now_ns, "dropped", b.bundle_id, reason="integrity")
+                return "dropped.integrity"
+            if type(bundle_bytes) is bytes:
+                if len(_VERIFIED) >= _VERIFIED_MAX:
+                    _VERIFIED.clear()
+                _VERIFIED[bundle_bytes] = (key, b, rs, split)
         mine = split.get(self.number, tuple(rs)) if split else tuple(rs)
         bid = b.bundle_id
         created = self._created_ns(b)

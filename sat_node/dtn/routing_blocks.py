@@ -184,14 +184,15 @@ def recipients_of(b: Bundle) -> tuple[Recipient, ...]:
     return rs
 
 
-def next_hops_of(b: Bundle) -> dict[int, tuple[int, ...]]:
+def next_hops_of(b: Bundle, recipients: tuple[Recipient, ...] | None = None) -> dict[int, tuple[int, ...]]:
     """{next hop: recipients} of the next-hops block ({} without one); every recipient named must be
-    one of the bundle's recipients."""
+    one of the bundle's recipients (``recipients``: :func:`recipients_of` of ``b``, if the caller has
+    it)."""
     blk = b.block(NEXT_HOPS_BLOCK)
     if blk is None:
         return {}
     split = dict(parse_next_hops(blk.data))
-    known = {r[0] for r in recipients_of(b)}
+    known = {r[0] for r in (recipients_of(b) if recipients is None else recipients)}
     for nh, rs in split.items():
         if not set(rs) <= known:
             raise BundleError(f"next-hops block: next hop {nh} serves nodes that are not recipients")

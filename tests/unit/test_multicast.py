@@ -195,3 +195,22 @@ def test_brute_force_agrees_with_itself_on_a_chain():
     plan = _plan([("sat_11", "sat_12", 0, 100), ("sat_12", "sat_13", 50, 100)])
     assert _earliest_by_brute_force(plan, "sat_11", 10.0, 2000) == pytest.approx({"sat_12": 12.0, "sat_13": 52.0})
     assert list(itertools.islice(iter(()), 1)) == []
+
+
+def test_a_copy_accepted_unverified_is_still_verified_by_the_next_agent():
+    """The agents of one process decode and verify each transmission once (multicast._VERIFIED):
+    a copy whose payload was altered, accepted by an agent that does not verify, is still refused
+    by one that does, and by one with another key, while an unaltered copy reaches both."""
+    plan = _drawn(0.0)
+    src = MulticastAgent("sat_11", plan, AgentConfig(key=TEST_BPSEC_KEY))
+    src.originate_many(b"observation", [("sat_12", 1), ("sat_13", 2)], 10 * S)
+    tx = src.transmissions_until(30 * S)[0]
+    i = tx.bundle_bytes.index(b"observation")
+    bad = tx.bundle_bytes[:i] + b"O" + tx.bundle_bytes[i + 1:]
+    lax = MulticastAgent("sat_12", plan, AgentConfig(key=TEST_BPSEC_KEY, verify_integrity=False))
+    strict = MulticastAgent("sat_13", plan, AgentConfig(key=TEST_BPSEC_KEY))
+    other = MulticastAgent("sat_13", plan, AgentConfig(key=bytes(32)))
+    assert lax.receive(bad, "sat_11", tx.end_ns) == "delivered"
+    assert strict.receive(bad, "sat_11", tx.end_ns) == "dropped.integrity"
+    assert strict.receive(tx.bundle_bytes, "sat_11", tx.end_ns) == "delivered"
+    assert other.receive(tx.bundle_bytes, "sat_11", tx.end_ns) == "dropped.integrity"
