@@ -61,7 +61,8 @@ with Foxglove's own JavaScript readers and checks its timeline starts at the sce
 the hand-written std_msgs/String CDR is checked byte for byte against rosbags' serializer.
 The speed paths (one-call envelope writes, ``write_envelopes`` batches, and rosbags' own steps
 made faster in rosbags_speedups.py) give byte-identical bags and the same messages as rosbags' own
-paths (tests/unit/test_speed_paths.py).
+paths, except the bag summary (metadata.yaml and the MCAP's rosbag2 record), which libyaml dumps:
+the same YAML mapping in other bytes (tests/unit/test_speed_paths.py).
 """
 
 from __future__ import annotations
@@ -156,8 +157,8 @@ def topic_qos(topic: str, msgtype: str) -> Qos:
 # bytes (MCAP Message record: opcode 0x05, uint64 length, uint16 channel, uint32 sequence 0, uint64
 # log and publish time, data) and keeps the same chunk index/statistics, so the file is byte for byte
 # what rosbags writes (tests/unit/test_speed_paths.py compares the two). The speed-ups of rosbags'
-# own steps (chunk close, QoS YAML dump and parse, chunk reading) are in rosbags_speedups.py, applied
-# to this module's writers and readers only.
+# own steps (chunk close, QoS YAML dump and parse, chunk reading, the summary's YAML) are in
+# rosbags_speedups.py, applied to this module's writers and readers only.
 _MSG_HEADER = struct.Struct("<BQHIQQ")
 _CHUNK_LIMIT = 2**20
 # Crash safety (module docstring): a chunk also closes at the first /clock (a step's start) 2 min of
@@ -220,11 +221,12 @@ class BagWriter:
         self._span = chunk_span_ns
         self._fast = st if (type(st) is McapWriter and not fast_off
                             and self._w.compression_mode != CompressionMode.MESSAGE) else None
-        self._speedups = nullcontext
+        self._speedups = self._summary_yaml = nullcontext
         if self._fast is not None:
             rosbags_speedups.install()
             rosbags_speedups.speed_up_writer(st)
             self._speedups = rosbags_speedups.active
+            self._summary_yaml = rosbags_speedups.metadata_yaml
         self._mcap_path = st.path if isinstance(st, McapWriter) else None
         if self._mcap_path is not None:
             with_chunk_crc(st)
@@ -389,8 +391,11 @@ class BagWriter:
                 self._w.min_timestamp = min(self._w.min_timestamp, self._tmin)
                 self._w.max_timestamp = max(self._w.max_timestamp, self._tmax)
             # rosbags' own QoS dump here: metadata.yaml (version 9) lists each topic's offered
-            # profiles as a YAML sequence; the memo gives the string form a channel's user data uses
-            self._w.close()
+            # profiles as a YAML sequence; the memo gives the string form a channel's user data uses.
+            # The summary itself (metadata.yaml and the MCAP's rosbag2 record) is dumped by libyaml
+            # (rosbags_speedups.metadata_yaml: the same mapping, not ruamel's bytes)
+            with self._summary_yaml():
+                self._w.close()
             if self._mcap_path is not None:
                 write_file_crcs(self._mcap_path)
 

@@ -21,6 +21,8 @@ from pathlib import Path
 from ruamel.yaml import YAML
 from ruamel.yaml.error import YAMLError
 
+from bringup.recording import metadata_yaml
+
 __all__ = ["BagTruth", "disagreements", "read_metadata_yaml"]
 
 _MAX_LISTED = 4  # differences named in the warning; the rest are counted
@@ -38,8 +40,10 @@ class BagTruth:
     epoch_ns: int | None  # from the file's own leading metadata record (None: the file has none)
 
 
-def read_metadata_yaml(path: Path) -> tuple[dict | None, str | None]:
-    """(the ``rosbag2_bagfile_information`` mapping, None) or (None, why it cannot be used)."""
+def read_metadata_yaml(path: Path, *, fast: bool = True) -> tuple[dict | None, str | None]:
+    """(the ``rosbag2_bagfile_information`` mapping, None) or (None, why it cannot be used).
+    Read as ruamel.yaml's safe loader reads it (rosbags' reader): through libyaml where that gives
+    the same (bringup/recording/metadata_yaml.py), ruamel itself with ``fast=False``."""
     try:
         text = path.read_text(encoding="utf-8")
     except FileNotFoundError:
@@ -47,7 +51,7 @@ def read_metadata_yaml(path: Path) -> tuple[dict | None, str | None]:
     except (OSError, UnicodeDecodeError) as exc:
         return None, f"metadata.yaml unreadable ({getattr(exc, 'strerror', None) or exc})"
     try:
-        doc = YAML(typ="safe").load(text)
+        doc = metadata_yaml.load(text) if fast else YAML(typ="safe").load(text)
     except YAMLError as exc:
         return None, f"metadata.yaml is not YAML ({' '.join(str(exc).split())[:120]})"
     info = doc.get("rosbag2_bagfile_information") if isinstance(doc, dict) else None

@@ -91,8 +91,8 @@ class BagReader:
         self._speedups = nullcontext
         if fast:
             rosbags_speedups.install()
-            self._speedups = rosbags_speedups.active
-        info, why = read_metadata_yaml(self.path / "metadata.yaml")
+            self._speedups = rosbags_speedups.reading
+        info, why = read_metadata_yaml(self.path / "metadata.yaml", fast=fast)
         if self.mcap is None:
             if info is None:
                 raise UserError(f"bag {self.path}: not a rosbag2 bag ({why}, no .mcap file)")

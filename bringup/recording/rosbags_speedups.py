@@ -1,8 +1,9 @@
-"""Faster equivalents of four rosbags internals, applied only to the project's own bags.
+"""Faster equivalents of five rosbags internals, applied only to the project's own bags.
 
 rosbags (https://gitlab.com/ternaris/rosbags) writes and reads rosbag2 MCAP bags in pure Python;
-four of its steps cost most of a run's recording and of ``constellation report BAG``. Each
-replacement here computes exactly what rosbags computes (same bytes written, same messages read):
+five of its steps cost most of a run's recording and of ``constellation report BAG``. Four
+replacements compute exactly what rosbags computes (same bytes written, same messages read); the
+fifth writes the same YAML mapping in other bytes:
 
 * closing a chunk (``McapWriter.close_chunk``): rosbags writes the message index with two
   ``write_uint64`` calls per message; :func:`_fast_close_chunk` packs each channel's index in one
@@ -10,28 +11,46 @@ replacement here computes exactly what rosbags computes (same bytes written, sam
   channel, the ChunkIndex kept for the summary, https://mcap.dev/spec);
 * dumping a new connection's QoS profiles to the YAML text of its MCAP channel (``Writer.add_connection``
   through ``writer.dump_qos_v9`` and ruamel.yaml, ~20 ms each): the dump of an equal profile list is
-  equal, so it is made once per distinct list. Only there: the bag's metadata.yaml, written at
-  close, keeps rosbags' own version-9 form (a YAML sequence per topic, as rosbag2 writes it);
+  equal, so it is made once per distinct list, by ruamel as rosbags makes it. Only there: the bag's
+  metadata.yaml keeps rosbags' own version-9 form (a YAML sequence per topic, as rosbag2 writes it);
 * reading a chunk's records (``storage_mcap.msgsrc``): rosbags parses them through a BytesIO with
   four small reads per message; :func:`_fast_msgsrc` walks the decompressed chunk with
   ``struct.unpack_from`` and yields the same ``Msg`` tuples in the same order;
 * parsing a connection's QoS YAML (``parse_qos``, ~7 ms each, ~400 connections in a paper bag): a
   pure function of the text giving immutable tuples, so each distinct text is parsed once (a
-  failure is not remembered: it raises again).
+  failure is not remembered: it raises again);
+* the bag summary (rosbag2 metadata format version 9, the ``rosbag2_bagfile_information``
+  mapping, one entry per topic): ``Writer.close`` dumps it with ruamel.yaml twice, to metadata.yaml
+  and to the MCAP's ``rosbag2`` Metadata record (~2.2 s each for the ~940 KB summary of 240
+  satellites), and rosbags' folder reader loads metadata.yaml with ruamel (~3 s). Inside
+  :func:`metadata_yaml`, the ``YAML(typ="safe")`` those calls make is a libyaml dumper / loader
+  (bringup/recording/metadata_yaml.py, ~0.3 s each). Not the same bytes: libyaml keeps a plain
+  scalar longer than the line on its key's line where ruamel moves it to the next one (the
+  ``type_description_hash: RIHS01_...`` of every topic), and quotes strings such as ``on`` or
+  ``1:20`` that ruamel leaves plain (YAML 1.1 readers take those for a boolean and a number). The
+  same mapping: ruamel (rosbags), PyYAML's YAML 1.1 rules and yaml-cpp (rosbag2; untyped scalars)
+  read what was dumped. Without libyaml it is ruamel, as before.
 
 Scope: nothing happens on import. :func:`speed_up_writer` gives one ``McapWriter`` instance the fast
-chunk close (an instance attribute; the class is untouched). The three module-level functions are
-looked up by name inside rosbags, so :func:`install` (idempotent, called when a BagWriter or
-BagReader is made) replaces each with a dispatcher that runs the fast version only for the
-project's own bags - the QoS dump and parse inside ``with active():``, which bringup/recording/bag.py
-enters around its calls into rosbags, the chunk reader for the files of a reader passed to
+chunk close (an instance attribute; the class is untouched). The three module-level functions and
+the ``YAML`` name of rosbags' writer and reader modules are looked up by name inside rosbags, so
+:func:`install` (idempotent, called when a BagWriter or BagReader is made) replaces each with a
+dispatcher that runs the fast version only for the project's own bags - the QoS dump and parse
+inside ``with active():``, which bringup/recording/bag.py enters around its calls into rosbags, the
+summary YAML inside ``with metadata_yaml():``, which BagWriter.close enters around rosbags' close
+(outside ``active()``: there the QoS memo would give the string form) and BagReader around its
+opening (:func:`reading`: both), the chunk reader for the files of a reader passed to
 :func:`speed_up_reader` (it runs once per chunk while messages are iterated) - and rosbags' own
 function everywhere else, so any other user of rosbags in the process (the tests' independent
 reading, for one) gets rosbags' own code paths.
 
 How we know it is right: tests/unit/test_speed_paths.py writes the same bag with and without the
-speed-ups and compares the bytes, reads a multi-chunk bag both ways and compares every message and
-every connection's QoS, and checks that outside ``active()`` rosbags' own functions run.
+speed-ups and compares the bytes (the summary dumped by libyaml in both), compares the summary with
+rosbags' own ruamel dump (metadata.yaml and the MCAP record load to the same mapping with ruamel,
+PyYAML and metadata_yaml.load; the file is rosbags' byte for byte up to that record; rosbags' Reader
+and the mcap reader open both bags alike), reads a multi-chunk bag both ways and compares every
+message and every connection's QoS, and checks that outside ``active()`` and ``metadata_yaml()``
+rosbags' own functions run; tests/unit/test_metadata_yaml.py checks the YAML itself.
 """
 
 from __future__ import annotations
@@ -50,10 +69,14 @@ import rosbags.rosbag2.reader as _rosbags_reader
 import rosbags.rosbag2.storage_mcap as _rosbags_mcap
 import rosbags.rosbag2.writer as _rosbags_writer
 from rosbags.rosbag2.storage_mcap import McapWriter
+from ruamel.yaml import YAML as _RuamelYAML
 
-__all__ = ["active", "install", "speed_up_reader", "speed_up_writer"]
+from bringup.recording import metadata_yaml as _metadata_yaml
+
+__all__ = ["active", "install", "metadata_yaml", "reading", "speed_up_reader", "speed_up_writer"]
 
 _ACTIVE: ContextVar[bool] = ContextVar("rosbags_speedups_active", default=False)
+_METADATA_YAML: ContextVar[bool] = ContextVar("rosbags_speedups_metadata_yaml", default=False)
 _FAST_FILES: weakref.WeakSet = weakref.WeakSet()  # the open MCAP files of speed_up_reader's readers
 
 _U32 = struct.Struct("<I")
@@ -72,6 +95,25 @@ def active() -> Iterator[None]:
         yield
     finally:
         _ACTIVE.reset(token)
+
+
+@contextmanager
+def metadata_yaml() -> Iterator[None]:
+    """Inside: rosbags' ``YAML(typ="safe")`` dumps and loads through libyaml (metadata_yaml.py) -
+    the bag summary that ``Writer.close`` writes twice and a folder reader loads (this thread /
+    context only)."""
+    token = _METADATA_YAML.set(True)
+    try:
+        yield
+    finally:
+        _METADATA_YAML.reset(token)
+
+
+@contextmanager
+def reading() -> Iterator[None]:
+    """``active()`` and ``metadata_yaml()`` together: what a BagReader's calls into rosbags run in."""
+    with active(), metadata_yaml():
+        yield
 
 
 # -- writing -------------------------------------------------------------------------------------------
@@ -119,7 +161,7 @@ def _dump_qos_v9_memo(orig: Callable, profiles):
         dumped = orig(list(profiles))
         if not isinstance(dumped, str):  # what rosbags' Writer.add_connection does with it
             stream = StringIO()
-            yaml = _rosbags_writer.YAML(typ="safe")
+            yaml = _RuamelYAML(typ="safe")  # ruamel's text, as rosbags' add_connection makes it
             yaml.default_flow_style = False
             yaml.dump(dumped, stream)
             dumped = stream.getvalue().strip()
@@ -185,6 +227,38 @@ def _parse_qos_memo(orig: Callable, dcts):
     return list(got)
 
 
+# -- the metadata YAML ---------------------------------------------------------------------------------
+class _LibyamlSafe:
+    """What rosbags does with a ``YAML(typ="safe")`` - set ``default_flow_style``, ``dump(data,
+    stream)``, ``load(text)`` - through metadata_yaml.py (libyaml, ruamel's reading)."""
+
+    def __init__(self) -> None:
+        self.default_flow_style = False
+
+    def dump(self, data, stream) -> None:
+        if self.default_flow_style is False:
+            _metadata_yaml.dump(data, stream)
+            return
+        y = _RuamelYAML(typ="safe")
+        y.default_flow_style = self.default_flow_style
+        y.dump(data, stream)
+
+    def load(self, stream):
+        if isinstance(stream, str):
+            return _metadata_yaml.load(stream)
+        return _RuamelYAML(typ="safe").load(stream)
+
+
+def _yaml_factory(orig: Callable) -> Callable:
+    def YAML(*args, **kw):  # (stands in for the class name rosbags calls)
+        if _METADATA_YAML.get() and _metadata_yaml.LIBYAML and not args and kw == {"typ": "safe"}:
+            return _LibyamlSafe()
+        return orig(*args, **kw)
+
+    YAML.rosbags_original = orig
+    return YAML
+
+
 # -- the dispatchers -----------------------------------------------------------------------------------
 def _in_scope(*_args) -> bool:
     return _ACTIVE.get()
@@ -194,26 +268,31 @@ def _our_file(chunk, channel_map, start, stop, bio) -> bool:
     return bio in _FAST_FILES
 
 
+def _dispatcher(fast: Callable, ours: Callable) -> Callable[[Callable], Callable]:
+    def make(orig: Callable) -> Callable:
+        def dispatch(*args):
+            return fast(orig, *args) if ours(*args) else orig(*args)
+
+        dispatch.rosbags_original = orig
+        dispatch.__name__ = dispatch.__qualname__ = getattr(orig, "__name__", "dispatch")
+        return dispatch
+
+    return make
+
+
 _PATCHES = (
-    ((_rosbags_writer,), "dump_qos_v9", _dump_qos_v9_memo, _in_scope),
-    ((_rosbags_mcap,), "msgsrc", _fast_msgsrc, _our_file),
-    ((_rosbags_metadata, _rosbags_reader, _rosbags_mcap), "parse_qos", _parse_qos_memo, _in_scope),
+    ((_rosbags_writer,), "dump_qos_v9", _dispatcher(_dump_qos_v9_memo, _in_scope)),
+    ((_rosbags_mcap,), "msgsrc", _dispatcher(_fast_msgsrc, _our_file)),
+    ((_rosbags_metadata, _rosbags_reader, _rosbags_mcap), "parse_qos", _dispatcher(_parse_qos_memo, _in_scope)),
+    ((_rosbags_writer, _rosbags_reader), "YAML", _yaml_factory),
 )
 
 
-def _dispatcher(orig: Callable, fast: Callable, ours: Callable) -> Callable:
-    def dispatch(*args):
-        return fast(orig, *args) if ours(*args) else orig(*args)
-
-    dispatch.rosbags_original = orig
-    dispatch.__name__ = dispatch.__qualname__ = getattr(orig, "__name__", "dispatch")
-    return dispatch
-
-
 def install() -> None:
-    """Put the dispatchers in place of rosbags' three module-level functions (idempotent)."""
-    for modules, name, fast, ours in _PATCHES:
+    """Put the dispatchers in place of rosbags' three module-level functions and of the ``YAML``
+    name its writer and reader modules call (idempotent)."""
+    for modules, name, make in _PATCHES:
         for mod in modules:
             current = getattr(mod, name)
             if not hasattr(current, "rosbags_original"):
-                setattr(mod, name, _dispatcher(current, fast, ours))
+                setattr(mod, name, make(current))

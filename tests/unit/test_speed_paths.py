@@ -1,8 +1,11 @@
 """The fast paths give exactly what the plain paths give.
 
 Oracles: rosbags' own Writer.write, chunk close and QoS YAML (the bag file must be byte-identical
-with and without bringup/recording/bag.py's _fast_write and bringup/recording/rosbags_speedups.py),
-rosbags' own chunk reader and QoS parse (same messages, same QoS),  a brute-force settle (every in-flight transmission checked),
+with and without bringup/recording/bag.py's _fast_write and bringup/recording/rosbags_speedups.py,
+the bag summary dumped by libyaml in both), rosbags' own summary dump (ruamel: metadata.yaml and the
+MCAP's rosbag2 record load to the same mapping, the file is rosbags' byte for byte up to that
+record, rosbags' Reader and the mcap reader open both bags alike), rosbags' own chunk reader and QoS
+parse (same messages, same QoS),  a brute-force settle (every in-flight transmission checked),
 SQLite's own transaction state for the per-step store transaction, and the DP kernel walking each
 path for its path tables.
 """
@@ -12,23 +15,28 @@ from __future__ import annotations
 import random
 import subprocess
 import sys
+from contextlib import nullcontext
 
+from bringup.recording import rosbags_speedups
 from bringup.recording.bag import BagReader, BagWriter
 from msgs_json.envelope import Envelope
 from tests.keys import TEST_BPSEC_KEY
 
 
-def _write(path, fast_off: bool) -> None:
+def _write(path, fast_off: bool, close_in=nullcontext) -> None:
+    """30000 envelopes and 600 clocks; the bag closed inside ``close_in()``."""
     rng = random.Random(7)
-    with BagWriter(path, fast_off=fast_off) as bag:
-        t = 0
-        for i in range(30000):  # > 1 MiB: several chunks
-            t += rng.randrange(0, 10**9)
-            topic = f"/sat_{rng.randrange(1, 9):02d}/dtn/in"
-            data = bytes(rng.randrange(256) for _ in range(rng.randrange(1, 80))) if i % 3 else f"m{i}"
-            bag.write_envelope(Envelope(t, "x", i, topic, data))
-            if i % 50 == 0:
-                bag.write_clock(t)
+    bag = BagWriter(path, fast_off=fast_off)
+    t = 0
+    for i in range(30000):  # > 1 MiB: several chunks
+        t += rng.randrange(0, 10**9)
+        topic = f"/sat_{rng.randrange(1, 9):02d}/dtn/in"
+        data = bytes(rng.randrange(256) for _ in range(rng.randrange(1, 80))) if i % 3 else f"m{i}"
+        bag.write_envelope(Envelope(t, "x", i, topic, data))
+        if i % 50 == 0:
+            bag.write_clock(t)
+    with close_in():
+        bag.close()
 
 
 def _write_batched(path, sizes) -> None:
@@ -58,9 +66,13 @@ def _write_batched(path, sizes) -> None:
             i += n
 
 
-def _slow_bag(path) -> None:
-    """_write through rosbags' own Writer.write, McapWriter.close_chunk and QoS dump (no fast path)."""
-    _write(path, True)
+def _slow_bag(path, summary: str = "libyaml") -> None:
+    """_write through rosbags' own Writer.write, McapWriter.close_chunk and QoS dump (no fast path);
+    the bag summary (metadata.yaml, the MCAP's rosbag2 record) dumped by libyaml as the fast path
+    dumps it (``summary="libyaml"``: rosbags' Writer.close inside rosbags_speedups.metadata_yaml)
+    or by rosbags' own ruamel.yaml (``"ruamel"``)."""
+    rosbags_speedups.install()
+    _write(path, True, rosbags_speedups.metadata_yaml if summary == "libyaml" else nullcontext)
 
 
 def test_fast_bag_write_is_byte_identical(tmp_path):
@@ -75,6 +87,62 @@ def test_fast_bag_write_is_byte_identical(tmp_path):
     with BagReader(tmp_path / "fast" / "bag") as r:
         envs = list(r.envelopes())
     assert len(envs) == 30000 and envs[5].seq == 5
+
+
+def test_fast_summary_is_rosbags_summary_parse_equal(tmp_path):
+    """The fast path's bag summary is libyaml's text, not ruamel's (rosbags_speedups.metadata_yaml):
+    metadata.yaml and the MCAP's rosbag2 Metadata record load to rosbags' own mapping in every
+    reader, the .mcap is rosbags' byte for byte up to that record and its summary section lists the
+    same schemas, channels, statistics and chunks, and rosbags' Reader (on the folder: metadata.yaml
+    through ruamel; on the file) and the mcap reader open both bags alike."""
+    import yaml
+    from mcap.reader import make_reader
+    from rosbags.rosbag2 import Reader
+    from ruamel.yaml import YAML
+
+    from bringup.recording import metadata_yaml
+
+    _write(tmp_path / "fast" / "bag", False)
+    _slow_bag(tmp_path / "slow" / "bag", summary="ruamel")
+    fast, slow = tmp_path / "fast" / "bag", tmp_path / "slow" / "bag"
+    ya, yb = (fast / "metadata.yaml").read_text(), (slow / "metadata.yaml").read_text()
+    assert ya != yb and "type_description_hash: \n" in yb  # ruamel folds the long hashes, libyaml does not
+    loaders = [YAML(typ="safe").load, lambda t: yaml.load(t, Loader=yaml.SafeLoader), metadata_yaml.load]
+    for load in loaders:
+        assert load(ya) == load(yb)
+    info = YAML(typ="safe").load(yb)["rosbag2_bagfile_information"]
+    assert info["message_count"] == 30600 and len(info["topics_with_message_count"]) == 9
+
+    a, b = (fast / "bag.mcap").read_bytes(), (slow / "bag.mcap").read_bytes()
+    with open(fast / "bag.mcap", "rb") as fa, open(slow / "bag.mcap", "rb") as fb:
+        ra, rb = make_reader(fa, validate_crcs=True), make_reader(fb, validate_crcs=True)
+        sa, sb = ra.get_summary(), rb.get_summary()
+        for part in ("schemas", "channels", "statistics", "chunk_indexes"):
+            assert getattr(sa, part) == getattr(sb, part), part
+        (ia,), (ib,) = [m for m in sa.metadata_indexes if m.name == "rosbag2"], [m for m in sb.metadata_indexes
+                                                                                if m.name == "rosbag2"]
+        assert ia.offset == ib.offset and a[:ia.offset] == b[:ib.offset]  # rosbags' bytes up to the record
+        ma, mb = ({m.name: m.metadata for m in r.iter_metadata()} for r in (ra, rb))
+        assert ma.keys() == mb.keys() == {"rosbag2"}  # (the leading constellation record is in the bytes above)
+        sma, smb = ma["rosbag2"]["serialized_metadata"], mb["rosbag2"]["serialized_metadata"]
+        assert sma != smb
+        for load in loaders:
+            assert load(sma) == load(smb) == load(yb)["rosbag2_bagfile_information"]
+        got = [[(ch.topic, m.log_time, m.data) for _s, ch, m in r.iter_messages()] for r in (ra, rb)]
+        assert len(got[0]) == 30600 and got[0] == got[1]
+
+    def opened(where):
+        with Reader(where) as r:
+            return ((r.duration, r.start_time, r.end_time, r.message_count, r.compression_format,
+                     r.compression_mode, r.ros_distro, r.storage.metadata.custom),
+                    [(c.id, c.topic, c.msgtype, c.msgcount, c.digest, c.msgdef, c.ext) for c in r.connections],
+                    [(c.id, t, bytes(raw)) for c, t, raw in r.messages()])
+
+    for where in ("", "bag.mcap"):
+        x, y = opened(fast / where), opened(slow / where)
+        assert x == y and len(x[2]) == 30600 and all(c[6].offered_qos_profiles for c in x[1])
+    with BagReader(fast) as r, BagReader(fast, fast=False) as s:
+        assert r.warnings == s.warnings == [] and r.offered_qos() == s.offered_qos()
 
 
 def test_settle_prefix_equals_brute_force():
@@ -282,9 +350,11 @@ def test_speedups_stay_inside_the_projects_bags(tmp_path):
     McapWriter class keeps rosbags' chunk close and rosbags' functions run rosbags' own code outside
     the bag's calls (the fast versions' memo tables do not grow)."""
     code = ("import rosbags.rosbag2.storage_mcap as sm, rosbags.rosbag2.writer as w, rosbags.rosbag2.metadata as md\n"
-            "before = (sm.msgsrc, sm.parse_qos, w.dump_qos_v9, md.parse_qos, sm.McapWriter.close_chunk)\n"
+            "import rosbags.rosbag2.reader as rd\n"
+            "before = (sm.msgsrc, sm.parse_qos, w.dump_qos_v9, md.parse_qos, sm.McapWriter.close_chunk, w.YAML, rd.YAML)\n"
             "import bringup.recording.bag, bringup.analysis.report, bringup.cli.main\n"
-            "assert before == (sm.msgsrc, sm.parse_qos, w.dump_qos_v9, md.parse_qos, sm.McapWriter.close_chunk)\n")
+            "assert before == (sm.msgsrc, sm.parse_qos, w.dump_qos_v9, md.parse_qos, sm.McapWriter.close_chunk,"
+            " w.YAML, rd.YAML)\n")
     subprocess.run([sys.executable, "-c", code], check=True, timeout=120)
 
     from rosbags.rosbag2 import Reader, Writer
@@ -307,6 +377,8 @@ def test_speedups_stay_inside_the_projects_bags(tmp_path):
     with Reader(tmp_path / "theirs") as r:
         assert [t for _c, t, _raw in r.messages()] == [5]
     assert (len(su._QOS_DUMPS), len(su._QOS_PARSED)) == (n_dumps, n_parsed)
+    # their summary is ruamel's: the long type hash folded onto its own line
+    assert "type_description_hash: \n" in (tmp_path / "theirs" / "metadata.yaml").read_text()
 
 def test_dp_path_tables_equal_path_walks():
     """The DP kernel's per-state path tables - and, for windows within the revisit window, its path
