@@ -3,8 +3,15 @@
 Ground tracks, OSSE snapshot, contact plan, observation Gantt chart, value over time, and for a
 distributed run with bundles the study's Figure 5 (bringup/analysis/figure5.py).
 
-Checked by tests/unit/test_cli_exit.py (a whole local run writes its plots) and, figure by
-figure, tests/unit/test_plots.py.
+The bag is opened and read once for all of them (:func:`plot_inputs`): one pass over the
+``/observations`` topics and, when Figure 5 is drawn, the ``/dtn/events`` topics, each decoded
+into its own list in the bag's log-time order - what reading each set of topics alone gives (a
+240-satellite hour's bag read twice cost ~3 s more: two metadata checks, every chunk decompressed
+twice).
+
+Checked by tests/unit/test_cli_exit.py (a whole local run writes its plots), figure by figure
+tests/unit/test_plots.py, and test_plots.py's test_plot_inputs_equal_separate_reads (the one pass
+gives what a read of each topic set gives).
 """
 
 from __future__ import annotations
@@ -15,13 +22,13 @@ import numpy as np
 from PIL import Image
 
 from bringup.analysis import figures as plots
-from bringup.analysis.figure5 import bundle_rows_from_bag, figure5_data, plot_figure5
+from bringup.analysis.figure5 import bundle_rows, figure5_data, plot_figure5
 from bringup.analysis.report import true_values
 from bringup.recording.bag import BagReader
 from msgs_json import codec
 from orbit_clock import ecef_to_geodetic
 
-__all__ = ["run_plots", "shrink_png"]
+__all__ = ["plot_inputs", "run_plots", "shrink_png"]
 
 _NS = 1_000_000_000
 
@@ -43,9 +50,9 @@ def run_plots(out: Path, bag_dir: Path, world, rep: dict) -> list[Path]:
     made.append(plots.plot_osse_snapshot(d / "osse_snapshot.png", world.osse, slot=world.osse.n_slots // 2))
     if len(world.isl_plan):
         made.append(plots.plot_contact_timeline(d / "contact_plan.png", world.isl_plan, max_rows=60))
-    with BagReader(bag_dir) as bag:
-        topics = [x.topic for x in bag.topics() if x.topic.endswith("/observations")]
-        obs = [codec.decode(e.topic, e.data) for e in bag.envelopes(topics)]
+    # the study's Fig. 5 (bundle latency vs access gaps by priority) for a distributed run with bundles
+    fig5 = rep.get("mode") == "distributed" and bool((rep.get("dtn") or {}).get("bundles_created"))
+    obs, events = plot_inputs(bag_dir, bundle_events=fig5)
     if obs:
         rows = [{"sat": o.sat, "t_ns": o.t_ns, "region": world.region_of_gp(o.gp)} for o in obs]
         made.append(plots.plot_observation_gantt(d / "observations_gantt.png", rows, sat_names=world.sat_names,
@@ -54,10 +61,8 @@ def run_plots(out: Path, bag_dir: Path, world, rep: dict) -> list[Path]:
         made.append(plots.plot_value_over_time(
             d / "value_over_time.png", {rep["mode"]: ([o.t_ns / _NS for o, _, _ in tv], [v for _, v, _ in tv])},
             horizon_s=sc.scenario.horizon_s))
-    if rep.get("mode") == "distributed" and (rep.get("dtn") or {}).get("bundles_created"):
-        # the study's Fig. 5: bundle latency vs access gaps by priority (bringup/analysis/figure5.py)
-
-        rows = bundle_rows_from_bag(bag_dir)
+    if fig5:
+        rows = bundle_rows(events)  # (bringup/analysis/figure5.py)
         if rows:
             data = figure5_data(rows, world.access, world.ctx.gps.region_index,
                                 replan_period_s=sc.scheduler.replan_period_s)
@@ -65,6 +70,22 @@ def run_plots(out: Path, bag_dir: Path, world, rep: dict) -> list[Path]:
     for p in made:
         shrink_png(p)
     return made
+
+
+def plot_inputs(bag_dir: Path, *, bundle_events: bool) -> tuple[list, list]:
+    """(observations, bundle events): the decoded messages of the bag's ``/observations`` topics and,
+    with ``bundle_events``, of its ``/dtn/events`` topics (else []), each list in log-time order,
+    from one BagReader and one pass over the messages."""
+    obs: list = []
+    events: list = []
+    with BagReader(bag_dir) as bag:
+        names = [x.topic for x in bag.topics()]
+        obs_topics = {t for t in names if t.endswith("/observations")}
+        event_topics = {t for t in names if t.endswith("/dtn/events")} if bundle_events else set()
+        if obs_topics or event_topics:
+            for e in bag.envelopes(obs_topics | event_topics):
+                (obs if e.topic in obs_topics else events).append(codec.decode(e.topic, e.data))
+    return obs, events
 
 
 def shrink_png(path: Path, max_bytes: int = 300_000, colors: int = 128) -> Path:

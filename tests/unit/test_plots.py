@@ -128,3 +128,53 @@ def test_latency_vs_gaps(tmp_path):
     assert _is_png(plots.plot_latency_vs_gaps(tmp_path / "l.png", lat, gap))
     with pytest.raises(PlotError, match="every priority is empty"):
         plots.figure_latency_vs_gaps({1: []}, {})
+
+
+def test_plot_inputs_equal_separate_reads(tmp_path):
+    """bringup/analysis/run_figures.py plot_inputs reads a run's bag once for all figures: its
+    observations and bundle events equal what reading each set of topics alone gives (the reads
+    run_plots made before), in the same order - here over several chunks, with log times shared
+    across satellites and topics, and topics of other kinds in between."""
+    import random
+
+    from bringup.analysis.figure5 import bundle_rows, bundle_rows_from_bag
+    from bringup.analysis.run_figures import plot_inputs
+    from bringup.recording.bag import BagReader, BagWriter
+    from msgs_json import codec
+    from msgs_json import schemas as S
+    from msgs_json.envelope import Envelope
+
+    ns = 1_000_000_000
+    rng = random.Random(5)
+    sats = [f"sat_{p}{s}" for p in (1, 2, 3) for s in (1, 2, 3)]
+    with BagWriter(tmp_path / "bag", chunk_span_ns=60 * ns) as bag:
+        seq = 0
+        for k in range(600):
+            t = k * 10 * ns
+            bag.write_clock(t)
+            envs = []
+            for sat in rng.sample(sats, 4):
+                seq += 1
+                dst = rng.choice([x for x in sats if x != sat])
+                bid = f"{sat}-{seq}"
+                envs.append(Envelope(t, sat, seq, f"/{sat}/observations", codec.encode(S.Observation(
+                    sat=sat, gp=rng.randrange(50), t_ns=t, assumed_value=1.5, recorded_value=2.0))))
+                envs.append(Envelope(t, sat, seq, f"/{sat}/dtn/events", codec.encode(S.BundleCreated(
+                    sat=sat, t_ns=t, bundle_id=bid, src=sat, dst=dst, priority=1 + seq % 3, creation_ns=t,
+                    gp=rng.randrange(50), obs_t_ns=t, lifetime_ns=900 * ns, size_bits=2000))))
+                if rng.random() < 0.7:
+                    envs.append(Envelope(t, dst, seq, f"/{dst}/dtn/events", codec.encode(S.BundleDelivered(
+                        sat=dst, t_ns=t, bundle_id=bid, src=sat, dst=dst, priority=1 + seq % 3, creation_ns=t,
+                        hop_count=1))))
+                envs.append(Envelope(t, "router", seq, "/dtn/medium", bytes(rng.randrange(256) for _ in range(300))))
+            rng.shuffle(envs)
+            bag.write_envelopes(envs)
+    with BagReader(tmp_path / "bag") as r:
+        topics = [t.topic for t in r.topics()]
+        alone_obs = [codec.decode(e.topic, e.data) for e in r.envelopes([t for t in topics if t.endswith("/observations")])]
+        alone_events = [codec.decode(e.topic, e.data) for e in r.envelopes([t for t in topics if t.endswith("/dtn/events")])]
+    obs, events = plot_inputs(tmp_path / "bag", bundle_events=True)
+    assert len(obs) == 2400 and obs == alone_obs
+    assert len(events) > 4000 and events == alone_events
+    assert bundle_rows(events) == bundle_rows_from_bag(tmp_path / "bag")
+    assert plot_inputs(tmp_path / "bag", bundle_events=False) == (alone_obs, [])
