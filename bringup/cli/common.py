@@ -17,7 +17,7 @@ from bringup.scenario.config import KNOWLEDGE_MODELS, Scenario, load_scenario
 from msgs_json.names import MAX_PLANES, MAX_SATS
 
 _OVERRIDES = ("sats", "planes", "hours", "seed", "knowledge", "transiency_min", "gp_spacing_km", "joint_planning",
-              "forwarding")
+              "joint_max_partners", "forwarding")
 from bringup.scenario.limits import check_run_size
 
 
@@ -31,6 +31,17 @@ def transiency_arg(text: str) -> float:
         raise argparse.ArgumentTypeError(f"{text!r}: expected minutes (e.g. 15, 60) or 'slow'") from None
     if v < 0:
         raise argparse.ArgumentTypeError(f"{text!r}: must be >= 0 minutes")
+    return v
+
+
+def max_partners_arg(text: str) -> int:
+    """``--joint-max-partners``: an integer >= 0 (0: unbounded, the study's joint planning)."""
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r}: expected a whole number of partners (0: unbounded)") from None
+    if not 0 <= v <= MAX_SATS:
+        raise argparse.ArgumentTypeError(f"{text!r}: must be 0..{MAX_SATS} (0: unbounded)")
     return v
 
 
@@ -51,7 +62,8 @@ def add_scenario_args(p: argparse.ArgumentParser, *, overrides: bool = True, kno
 
 def add_knowledge_args(p: argparse.ArgumentParser) -> None:
     """What the planners know and of which field (scenario keys value.knowledge, value.transiency_min,
-    regions.gp_spacing_km, scheduler.joint_planning), and how the news travels (isl.forwarding)."""
+    regions.gp_spacing_km, scheduler.joint_planning, scheduler.joint_max_partners), and how the news
+    travels (isl.forwarding)."""
     p.add_argument("--knowledge", choices=KNOWLEDGE_MODELS, default=None,
                    help="what a planner knows: study (the field as of its newest information per region), "
                         "observed (forecast + observations), oracle (the truth; comparison only) "
@@ -64,6 +76,10 @@ def add_knowledge_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--planning", choices=("joint", "alone"), default=None,
                    help="plan satellites with overlapping fields of regard jointly (the study's) or each alone "
                         "(default: scenario)")
+    p.add_argument("--joint-max-partners", type=max_partners_arg, default=None, metavar="K",
+                   help="joint planning with at most K partners: those that may see the most of the planned "
+                        "satellite's GPs, ties by name; 0 = every overlapping satellite, the study's "
+                        "(scenario key scheduler.joint_max_partners; default: scenario)")
     p.add_argument("--forwarding", choices=("multicast", "unicast"), default=None,
                    help="DTN forwarding (scenario key isl.forwarding): one bundle per observation to its recipient "
                         "list (multicast) or one per recipient (unicast, the study simulator's) (default: scenario)")

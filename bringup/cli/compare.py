@@ -77,10 +77,12 @@ def _compare(args, sc, seeds: list[int], out: Path) -> None:
         extra += ["--gp-spacing-km", repr(args.gp_spacing_km)]
     if args.planning is not None:
         extra += ["--planning", args.planning]
+    if getattr(args, "joint_max_partners", None) is not None:
+        extra += ["--joint-max-partners", str(args.joint_max_partners)]
     if getattr(args, "forwarding", None) is not None:
         extra += ["--forwarding", args.forwarding]
     say(f"compare: knowledge {sc.value.knowledge}, transiency {sc.value.transiency_min:g} min "
-        f"(0: slow), {sc.gp_spacing_km:g} km GPs, planning {'joint' if sc.scheduler.joint_planning else 'alone'}")
+        f"(0: slow), {sc.gp_spacing_km:g} km GPs, planning {_planning(sc)}")
     by_mode = C.run_matrix(scenario=args.scenario, seeds=seeds, out=out, engine=args.engine, sats=args.sats,
                            hours=args.hours, jobs=args.jobs, say=say, extra=extra)
     res = C.compare_result(by_mode, seeds)
@@ -136,3 +138,11 @@ def _plots(out: Path, seed: int, res: dict, sc, args) -> list[Path]:
         res["distributed"]["figure5"] = figure5_summary(data)
         made.append(plot_figure5(d / "figure5.png", data))
     return made
+
+
+def _planning(sc) -> str:
+    """``joint``, ``joint, at most K partners`` or ``alone`` (scheduler.joint_planning, joint_max_partners)."""
+    if not sc.scheduler.joint_planning:
+        return "alone"
+    k = sc.scheduler.joint_max_partners
+    return f"joint, at most {k} partner{'s' if k > 1 else ''}" if k else "joint"

@@ -118,6 +118,9 @@ class SchedulerCfg(_S, kw_only=True):
     dp_step_s: Pos = 1.0
     plan_lookahead_s: Pos = 600.0
     joint_planning: bool = True
+    # joint planning with at most this many partners, the ones sharing most of the planned
+    # satellite's GPs (sat_node/scheduler/planner.py Planner.group); 0: every overlapping satellite
+    joint_max_partners: Annotated[int, msgspec.Meta(ge=0, le=MAX_SATS)] = 0
 
 
 class IslCfg(_S, kw_only=True):
@@ -205,11 +208,11 @@ class Scenario(_S, kw_only=True):
     def with_overrides(self, *, sats: int | None = None, hours: float | None = None,
                        seed: int | None = None, planes: int | None = None, knowledge: str | None = None,
                        transiency_min: float | None = None, gp_spacing_km: float | None = None,
-                       joint_planning: bool | None = None, viz_period_s: float | None = None,
-                       forwarding: str | None = None) -> "Scenario":
+                       joint_planning: bool | None = None, joint_max_partners: int | None = None,
+                       viz_period_s: float | None = None, forwarding: str | None = None) -> "Scenario":
         """A copy with the CLI overrides applied (``--sats``, ``--planes``, ``--hours``, ``--seed``,
-        ``--knowledge``, ``--transiency-min``, ``--gp-spacing-km``, ``--planning``, ``--viz-period-s``,
-        ``--forwarding``).
+        ``--knowledge``, ``--transiency-min``, ``--gp-spacing-km``, ``--planning``,
+        ``--joint-max-partners``, ``--viz-period-s``, ``--forwarding``).
 
         ``sats`` without ``planes`` keeps the number of planes when it divides evenly, else takes
         the largest number of planes below it that does; ``planes`` sets it (``phasing_f`` is kept
@@ -241,6 +244,8 @@ class Scenario(_S, kw_only=True):
             raw["scenario"]["horizon_s"] = float(hours) * 3600.0
         if seed is not None:
             raw["scenario"]["seed"] = int(seed)
+        if joint_max_partners is not None:  # an integer key: not made a float like the others
+            raw["scheduler"]["joint_max_partners"] = joint_max_partners
         return _validate(raw, self.source_path or "<overrides>")
 
 
@@ -371,6 +376,9 @@ def _cross_checks(sc: Scenario, where: str) -> None:
             f"({v.slot_s / 60.0:g} min; 0 = the slow storm-cell field)")
     if sc.scheduler.dp_step_s > sc.scheduler.replan_period_s:
         bad("scheduler.dp_step_s", "is longer than scheduler.replan_period_s")
+    if sc.scheduler.joint_max_partners and not sc.scheduler.joint_planning:
+        bad("scheduler.joint_max_partners", f"{sc.scheduler.joint_max_partners} partners, but joint_planning "
+            "is false (0 = unbounded; it bounds joint planning's group)")
     i = sc.isl
     if not (i.ttl_p1_s <= i.ttl_p2_3_s <= i.ttl_p4_15_s):
         bad("isl.ttl_p1_s", "TTLs must not shrink with priority number (p1 <= p2_3 <= p4_15)")

@@ -26,7 +26,10 @@ all plan here, with the same steps:
    with it from the same knowledge (:func:`sat_node.scheduler.joint.solve_joint`); the planned
    satellite's part is its plan. Onboard the partners are every other satellite of the
    constellation, from nadir at the window's start; the ground names them with the time their
-   committed plans end (``partners``).
+   committed plans end (``partners``). ``PlannerSettings.joint_max_partners`` = K >= 1 (scenario
+   key ``scheduler.joint_max_partners``; beyond the study, which plans with every overlapping
+   satellite) keeps the K partners that may see the most of the planned satellite's GPs
+   (:meth:`Planner.group`); 0 keeps them all.
 
 A planner holds only the scenario's fixed inputs (orbits, GPs, slew model, settings, pre-filter):
 everything that changes between calls - the satellite, the time, the window, the knowledge, the
@@ -37,6 +40,8 @@ the same arrays (track, exact FOR mask over every GP, forecast at the persistenc
 prior state); the pre-filtered plan equals the DP on the full instance's columns; the persistence
 view reads every later time at the cut-off; the paper run's report and traces are the check that
 satellite and ground plan as before (tests/system/test_engines_equal.py for both engines).
+tests/unit/test_joint_bound.py: a bounded group is never larger than K, keeps the partners the rule
+names on a hand-drawn case, and with K at least the unbounded group's size plans exactly as unbounded.
 """
 
 from __future__ import annotations
@@ -114,6 +119,7 @@ class PlannerSettings:
     footprint_km: float
     joint: bool = False
     joint_budget_solves: int = 0  # the dive only (sat_node/scheduler/joint.py): the search gained nothing here
+    joint_max_partners: int = 0  # at most this many partners in a joint plan (Planner.group); 0: all
 
     @classmethod
     def from_scenario(cls, sc) -> PlannerSettings:
@@ -122,7 +128,8 @@ class PlannerSettings:
                    for_off_nadir_deg=float(sc.instrument.for_off_nadir_deg),
                    revisit_zero_s=float(sc.value.revisit_zero_s),
                    footprint_km=float(sc.instrument.footprint_km),
-                   joint=bool(sc.scheduler.joint_planning))
+                   joint=bool(sc.scheduler.joint_planning),
+                   joint_max_partners=int(sc.scheduler.joint_max_partners))
 
 
 #: name -> solver(instance, settings) -> Plan
@@ -171,7 +178,23 @@ class Planner:
         """The instances of the satellites planned jointly with ``sat`` (module docstring, step 5):
         each partner free before the group's end - ``t0_s`` plus the longer of the window and
         ``revisit_zero_s`` - over its first ``revisit_zero_s`` once free and the GPs it may see then,
-        kept when one of them is a GP ``mine`` may see."""
+        kept when one of them is a GP ``mine`` may see. In the order of ``partners``.
+
+        With ``settings.joint_max_partners`` = K >= 1, at most K of them: those that may see the
+        most of ``mine``'s GPs in their part (the count of GPs worth something to both, ``v_first``
+        > 0 in each instance), ties broken by satellite name. The study plans with every satellite
+        of overlapping field of regard (Nag et al. 2019, Table 1 lines 9-20, ``satsWoverlappingFOR``);
+        a group's members contest GPs, and a GP is worth something once in the group over
+        ``revisit_zero_s``, so the shared GPs are what joint planning decides: a partner that may
+        see many of my GPs is one whose looks would most often make mine worth 0 (or mine its), and
+        one that may see a single GP changes my plan by at most that GP. Earliest overlap was the
+        other candidate; it ranks a partner that grazes one GP soon above one that sweeps the whole
+        region a minute later. Names make the choice deterministic (they sort in plane, slot
+        order). Every candidate's instance is still built to count its GPs - the bound saves the
+        DP solves of the members left out (one per member and per dive round), not the instances.
+        A partner left out is not predicted: the plan may then take GPs that partner will take
+        (news over the DTN, or the next replan, settle them).
+        """
         st = self.settings
         end = t0_s + max(window_s, st.revisit_zero_s)
         if partners is None:
@@ -180,7 +203,7 @@ class Planner:
         if len(mine_ids) == 0:
             return []
         mine_gps = set(mine_ids.tolist())
-        out = []
+        out = []  # (instance, shared GPs, name)
         for name, free_s in partners:
             start = max(t0_s, float(free_s))
             if start >= end - st.dp_step_s:
@@ -196,9 +219,14 @@ class Planner:
                 continue
             # a partner's part: its first revisit_zero_s once free (a GP counts once over it)
             q = self.instance(name, start, knowledge, window_s=min(end, start + st.revisit_zero_s) - start, gp_ids=ids)
-            if mine_gps.intersection(q.gp_ids[q.v_first.any(axis=0)].tolist()):
-                out.append(q)
-        return out
+            shared = len(mine_gps.intersection(q.gp_ids[q.v_first.any(axis=0)].tolist()))
+            if shared:
+                out.append((q, shared, name))
+        k = st.joint_max_partners
+        if k and len(out) > k:
+            keep = {name for _q, _n, name in sorted(out, key=lambda m: (-m[1], m[2]))[:k]}
+            out = [m for m in out if m[2] in keep]
+        return [q for q, _n, _name in out]
 
     def instance(self, sat: str, t0_s: float, knowledge: Knowledge, *, window_s: float | None = None,
                  step_s: float | None = None, gp_ids=None, init_target_km=None,
