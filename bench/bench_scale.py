@@ -3,7 +3,7 @@
 Usage::
 
     .venv/bin/python bench/bench_scale.py [--sats 24,48,96,240,480] [--hours 6] [--planes 3]
-        [--regions paper|global] [--planning joint|alone] [--json]
+        [--regions paper|global] [--planning joint|alone] [--joint-max-partners K] [--json]
 
 A run of minutes: ``--sats 24,48,96 --hours 1``.
 
@@ -22,7 +22,16 @@ log-log over every size) and the exponent between the baseline and each size.
 ``--planning alone`` plans every satellite by itself instead of jointly with the satellites whose
 fields of regard overlap (the scenario's default, sat_node/scheduler/joint.py): a satellite's group
 grows with the constellation's density, so joint planning's cost grows faster than N; ``alone``
-measures the rest (orbits, contacts, routing, bundles) without it.
+measures the rest (orbits, contacts, routing, bundles) without it. ``--joint-max-partners K`` bounds
+the group to the K partners that may see the most of the planned satellite's GPs (scenario key
+``scheduler.joint_max_partners``, sat_node/scheduler/planner.py ``Planner.group``; default 0: every
+overlapping satellite, the scenario's).
+
+The run is started through this file (``_counted_run``), which counts in the run's process the DP
+solves (every ``solve_dp`` call: plans alone, joint members, dive and search re-solves) and the
+joint plans with their members: printed as ``dp_solves``, ``dp_per_sat_h``, ``joint_plans``,
+``mean_group`` (members, the planned satellite included) and ``dp_per_joint`` (DP solves spent by
+``solve_joint`` per joint plan). Plans whose group is empty are planned alone and are not joint plans.
 
 ``--regions global`` replaces the paper's five regions by a global grid of 80 km regions (every
 30 deg of latitude from -60 to 60, every 45 deg of longitude: 40 regions, 4000 ground points), so
@@ -82,8 +91,12 @@ def run_size(n: int, planes: int, args, scenario: str, out: Path) -> dict:
     p = max(1, min(planes, n))
     while n % p:
         p -= 1
-    cmd = [sys.executable, "-m", "bringup.cli", "run", "--engine", "local", "--scenario", scenario, "--sats", str(n),
+    counts_path = out.parent / f"counts{n}.json"
+    cmd = [sys.executable, str(Path(__file__).resolve()), "_counted_run", str(counts_path),
+           "run", "--engine", "local", "--scenario", scenario, "--sats", str(n),
            "--planes", str(p), "--hours", str(args.hours), "--planning", args.planning, "--out", str(out), "--no-plots", "--no-progress"]
+    if args.joint_max_partners is not None:
+        cmd += ["--joint-max-partners", str(args.joint_max_partners)]
     load0 = os.getloadavg()[0]
     c0 = os.times()
     t0 = time.perf_counter()
@@ -99,6 +112,7 @@ def run_size(n: int, planes: int, args, scenario: str, out: Path) -> dict:
         raise SystemExit(f"{n} satellites: run failed: {err[-2000:]}")
     rep = json.loads((out / "report.json").read_text())
     rt = rep["runtime"]
+    cnt = json.loads(counts_path.read_text())
     return {"sats": n, "planes": p, "wall_s": round(wall, 1),
             "cpu_s": round((c1.children_user - c0.children_user) + (c1.children_system - c0.children_system), 1),
             "peak_pss_mib": round(peak), "observations": rep["observations"]["count"],
@@ -107,8 +121,39 @@ def run_size(n: int, planes: int, args, scenario: str, out: Path) -> dict:
             "plans": rep["schedules"]["count"],
             "plans_per_sat_h": round(rep["schedules"]["count"] / (n * args.hours), 1),
             "planning_cpu_s": round(rt["scheduler_cpu_s_per_sat"] * n, 1),
+            "dp_solves": cnt["dp_solves"], "dp_per_sat_h": round(cnt["dp_solves"] / (n * args.hours), 1),
+            "joint_plans": cnt["joint_plans"],
+            "mean_group": round(cnt["group_members"] / cnt["joint_plans"], 2) if cnt["joint_plans"] else None,
+            "dp_per_joint": round(cnt["joint_dp_solves"] / cnt["joint_plans"], 1) if cnt["joint_plans"] else None,
             "value": round(rep["value"]["cumulative"]), "load_before": round(load0, 1),
             "load_after": round(os.getloadavg()[0], 1)}
+
+
+def _counted_run(counts_path: str, run_argv: list[str]) -> int:
+    """``constellation run`` in this process with the planners' DP solves and joint plans counted
+    (module docstring); the counts written to ``counts_path`` as JSON."""
+    from bringup.cli.main import main as cli_main
+    from sat_node.scheduler import dp, joint, planner
+
+    counts = {"dp_solves": 0, "joint_plans": 0, "group_members": 0, "joint_dp_solves": 0}
+    solve_dp, solve_joint = dp.solve_dp, planner.solve_joint
+
+    def counted_dp(p, *a, **kw):
+        counts["dp_solves"] += 1
+        return solve_dp(p, *a, **kw)
+
+    def counted_joint(problems, **kw):
+        res = solve_joint(problems, **kw)
+        counts["joint_plans"] += 1
+        counts["group_members"] += len(problems)
+        counts["joint_dp_solves"] += res.dp_solves
+        return res
+
+    dp.solve_dp = joint.solve_dp = planner.solve_dp = counted_dp
+    planner.solve_joint = counted_joint
+    code = cli_main(run_argv)
+    Path(counts_path).write_text(json.dumps(counts))
+    return code
 
 
 def exponent(ns, ys) -> float:
@@ -124,6 +169,8 @@ def main() -> int:
     ap.add_argument("--regions", choices=("paper", "global"), default="paper")
     ap.add_argument("--planning", choices=("joint", "alone"), default="joint",
                     help="joint (the scenario's) or alone: each satellite plans by itself")
+    ap.add_argument("--joint-max-partners", type=int, default=None, metavar="K",
+                    help="joint planning with at most K partners (0: all, the scenario's default)")
     ap.add_argument("--json", action="store_true", help="one JSON document at the end instead of the table")
     args = ap.parse_args()
     sizes = [int(x) for x in args.sats.split(",")]
@@ -148,10 +195,11 @@ def main() -> int:
         ns = [r["sats"] for r in rows]
         fit = {"wall": round(exponent(ns, [r["wall_s"] for r in rows]), 2),
                "cpu": round(exponent(ns, [r["cpu_s"] for r in rows]), 2)}
-        for k in ("bundles_created", "cgr_queries", "envelopes", "plans", "planning_cpu_s"):
+        for k in ("bundles_created", "cgr_queries", "envelopes", "plans", "planning_cpu_s", "dp_solves"):
             if all(r.get(k) for r in rows):
                 fit[k] = round(exponent(ns, [r[k] for r in rows]), 2)
-    doc = {"hours": args.hours, "regions": args.regions, "planning": args.planning, "rows": rows, "fitted_exponent": fit}
+    doc = {"hours": args.hours, "regions": args.regions, "planning": args.planning,
+           "joint_max_partners": args.joint_max_partners, "rows": rows, "fitted_exponent": fit}
     if args.json:
         print(json.dumps(doc, indent=2))
         return 0
@@ -163,10 +211,18 @@ def main() -> int:
               f"{r['envelopes'] or 0:>10} {r['plans_per_sat_h']:>11.1f} {r['planning_cpu_s']:>10.1f} "
               f"{r['exp_wall_from_base'] or 0:>9.2f} {r['exp_cpu_from_base'] or 0:>8.2f} "
               f"{r['load_before']:>4}/{r['load_after']:<4}")
-    print(f"{args.hours:g} h, regions {args.regions}, planning {args.planning}")
+    print(f"\n{'sats':>5} {'dp solves':>10} {'dp/sat-h':>9} {'joint plans':>11} {'mean group':>10} {'dp/joint':>8}")
+    for r in rows:
+        print(f"{r['sats']:>5} {r['dp_solves']:>10} {r['dp_per_sat_h']:>9.1f} {r['joint_plans']:>11} "
+              f"{r['mean_group'] or 0:>10.2f} {r['dp_per_joint'] or 0:>8.1f}")
+    k = args.joint_max_partners
+    print(f"{args.hours:g} h, regions {args.regions}, planning {args.planning}"
+          + (f", at most {k} partner{'s' if k > 1 else ''}" if args.planning == "joint" and k else ""))
     print(f"fitted growth exponents (y = a N^b over {', '.join(str(r['sats']) for r in rows)}): {fit}")
     return 0
 
 
 if __name__ == "__main__":
+    if sys.argv[1:2] == ["_counted_run"]:
+        sys.exit(_counted_run(sys.argv[2], sys.argv[3:]))
     sys.exit(main())
