@@ -8,11 +8,11 @@ Usage::
 Each (variant, seed) is one `constellation run --engine local` of the paper scenario as a child
 process from this checkout, one after the other: variant ``0`` is the scenario's joint planning with
 every overlapping satellite (the study's, Nag et al. 2019 Table 1 lines 9-20), ``K`` >= 1 joint
-planning with at most K partners (``--joint-max-partners K``: those that may see the most of the
-planned satellite's GPs, sat_node/scheduler/planner.py ``Planner.group``), ``alone`` every satellite
+planning with at most K partners (``--joint-max-partners K``: those that may first see one of the
+planned satellite's GPs earliest, sat_node/scheduler/planner.py ``Planner.group``), ``alone`` every satellite
 planning by itself (``--planning alone``). Printed per run: report.json ``value.cumulative``,
 ``coverage.gp_observed_fraction``, ``observations.count``, ``observations.duplicates_15min``,
-``value.assumed_error_mean``, the planners' CPU (``runtime.scheduler_cpu_s_per_sat`` x N), the
+``value.assumed_error_mean``, the plans made (``schedules.count``: periodic and for news), the planners' CPU (``runtime.scheduler_cpu_s_per_sat`` x N), the
 process tree's CPU (user + system of the child and its recorder) and the load average before the
 run; then per variant the mean and sample standard deviation over the seeds, and the ratio of the
 mean to the unbounded variant's and to ``alone``'s (when they ran). Seeds change the field, the
@@ -43,6 +43,7 @@ KEYS = {  # column -> report.json path
     "observations": ("observations", "count"),
     "duplicates": ("observations", "duplicates_15min"),
     "assumed_error": ("value", "assumed_error_mean"),
+    "plans": ("schedules", "count"),
 }
 
 
@@ -124,7 +125,7 @@ def main() -> int:
         return 0
     print(f"\n{args.scenario}, {args.sats} satellites, {args.hours:g} h, local engine, seeds {seeds}: mean +- sd")
     print(f"{'variant':>8} {'value':>17} {'coverage':>15} {'obs':>13} {'dup':>11} {'assumed err':>15} "
-          f"{'plan cpu s':>13} {'cpu s':>13} {'v/unb':>6} {'v/alone':>7}")
+          f"{'plans':>13} {'plan cpu s':>13} {'cpu s':>13} {'v/unb':>6} {'v/alone':>7}")
     for s in summary:
         def f(c, fmt, s=s):
             return f"{format(s[c], fmt)} +- {format(s[c + '_sd'], fmt)}"
@@ -132,7 +133,8 @@ def main() -> int:
         r0 = s.get("value_over_0")
         ra = s.get("value_over_alone")
         print(f"{s['variant']:>8} {f('value', '.0f'):>17} {f('coverage', '.4f'):>15} {f('observations', '.0f'):>13} "
-              f"{f('duplicates', '.1f'):>11} {f('assumed_error', '.4f'):>15} {f('planning_cpu_s', '.1f'):>13} "
+              f"{f('duplicates', '.1f'):>11} {f('assumed_error', '.4f'):>15} {f('plans', '.0f'):>13} "
+              f"{f('planning_cpu_s', '.1f'):>13} "
               f"{f('cpu_s', '.1f'):>13} {'-' if r0 is None else format(r0, '.4f'):>6} "
               f"{'-' if ra is None else format(ra, '.4f'):>7}")
     return 0

@@ -23,7 +23,7 @@ log-log over every size) and the exponent between the baseline and each size.
 fields of regard overlap (the scenario's default, sat_node/scheduler/joint.py): a satellite's group
 grows with the constellation's density, so joint planning's cost grows faster than N; ``alone``
 measures the rest (orbits, contacts, routing, bundles) without it. ``--joint-max-partners K`` bounds
-the group to the K partners that may see the most of the planned satellite's GPs (scenario key
+the group to the K partners that may first see one of the planned satellite's GPs earliest (scenario key
 ``scheduler.joint_max_partners``, sat_node/scheduler/planner.py ``Planner.group``; default 0: every
 overlapping satellite, the scenario's).
 

@@ -77,8 +77,8 @@ def add_knowledge_args(p: argparse.ArgumentParser) -> None:
                    help="plan satellites with overlapping fields of regard jointly (the study's) or each alone "
                         "(default: scenario)")
     p.add_argument("--joint-max-partners", type=max_partners_arg, default=None, metavar="K",
-                   help="joint planning with at most K partners: those that may see the most of the planned "
-                        "satellite's GPs, ties by name; 0 = every overlapping satellite, the study's "
+                   help="joint planning with at most K partners: those that may first see one of the planned "
+                        "satellite's GPs earliest, ties by name; 0 = every overlapping satellite, the study's "
                         "(scenario key scheduler.joint_max_partners; default: scenario)")
     p.add_argument("--forwarding", choices=("multicast", "unicast"), default=None,
                    help="DTN forwarding (scenario key isl.forwarding): one bundle per observation to its recipient "

@@ -118,8 +118,8 @@ class SchedulerCfg(_S, kw_only=True):
     dp_step_s: Pos = 1.0
     plan_lookahead_s: Pos = 600.0
     joint_planning: bool = True
-    # joint planning with at most this many partners, the ones sharing most of the planned
-    # satellite's GPs (sat_node/scheduler/planner.py Planner.group); 0: every overlapping satellite
+    # joint planning with at most this many partners, those that may first see one of the planned
+    # satellite's GPs earliest (sat_node/scheduler/planner.py Planner.group); 0: every overlapping one
     joint_max_partners: Annotated[int, msgspec.Meta(ge=0, le=MAX_SATS)] = 0
 
 

@@ -23,35 +23,39 @@ ALT_KM = 710.0
 
 # ---------------------------------------------------------------- a hand-drawn case
 #
-# Six GPs on the equator and six satellites held still 710 km above it (longitude, deg):
+# Six GPs on the equator, and satellites 710 km above it that each arrive over one longitude at
+# a set time and stay (before: parked over lon 180, seeing none of them):
 #
-#   GP         0     1     2     3     4     5
-#   lon      -16    -8     0     8    16    24
-#   sat_a (me)     [-----------]                 sees GPs 1 2 3
-#   sat_b                [-----------]           sees 2 3 4 -> shares {2, 3}: 2
-#   sat_c    [-----------]                       sees 0 1 2 -> shares {1, 2}: 2
-#   sat_d                      [-----------]     sees 3 4 5 -> shares {3}:    1
-#   sat_e   at lon 40: sees none of them         not a partner
-#   sat_f (at lon 0, with me)                    sees 1 2 3 -> shares all 3
+#   GP            0     1     2     3     4     5
+#   lon         -16    -8     0     8    16    24
+#   sat_a (me)        [-----------]                  from t = 0:   sees GPs 1 2 3
+#   sat_b                   [-----------]            from t = 300: 2 3 4 -> first sees mine at 300
+#   sat_c       [-----------]                        from t = 100: 0 1 2 -> 100
+#   sat_d                         [-----------]      from t = 100: 3 4 5 -> 100
+#   sat_e       over lon 40 from t = 0: none of mine                    -> not a partner
+#   sat_f             [-----------]                  from t = 500: 1 2 3 -> 500 (shares all three)
 #
 # A GP 8 deg of arc from the sub-satellite point is 49 deg off nadir (inside the 55 deg field of
-# regard), one 16 deg away 61 deg (outside). Ranked by shared GPs, ties by name: f, b, c, d.
+# regard), one 16 deg away 61 deg (outside). Ranked by the first time they may see one of my GPs,
+# ties by name: c, d, b, f - and f, which shares the most, last.
 
-_SAT_LON = {"sat_a": 0.0, "sat_b": 8.0, "sat_c": -8.0, "sat_d": 16.0, "sat_e": 40.0, "sat_f": 0.0}
+_SAT_AT = {"sat_a": (0.0, 0.0), "sat_b": (8.0, 300.0), "sat_c": (-8.0, 100.0), "sat_d": (16.0, 100.0),
+           "sat_e": (40.0, 0.0), "sat_f": (0.0, 500.0)}  # name -> (lon [deg], from t [s])
 _GP_LON = [-16.0, -8.0, 0.0, 8.0, 16.0, 24.0]
 
 
-def _equator(lon_deg: float, r_km: float) -> np.ndarray:
-    lon = np.radians(lon_deg)
-    return np.array([r_km * np.cos(lon), r_km * np.sin(lon), 0.0])
+def _equator(lon_deg, r_km: float) -> np.ndarray:
+    lon = np.radians(np.asarray(lon_deg, np.float64))
+    return np.stack([r_km * np.cos(lon), r_km * np.sin(lon), np.zeros_like(lon)], axis=-1)
 
 
-class _StillConstellation:
-    names = sorted(_SAT_LON)
+class _HandConstellation:
+    names = sorted(_SAT_AT)
 
     def track_ecef_km(self, name, t_s):
+        lon, since = _SAT_AT[name]
         t = np.atleast_1d(np.asarray(t_s, np.float64))
-        return np.tile(_equator(_SAT_LON[name], R_KM + ALT_KM), (len(t), 1))
+        return _equator(np.where(t >= since, lon, 180.0), R_KM + ALT_KM)
 
 
 class _Flat:
@@ -67,31 +71,38 @@ class _Flat:
 def _hand_planner(paper_scenario, k: int) -> Planner:
     st = PlannerSettings(dp_step_s=10.0, plan_lookahead_s=600.0, for_off_nadir_deg=55.0, revisit_zero_s=900.0,
                          footprint_km=8.0, joint=True, joint_max_partners=k)
-    gps = np.array([_equator(lon, R_KM) for lon in _GP_LON])
-    return Planner(_StillConstellation(), gps, SlewModel.from_scenario(paper_scenario), st)
+    gps = _equator(_GP_LON, R_KM)
+    return Planner(_HandConstellation(), gps, SlewModel.from_scenario(paper_scenario), st)
 
 
-def _hand_group(paper_scenario, k: int) -> list[str]:
+def _hand_group(paper_scenario, k: int, partners=None) -> list[str]:
     planner = _hand_planner(paper_scenario, k)
     know = Knowledge(_Flat())
     mine = planner.instance("sat_a", 0.0, know, window_s=600.0)
-    return [q.sat_name for q in planner.group("sat_a", 0.0, 600.0, know, mine)]
+    return [q.sat_name for q in planner.group("sat_a", 0.0, 600.0, know, mine, partners)]
 
 
 def test_hand_drawn_case_sees_what_the_drawing_says(paper_scenario):
-    """The drawing's fields of regard, as the planner's instances see them."""
+    """The drawing's fields of regard, as the planner's instances see them over 900 s: the GPs and
+    the first step each satellite sees one of GPs 1-3 (mine)."""
     planner = _hand_planner(paper_scenario, 0)
     know = Knowledge(_Flat())
-    seen = {s: planner.instance(s, 0.0, know, window_s=600.0).gp_ids.tolist() for s in _SAT_LON}
+    seen, first = {}, {}
+    for s in _SAT_AT:
+        q = planner.instance(s, 0.0, know, window_s=900.0)
+        seen[s] = q.gp_ids.tolist()
+        rows = np.flatnonzero(q.in_for[:, np.isin(q.gp_ids, [1, 2, 3])].any(axis=1))
+        first[s] = float(q.times_s[rows[0]]) if len(rows) else None
     assert seen == {"sat_a": [1, 2, 3], "sat_b": [2, 3, 4], "sat_c": [0, 1, 2], "sat_d": [3, 4, 5], "sat_e": [],
                     "sat_f": [1, 2, 3]}
+    assert first == {"sat_a": 0.0, "sat_b": 300.0, "sat_c": 100.0, "sat_d": 100.0, "sat_e": None, "sat_f": 500.0}
 
 
 @pytest.mark.parametrize("k,expected", [
     (0, ["sat_b", "sat_c", "sat_d", "sat_f"]),  # unbounded: every overlapping satellite, in name order
-    (1, ["sat_f"]),  # the most shared GPs (3), not the first name
-    (2, ["sat_b", "sat_f"]),  # b and c share 2 each: b by name
-    (3, ["sat_b", "sat_c", "sat_f"]),
+    (1, ["sat_c"]),  # c and d first see mine at 100 s: c by name
+    (2, ["sat_c", "sat_d"]),
+    (3, ["sat_b", "sat_c", "sat_d"]),  # f, sharing all three GPs but last to reach them, is left out
     (4, ["sat_b", "sat_c", "sat_d", "sat_f"]),
     (9, ["sat_b", "sat_c", "sat_d", "sat_f"]),
 ])
@@ -99,14 +110,13 @@ def test_the_partners_the_rule_names(paper_scenario, k, expected):
     assert _hand_group(paper_scenario, k) == expected
 
 
-def test_partners_free_later_are_ranked_on_their_part(paper_scenario):
-    """The ground names partners with the time they are free: one free after the group's end is
-    not a partner, whatever it shares; the rest are ranked as before."""
-    planner = _hand_planner(paper_scenario, 1)
-    know = Knowledge(_Flat())
-    mine = planner.instance("sat_a", 0.0, know, window_s=600.0)
-    partners = [("sat_b", 0.0), ("sat_c", 0.0), ("sat_d", 0.0), ("sat_f", 900.0)]
-    assert [q.sat_name for q in planner.group("sat_a", 0.0, 600.0, know, mine, partners)] == ["sat_b"]
+def test_partners_free_later_are_ranked_from_when_they_are_free(paper_scenario):
+    """The ground names partners with the time they are free: c and d free at 400 s first see my
+    GPs then, after b (300 s); one free at the group's end (900 s) is not a partner."""
+    partners = [("sat_b", 0.0), ("sat_c", 400.0), ("sat_d", 400.0), ("sat_f", 900.0)]
+    assert _hand_group(paper_scenario, 1, partners) == ["sat_b"]
+    assert _hand_group(paper_scenario, 2, partners) == ["sat_b", "sat_c"]
+    assert _hand_group(paper_scenario, 0, partners) == ["sat_b", "sat_c", "sat_d"]
 
 
 # ---------------------------------------------------------------- a real constellation
@@ -143,21 +153,26 @@ def _bounded(planner, k: int) -> Planner:
                    dataclasses.replace(planner.settings, joint_max_partners=k), candidates=planner.candidates)
 
 
-def _shared(mine, q) -> int:
+def _first_s(mine, q) -> float:
+    """When partner ``q`` may first see a GP worth something to both [s]: the earliest of the shared
+    GPs' first steps."""
     a = set(mine.gp_ids[mine.v_first.any(axis=0)].tolist())
-    return len(a & set(q.gp_ids[q.v_first.any(axis=0)].tolist()))
+    firsts = [np.flatnonzero(q.v_first[:, j])[0] for j, g in enumerate(q.gp_ids.tolist())
+              if g in a and q.v_first[:, j].any()]
+    return q.t0_s + q.step_s * min(firsts)
 
 
 def test_a_bounded_group_is_never_larger_than_k(dense):
     """On the 12 passes of the first 50 min with the largest groups: at most K partners, and they are
-    the unbounded group's members with the most shared GPs (ties by name), in its order."""
+    the unbounded group's members that may first see one of my GPs earliest (ties by name), in its
+    order."""
     ctx, planner, cases = dense
     cut = 0
     for size, sat, t0 in cases[:12]:
         full = _group(planner, sat, t0, ctx.osse)
         k_ = _knowledge(ctx.osse, t0)
         mine = planner.instance(sat, t0, k_, window_s=600.0, gp_ids=planner.candidates(sat, t0, t0 + 600.0))
-        ranked = sorted(full, key=lambda q: (-_shared(mine, q), q.sat_name))
+        ranked = sorted(full, key=lambda q: (_first_s(mine, q), q.sat_name))
         for k in (1, 2, 3):
             got = [q.sat_name for q in _group(_bounded(planner, k), sat, t0, ctx.osse)]
             assert len(got) == min(k, size)
