@@ -180,23 +180,26 @@ class Planner:
         ``revisit_zero_s`` - over its first ``revisit_zero_s`` once free and the GPs it may see then,
         kept when one of them is a GP ``mine`` may see. In the order of ``partners``.
 
-        With ``settings.joint_max_partners`` = K >= 1, at most K of them: those that may first see
-        one of ``mine``'s GPs earliest in their part (a GP worth something to both, ``v_first`` > 0
-        in each instance), ties broken by satellite name. The study plans with every satellite of
-        overlapping field of regard (Nag et al. 2019, Table 1 lines 9-20, ``satsWoverlappingFOR``).
-        Why the earliest: the group's solver gives a contested GP to the member that looks at it
-        first (sat_node/scheduler/joint.py, the greedy dive), so a partner changes the planned
-        satellite's part only by taking one of its GPs before it - a partner that reaches the
-        shared GPs after it loses every contest and leaves its part as planned alone. The other
-        candidate, the partners sharing the most GPs, ranks first the neighbours trailing on the
-        same ground track: measured on 96 satellites x 1 h (seed 1) it kept exactly those, and
-        K = 1 gave the report of planning alone. Names make the choice deterministic (they sort in
-        plane, slot order). Every candidate's instance is still built to rank it - the bound
-        saves the DP solves of the members left out (one per member and per dive round), not the
-        instances. A partner left out is not predicted: the plan may then take GPs that partner
-        will take (news over the DTN, or the next replan, settle them).
+        With ``settings.joint_max_partners`` = K >= 1, at most K of them: those whose field of
+        regard first reaches one of ``mine``'s GPs (those worth something to it) earliest, ties
+        broken by satellite name; their instances are built in that order until K share a GP
+        worth something to both (a candidate that shares none is passed over, as unbounded). The
+        time is on the DP grid, from the 10-s look refined over its last 10 s. The study plans
+        with every satellite of overlapping field of regard (Nag et al. 2019, Table 1 lines 9-20,
+        ``satsWoverlappingFOR``). Why the earliest: the group's solver gives a contested GP to the
+        member that looks at it first (sat_node/scheduler/joint.py, the greedy dive), so a partner
+        changes the planned satellite's part only by taking one of its GPs before it - a partner
+        that reaches the shared GPs after it loses every contest and leaves its part as planned
+        alone. The other candidate, the partners sharing the most GPs, ranks first the neighbours
+        trailing on the same ground track: measured on 96 satellites x 1 h (seed 1) it kept exactly
+        those, and K = 1 gave the report of planning alone. Names make the choice deterministic
+        (they sort in plane, slot order). The bound saves the instances and the DP solves of the
+        partners left out (one DP per member and per dive round). A partner left out is not
+        predicted: the plan may then take GPs that partner will take (news over the DTN, or the
+        next replan, settle them).
         """
         st = self.settings
+        k = st.joint_max_partners
         end = t0_s + max(window_s, st.revisit_zero_s)
         if partners is None:
             partners = [(n, t0_s) for n in getattr(self.constellation, "names", ()) if n != sat]
@@ -204,8 +207,9 @@ class Planner:
         if len(mine_ids) == 0:
             return []
         mine_gps = set(mine_ids.tolist())
-        out = []  # (instance, first time it may see one of my GPs [s], name)
-        for name, free_s in partners:
+        mine_km = self.gp_ecef_km[mine_ids]
+        cands = []  # (first time its FOR reaches one of my GPs [s] (K >= 1 only), name, order, start, ids)
+        for order, (name, free_s) in enumerate(partners):
             start = max(t0_s, float(free_s))
             if start >= end - st.dp_step_s:
                 continue
@@ -214,21 +218,35 @@ class Planner:
                 continue
             # a coarse look first (every 10 s, the FOR over my GPs): most candidates pass far off
             coarse = np.append(np.arange(start, end, 10.0), end - st.dp_step_s)
-            seen = for_mask(self.constellation.track_ecef_km(name, coarse), self.gp_ecef_km[mine_ids],
-                            st.for_off_nadir_deg)
+            seen = for_mask(self.constellation.track_ecef_km(name, coarse), mine_km, st.for_off_nadir_deg).any(axis=1)
             if not seen.any():
                 continue
+            first_s = self._first_in_for_s(name, coarse, int(np.argmax(seen)), mine_km) if k else 0.0
+            cands.append((first_s, name, order, start, ids))
+        if k:
+            cands.sort(key=lambda c: (c[0], c[1]))
+        out = []  # (order, instance)
+        for _first, name, order, start, ids in cands:
             # a partner's part: its first revisit_zero_s once free (a GP counts once over it)
             q = self.instance(name, start, knowledge, window_s=min(end, start + st.revisit_zero_s) - start, gp_ids=ids)
-            cols = np.isin(q.gp_ids, mine_ids) & q.v_first.any(axis=0)
-            if cols.any():
-                first_s = q.t0_s + q.step_s * int(np.argmax(q.v_first[:, cols].any(axis=1)))
-                out.append((q, first_s, name))
-        k = st.joint_max_partners
-        if k and len(out) > k:
-            keep = {name for _q, _t, name in sorted(out, key=lambda m: (m[1], m[2]))[:k]}
-            out = [m for m in out if m[2] in keep]
-        return [q for q, _t, _name in out]
+            if mine_gps.intersection(q.gp_ids[q.v_first.any(axis=0)].tolist()):
+                out.append((order, q))
+                if len(out) == k:
+                    break
+        return [q for _order, q in sorted(out, key=lambda m: m[0])]
+
+    def _first_in_for_s(self, name: str, coarse_s: np.ndarray, j: int, gp_km: np.ndarray) -> float:
+        """The first time [s] on the DP grid from ``coarse_s[0]`` at which satellite ``name``'s FOR
+        reaches one of the GPs ``gp_km``, given that ``coarse_s[j]`` is the first coarse time it does:
+        ``coarse_s[j]`` refined over the DP steps after ``coarse_s[j - 1]``."""
+        if j == 0:
+            return float(coarse_s[0])
+        step = self.settings.dp_step_s
+        t0 = float(coarse_s[0])
+        lo = t0 + step * (np.floor((coarse_s[j - 1] - t0) / step + 1e-9) + 1)
+        fine = np.arange(lo, coarse_s[j] + 0.5 * step, step)
+        hit = for_mask(self.constellation.track_ecef_km(name, fine), gp_km, self.settings.for_off_nadir_deg).any(axis=1)
+        return float(fine[np.argmax(hit)]) if hit.any() else float(coarse_s[j])
 
     def instance(self, sat: str, t0_s: float, knowledge: Knowledge, *, window_s: float | None = None,
                  step_s: float | None = None, gp_ids=None, init_target_km=None,

@@ -50,10 +50,12 @@ def _equator(lon_deg, r_km: float) -> np.ndarray:
 
 
 class _HandConstellation:
-    names = sorted(_SAT_AT)
+    def __init__(self, at: dict):
+        self.at = at
+        self.names = sorted(at)
 
     def track_ecef_km(self, name, t_s):
-        lon, since = _SAT_AT[name]
+        lon, since = self.at[name]
         t = np.atleast_1d(np.asarray(t_s, np.float64))
         return _equator(np.where(t >= since, lon, 180.0), R_KM + ALT_KM)
 
@@ -68,15 +70,15 @@ class _Flat:
         return np.zeros(np.shape(t_s), np.int64)
 
 
-def _hand_planner(paper_scenario, k: int) -> Planner:
-    st = PlannerSettings(dp_step_s=10.0, plan_lookahead_s=600.0, for_off_nadir_deg=55.0, revisit_zero_s=900.0,
+def _hand_planner(paper_scenario, k: int, at: dict = _SAT_AT, step_s: float = 10.0) -> Planner:
+    st = PlannerSettings(dp_step_s=step_s, plan_lookahead_s=600.0, for_off_nadir_deg=55.0, revisit_zero_s=900.0,
                          footprint_km=8.0, joint=True, joint_max_partners=k)
     gps = _equator(_GP_LON, R_KM)
-    return Planner(_HandConstellation(), gps, SlewModel.from_scenario(paper_scenario), st)
+    return Planner(_HandConstellation(at), gps, SlewModel.from_scenario(paper_scenario), st)
 
 
-def _hand_group(paper_scenario, k: int, partners=None) -> list[str]:
-    planner = _hand_planner(paper_scenario, k)
+def _hand_group(paper_scenario, k: int, partners=None, **kw) -> list[str]:
+    planner = _hand_planner(paper_scenario, k, **kw)
     know = Knowledge(_Flat())
     mine = planner.instance("sat_a", 0.0, know, window_s=600.0)
     return [q.sat_name for q in planner.group("sat_a", 0.0, 600.0, know, mine, partners)]
@@ -108,6 +110,16 @@ def test_hand_drawn_case_sees_what_the_drawing_says(paper_scenario):
 ])
 def test_the_partners_the_rule_names(paper_scenario, k, expected):
     assert _hand_group(paper_scenario, k) == expected
+
+
+def test_first_times_are_on_the_dp_grid_not_the_coarse_look(paper_scenario):
+    """With 1-s DP steps, d arriving at 103 s ranks before c at 107 s, though the 10-s look first
+    sees both at 110 s (where the name would put c first)."""
+    at = {**_SAT_AT, "sat_c": (-8.0, 107.0), "sat_d": (16.0, 103.0)}
+    assert _hand_group(paper_scenario, 1, at=at, step_s=1.0) == ["sat_d"]
+    assert _hand_group(paper_scenario, 2, at=at, step_s=1.0) == ["sat_c", "sat_d"]
+    at = {**_SAT_AT, "sat_c": (-8.0, 103.0), "sat_d": (16.0, 107.0)}
+    assert _hand_group(paper_scenario, 1, at=at, step_s=1.0) == ["sat_c"]
 
 
 def test_partners_free_later_are_ranked_from_when_they_are_free(paper_scenario):
@@ -154,18 +166,18 @@ def _bounded(planner, k: int) -> Planner:
 
 
 def _first_s(mine, q) -> float:
-    """When partner ``q`` may first see a GP worth something to both [s]: the earliest of the shared
-    GPs' first steps."""
+    """When partner ``q``'s field of regard first reaches a GP worth something to me [s]: the
+    earliest of those GPs' first steps in its instance's exact FOR mask."""
     a = set(mine.gp_ids[mine.v_first.any(axis=0)].tolist())
-    firsts = [np.flatnonzero(q.v_first[:, j])[0] for j, g in enumerate(q.gp_ids.tolist())
-              if g in a and q.v_first[:, j].any()]
+    firsts = [np.flatnonzero(q.in_for[:, j])[0] for j, g in enumerate(q.gp_ids.tolist())
+              if g in a and q.in_for[:, j].any()]
     return q.t0_s + q.step_s * min(firsts)
 
 
 def test_a_bounded_group_is_never_larger_than_k(dense):
     """On the 12 passes of the first 50 min with the largest groups: at most K partners, and they are
-    the unbounded group's members that may first see one of my GPs earliest (ties by name), in its
-    order."""
+    the unbounded group's members whose FOR first reaches one of my GPs earliest (ties by name), in
+    its order."""
     ctx, planner, cases = dense
     cut = 0
     for size, sat, t0 in cases[:12]:
