@@ -191,9 +191,8 @@ class Planner:
         changes the planned satellite's part only by taking one of its GPs before it - a partner
         that reaches the shared GPs after it loses every contest and leaves its part as planned
         alone. The other candidate, the partners sharing the most GPs, ranks first the neighbours
-        trailing on the same ground track: measured on 96 satellites x 1 h (seed 1) it kept exactly
-        those, and K = 1 gave the report of planning alone. Names make the choice deterministic
-        (they sort in plane, slot order). The bound saves the instances and the DP solves of the
+        trailing on the same ground track, which reach the shared GPs after it and so never change
+        its part. Names make the choice deterministic (they sort in plane, slot order). The bound saves the instances and the DP solves of the
         partners left out (one DP per member and per dive round). A partner left out is not
         predicted: the plan may then take GPs that partner will take (news over the DTN, or the
         next replan, settle them).
