@@ -2,7 +2,7 @@
 
 Prints wall times of the coarse-then-refine searches used by the product and, in the same run, the
 brute-force 1 s grid baselines (every GP / every pair at every second), plus how the two agree,
-and the ISL plan's figures against the study's own plan (../shared/paper_inputs).
+and the ISL plan's figures against the study's own plan (tests/fixtures/paper_inputs).
 
 Run: .venv/bin/python bench/bench_orbit.py [--no-baseline]
 """
@@ -10,6 +10,7 @@ Run: .venv/bin/python bench/bench_orbit.py [--no-baseline]
 from __future__ import annotations
 
 import argparse
+import os
 import statistics
 import sys
 import time
@@ -63,7 +64,8 @@ def main() -> int:
     print(f"ours : contacts {len(isl)}, pairs {len(pairs)}, in-plane pairs in contact all horizon {len(full)}, "
           f"cross-plane window median {statistics.median(cross):.0f} s (min {min(cross):.0f}, max {max(cross):.0f}, "
           f"n {len(cross)})")
-    paper = Path(__file__).resolve().parents[2] / "shared" / "paper_inputs" / "contact_plan_3p_8s.csv"
+    inputs = Path(os.environ.get("PAPER_INPUTS", Path(__file__).resolve().parents[1] / "tests" / "fixtures" / "paper_inputs"))
+    paper = inputs / "contact_plan_3p_8s.csv"
     if paper.exists():
         th = read_contact_plan(paper, rate_bps=1000.0)
         tp = {tuple(sorted(map(canonical_node, p))) for p in th.pairs()}

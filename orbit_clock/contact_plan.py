@@ -1,7 +1,7 @@
 """Contact plans: the directed windows during which one node can send to another.
 
 A contact is directed (``src`` -> ``dst``); a bidirectional link appears as two contacts, as in
-the study's plan (../shared/paper_inputs/contact_plan_3p_8s.csv) and in ION's ``a contact``.
+the study's plan (tests/fixtures/paper_inputs/contact_plan_3p_8s.csv) and in ION's ``a contact``.
 Node names are the satellites' names (``sat_PS``, or ``sat_PPPP_SSSS`` beyond 9 planes x 9 slots:
 msgs_json/names.py) and ``gs_<name>`` for ground stations; the ipn node number (RFC 9171 section
 4.2.5.1.2) of a satellite is its name's digits (``10*P + S``, ``10000*P + S``) and of the i-th

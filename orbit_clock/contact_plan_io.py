@@ -1,6 +1,6 @@
 """Contact plan files in the formats DTN users load: the study's CSV, ION's ionadmin lines, HDTN JSON.
 
-* ``csv``: the study's table (../shared/paper_inputs/contact_plan_3p_8s.csv): a header row
+* ``csv``: the study's table (tests/fixtures/paper_inputs/contact_plan_3p_8s.csv): a header row
   ``start_s,end_s,origin,destination[,rate_bps],range_light_s``, times in seconds since the scenario
   epoch. The study's file has no rate column (its link budget gives 1 kb/s): pass ``rate_bps=``
   when reading such a file. We write the six-tuple with the rate column, at full precision.

@@ -8,8 +8,8 @@ from pathlib import Path
 import pytest
 
 REPO = Path(__file__).resolve().parents[1]
-# ../shared/paper_inputs beside the clone (CI lays shared/ beside the checkout).
-PAPER_INPUTS = Path(os.environ.get("PAPER_INPUTS", REPO.parent / "shared" / "paper_inputs"))
+# the study's inputs, kept in the repository (tests/fixtures/paper_inputs/README.md); PAPER_INPUTS overrides
+PAPER_INPUTS = Path(os.environ.get("PAPER_INPUTS", REPO / "tests" / "fixtures" / "paper_inputs"))
 
 # Every ROS process a test starts stays on loopback (see ROS2_NOTES.md: network safety).
 os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"

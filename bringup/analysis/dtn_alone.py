@@ -1,7 +1,7 @@
 """The DTN alone on a contact plan and a traffic table, driven by the engine of a whole run.
 
 ``constellation dtn`` and the DTN benchmarks study the study's own inputs (a contact plan and the
-traffic its observations made, ../shared/paper_inputs) without orbits or planning. They run the
+traffic its observations made, tests/fixtures/paper_inputs) without orbits or planning. They run the
 same participants a distributed run has for its DTN, on the local engine (bringup/engine/local.py)
 with the same step rule: one :class:`sat_node.dtn.traffic.TrafficNode` per node (the satellite's
 own bundle agent and port, sat_node/dtn/port.py, fed by the traffic table instead of

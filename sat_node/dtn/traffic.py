@@ -1,4 +1,4 @@
-"""The study's traffic table (../shared/paper_inputs/traffic_case*.csv; Nag et al. 2021's DTN inputs),
+"""The study's traffic table (tests/fixtures/paper_inputs/traffic_case*.csv; Nag et al. 2021's DTN inputs),
 and the node that sends it.
 
 One row per executed observation: ``source,time_s,packet_id,region,Sat11..Sat38``; the satellite
