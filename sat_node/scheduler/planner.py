@@ -142,15 +142,21 @@ SOLVERS: dict[str, Callable[[SchedulingProblem, PlannerSettings], Plan]] = {
 class Planner:
     """Plans for any satellite of ``constellation`` (``track_ecef_km(name, t_s)``, orbit_clock)
     over the GPs ``gp_ecef_km`` [km, ECEF, row = GP id]; ``candidates(sat, t0_s, t1_s)`` is the GP
-    pre-filter (None: the exact FOR mask over every GP picks the columns)."""
+    pre-filter (None: the exact FOR mask over every GP picks the columns); ``reach(sats, t0s_s, t1_s,
+    gp_ids)`` answers for many satellites at once whether ``candidates(sats[j], t0s_s[j], t1_s)``
+    holds one of ``gp_ids`` (orbit_clock.access.RegionPrefilter.may_reach; None: ``candidates`` is
+    asked of each satellite), so that a joint plan's choice of partners does not ask every other
+    satellite in turn."""
 
     def __init__(self, constellation, gp_ecef_km: np.ndarray, slew: SlewModel, settings: PlannerSettings,
-                 candidates: Callable[[str, float, float], np.ndarray] | None = None):
+                 candidates: Callable[[str, float, float], np.ndarray] | None = None,
+                 reach: Callable[..., np.ndarray] | None = None):
         self.constellation = constellation
         self.gp_ecef_km = gp_ecef_km
         self.slew = slew
         self.settings = settings
         self.candidates = candidates
+        self.reach = reach
 
     def plan(self, sat: str, t0_s: float, window_s: float, knowledge: Knowledge, *,
              init_target_km: np.ndarray | None = None, solver: str = "dp",
@@ -207,10 +213,13 @@ class Planner:
             return []
         mine_gps = set(mine_ids.tolist())
         mine_km = self.gp_ecef_km[mine_ids]
+        near = None  # the pre-filter's answer for every partner at once (the same as the test below)
+        if self.reach is not None and self.candidates is not None:
+            near = self.reach([n for n, _ in partners], [max(t0_s, float(f)) for _, f in partners], end, mine_ids)
         cands = []  # (first time its FOR reaches one of my GPs [s] (K >= 1 only), name, order, start, ids)
         for order, (name, free_s) in enumerate(partners):
             start = max(t0_s, float(free_s))
-            if start >= end - st.dp_step_s:
+            if start >= end - st.dp_step_s or (near is not None and not near[order]):
                 continue
             ids = self.candidates(name, start, end) if self.candidates is not None else None
             if ids is not None and not mine_gps.intersection(ids.tolist()):
