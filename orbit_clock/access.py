@@ -352,8 +352,8 @@ class RegionPrefilter:
         regions = np.unique(self.gps.region_index[gp_ids])
         regions = regions[regions >= 0]
         idx = np.array([c["index"][s] for s in sats], dtype=np.int64)
-        k0 = np.array([max(0, int(math.floor(float(t) / self.step_s))) for t in t0_s], dtype=np.int64)
-        k1 = min(c["unit"].shape[1] - 1, int(math.ceil(t1_s / self.step_s)))
+        k0 = np.array([max(0, math.floor(float(t) / self.step_s)) for t in t0_s], dtype=np.int64)
+        k1 = min(c["unit"].shape[1] - 1, math.ceil(t1_s / self.step_s))
         lo = int(k0.min())
         if len(regions) == 0 or lo > k1:
             return out
