@@ -28,7 +28,8 @@ from sat_node.dtn.agent import AgentConfig
 from sat_node.dtn.cgr import ContactGraph
 from sat_node.dtn.traffic import read_traffic
 
-INPUTS = Path(os.environ.get("PAPER_INPUTS", Path(__file__).resolve().parents[1] / "tests" / "fixtures" / "paper_inputs"))
+INPUTS = Path(os.environ.get("PAPER_INPUTS",
+                            Path(__file__).resolve().parents[1] / "tests" / "fixtures" / "paper_inputs"))
 
 
 def main() -> int:

@@ -64,7 +64,8 @@ def main() -> int:
     print(f"ours : contacts {len(isl)}, pairs {len(pairs)}, in-plane pairs in contact all horizon {len(full)}, "
           f"cross-plane window median {statistics.median(cross):.0f} s (min {min(cross):.0f}, max {max(cross):.0f}, "
           f"n {len(cross)})")
-    inputs = Path(os.environ.get("PAPER_INPUTS", Path(__file__).resolve().parents[1] / "tests" / "fixtures" / "paper_inputs"))
+    inputs = Path(os.environ.get("PAPER_INPUTS",
+                                 Path(__file__).resolve().parents[1] / "tests" / "fixtures" / "paper_inputs"))
     paper = inputs / "contact_plan_3p_8s.csv"
     if paper.exists():
         th = read_contact_plan(paper, rate_bps=1000.0)

@@ -56,7 +56,8 @@ from orbit_clock.contact_plan_io import read_contact_plan
 from sat_node.dtn.agent import AgentConfig, ttl_s_for_priority
 from sat_node.dtn.traffic import read_traffic
 
-INPUTS = Path(os.environ.get("PAPER_INPUTS", Path(__file__).resolve().parents[1] / "tests" / "fixtures" / "paper_inputs"))
+INPUTS = Path(os.environ.get("PAPER_INPUTS",
+                            Path(__file__).resolve().parents[1] / "tests" / "fixtures" / "paper_inputs"))
 GUARD_S = 300.0
 
 

@@ -28,7 +28,8 @@ How we know it is right (tests/unit/test_orbit_access.py): the off-nadir angle a
 form of the plane triangle (centre, satellite, GP) and an atan2 formula to 1e-9 deg; the FOR bound
 against a brute-force search of the central angles; the FOR mask's row pre-filter equal to the test of
 every pair; the region pre-filter never drops a GP the exact mask keeps (FOR inside and beyond the
-horizon); skyfield ``find_events`` with the elevation mask equivalent to the off-nadir limit agrees
+horizon), and its batched ``may_reach`` answers as ``candidate_gp_ids`` asked of each satellite
+(test_may_reach_equals_candidate_gp_ids); skyfield ``find_events`` with the elevation mask equivalent to the off-nadir limit agrees
 on every pass to within 2 s (passes whose peak is within 1 deg of the mask are excluded: there the
 edges are ill-conditioned); the brute-force 1 s grid over every GP (``access_windows_bruteforce``)
 finds the same windows; invariants (ordered, non-overlapping per (sat, gp), inside the horizon,

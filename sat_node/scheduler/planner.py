@@ -41,7 +41,9 @@ prior state); the pre-filtered plan equals the DP on the full instance's columns
 view reads every later time at the cut-off; the paper run's report and traces are the check that
 satellite and ground plan as before (tests/system/test_engines_equal.py for both engines).
 tests/unit/test_joint_bound.py: a bounded group is never larger than K, keeps the partners the rule
-names on a hand-drawn case, and with K at least the unbounded group's size plans exactly as unbounded.
+names on a hand-drawn case, and with K at least the unbounded group's size plans exactly as unbounded;
+the region pre-filter asked about every partner at once (``reach``) leaves the group as asking each in
+turn (test_partners_asked_at_once_are_those_asked_in_turn).
 """
 
 from __future__ import annotations
