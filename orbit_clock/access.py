@@ -28,8 +28,7 @@ How we know it is right (tests/unit/test_orbit_access.py): the off-nadir angle a
 form of the plane triangle (centre, satellite, GP) and an atan2 formula to 1e-9 deg; the FOR bound
 against a brute-force search of the central angles; the FOR mask's row pre-filter equal to the test of
 every pair; the region pre-filter never drops a GP the exact mask keeps (FOR inside and beyond the
-horizon), and its batched ``may_reach`` answers as ``candidate_gp_ids`` asked of each satellite
-(test_may_reach_equals_candidate_gp_ids); skyfield ``find_events`` with the elevation mask equivalent to the off-nadir limit agrees
+horizon); skyfield ``find_events`` with the elevation mask equivalent to the off-nadir limit agrees
 on every pass to within 2 s (passes whose peak is within 1 deg of the mask are excluded: there the
 edges are ill-conditioned); the brute-force 1 s grid over every GP (``access_windows_bruteforce``)
 finds the same windows; invariants (ordered, non-overlapping per (sat, gp), inside the horizon,
@@ -340,32 +339,6 @@ class RegionPrefilter:
             return np.zeros(0, dtype=np.int64)
         return np.concatenate([c["region_gps"][r] for r in keep])
 
-    def may_reach(self, sats, t0_s, t1_s: float, gp_ids) -> np.ndarray:
-        """For each satellite ``sats[j]``, whether ``candidate_gp_ids(sats[j], t0_s[j], t1_s)``
-        holds one of the GPs ``gp_ids``: the same regions and samples, the same test, for many
-        satellites in one array operation (the joint planner asks it of every other satellite at
-        every plan, sat_node/scheduler/planner.py ``Planner.group``). bool array, len(sats)."""
-        c = self._coarse if self._coarse is not None else self._build()
-        out = np.zeros(len(sats), dtype=bool)
-        gp_ids = np.asarray(gp_ids, dtype=np.int64)
-        if len(sats) == 0 or gp_ids.size == 0:
-            return out
-        regions = np.unique(self.gps.region_index[gp_ids])
-        regions = regions[regions >= 0]
-        idx = np.array([c["index"][s] for s in sats], dtype=np.int64)
-        k0 = np.array([max(0, math.floor(float(t) / self.step_s)) for t in t0_s], dtype=np.int64)
-        k1 = min(c["unit"].shape[1] - 1, math.ceil(t1_s / self.step_s))
-        lo = int(k0.min())
-        if len(regions) == 0 or lo > k1:
-            return out
-        u = c["unit"][idx, lo:k1 + 1]  # (S, n, 3)
-        hit = ((u @ c["region_unit"][regions].T) >= c["cos_limit"][regions]).any(axis=2)  # (S, n)
-        hit_from = np.logical_or.accumulate(hit[:, ::-1], axis=1)[:, ::-1]  # [j, k]: a hit at k or later
-        ok = k0 <= k1
-        rows = np.flatnonzero(ok)
-        out[rows] = hit_from[rows, k0[rows] - lo]
-        return out
-
     def _build(self) -> dict:
         t = np.arange(0.0, self.horizon_s + self.step_s, self.step_s)
         pos = self.constellation.positions_ecef_km(t)
@@ -387,8 +360,7 @@ class RegionPrefilter:
         v_ang = 8.0 * self.step_s / WGS84_B_KM  # ground motion over one sample [rad], 8 km/s upper bound
         lim = lam + half_ang + v_ang + math.radians(1.0)
         self._coarse = {"unit": unit, "region_unit": region_unit, "region_gps": region_gps,
-                        "cos_limit": np.cos(np.minimum(lim, math.pi)),
-                        "index": {n: i for i, n in enumerate(self.constellation.names)}}
+                        "cos_limit": np.cos(np.minimum(lim, math.pi))}
         return self._coarse
 
 

@@ -77,8 +77,7 @@ class OrbitContext:
         prefilter = RegionPrefilter(self.constellation, self.gps, sc.scenario.horizon_s,
                                     sc.instrument.for_off_nadir_deg)
         return Planner(self.constellation, self.gps.ecef_km, self.slew, PlannerSettings.from_scenario(sc),
-                       candidates=prefilter.candidate_gp_ids,
-                       reach=prefilter.may_reach)
+                       candidates=prefilter.candidate_gp_ids)
 
 
 @dataclass

@@ -4,8 +4,7 @@ non-agile baseline.
 Typical call (one satellite, one replan; the satellite and the ground segment both plan this way)::
 
     planner = Planner(constellation, gps.ecef_km, SlewModel.from_scenario(sc),
-                      PlannerSettings.from_scenario(sc), candidates=prefilter.candidate_gp_ids,
-                      reach=prefilter.may_reach)
+                      PlannerSettings.from_scenario(sc), candidates=prefilter.candidate_gp_ids)
     plan = planner.plan("sat_11", t0_s, window_s,
                         Knowledge(PersistenceView(osse, t0_s), known, belief))
     plan.as_list()   # -> [(gp_id, t_s)], plan.value

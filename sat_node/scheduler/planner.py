@@ -41,9 +41,7 @@ prior state); the pre-filtered plan equals the DP on the full instance's columns
 view reads every later time at the cut-off; the paper run's report and traces are the check that
 satellite and ground plan as before (tests/system/test_engines_equal.py for both engines).
 tests/unit/test_joint_bound.py: a bounded group is never larger than K, keeps the partners the rule
-names on a hand-drawn case, and with K at least the unbounded group's size plans exactly as unbounded;
-the region pre-filter asked about every partner at once (``reach``) leaves the group as asking each in
-turn (test_partners_asked_at_once_are_those_asked_in_turn).
+names on a hand-drawn case, and with K at least the unbounded group's size plans exactly as unbounded.
 """
 
 from __future__ import annotations
@@ -144,21 +142,15 @@ SOLVERS: dict[str, Callable[[SchedulingProblem, PlannerSettings], Plan]] = {
 class Planner:
     """Plans for any satellite of ``constellation`` (``track_ecef_km(name, t_s)``, orbit_clock)
     over the GPs ``gp_ecef_km`` [km, ECEF, row = GP id]; ``candidates(sat, t0_s, t1_s)`` is the GP
-    pre-filter (None: the exact FOR mask over every GP picks the columns); ``reach(sats, t0s_s, t1_s,
-    gp_ids)`` answers for many satellites at once whether ``candidates(sats[j], t0s_s[j], t1_s)``
-    holds one of ``gp_ids`` (orbit_clock.access.RegionPrefilter.may_reach; None: ``candidates`` is
-    asked of each satellite), so that a joint plan's choice of partners does not ask every other
-    satellite in turn."""
+    pre-filter (None: the exact FOR mask over every GP picks the columns)."""
 
     def __init__(self, constellation, gp_ecef_km: np.ndarray, slew: SlewModel, settings: PlannerSettings,
-                 candidates: Callable[[str, float, float], np.ndarray] | None = None,
-                 reach: Callable[..., np.ndarray] | None = None):
+                 candidates: Callable[[str, float, float], np.ndarray] | None = None):
         self.constellation = constellation
         self.gp_ecef_km = gp_ecef_km
         self.slew = slew
         self.settings = settings
         self.candidates = candidates
-        self.reach = reach
 
     def plan(self, sat: str, t0_s: float, window_s: float, knowledge: Knowledge, *,
              init_target_km: np.ndarray | None = None, solver: str = "dp",
@@ -215,13 +207,10 @@ class Planner:
             return []
         mine_gps = set(mine_ids.tolist())
         mine_km = self.gp_ecef_km[mine_ids]
-        near = None  # the pre-filter's answer for every partner at once (the same as the test below)
-        if self.reach is not None and self.candidates is not None:
-            near = self.reach([n for n, _ in partners], [max(t0_s, float(f)) for _, f in partners], end, mine_ids)
         cands = []  # (first time its FOR reaches one of my GPs [s] (K >= 1 only), name, order, start, ids)
         for order, (name, free_s) in enumerate(partners):
             start = max(t0_s, float(free_s))
-            if start >= end - st.dp_step_s or (near is not None and not near[order]):
+            if start >= end - st.dp_step_s:
                 continue
             ids = self.candidates(name, start, end) if self.candidates is not None else None
             if ids is not None and not mine_gps.intersection(ids.tolist()):

@@ -208,25 +208,6 @@ def test_k_at_least_the_group_plans_exactly_as_unbounded(dense):
             np.testing.assert_array_equal(got.values, full.values)
 
 
-def test_partners_asked_at_once_are_those_asked_in_turn(dense):
-    """The region pre-filter asked for every other satellite at once (``Planner.reach``) leaves the
-    group as asking it of each in turn (a planner without ``reach``): the same partners with the
-    same instances, unbounded and with K = 2, on the 12 passes with the largest groups."""
-    ctx, planner, cases = dense
-    assert planner.reach is not None
-    for k in (0, 2):
-        with_reach = _bounded(planner, k)
-        with_reach.reach = planner.reach
-        in_turn = _bounded(planner, k)
-        assert in_turn.reach is None
-        for _size, sat, t0 in cases[:12]:
-            a, b = _group(with_reach, sat, t0, ctx.osse), _group(in_turn, sat, t0, ctx.osse)
-            assert [q.sat_name for q in a] == [q.sat_name for q in b]
-            for qa, qb in zip(a, b):
-                np.testing.assert_array_equal(qa.gp_ids, qb.gp_ids)
-                np.testing.assert_array_equal(qa.v_first, qb.v_first)
-
-
 # ---------------------------------------------------------------- the setting's path
 
 def test_scenario_default_and_override(paper_scenario):
