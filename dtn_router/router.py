@@ -1,4 +1,4 @@
-"""The ISL medium as a lockstep participant: bundles cross only during contacts (DESIGN.md section 5).
+"""The ISL medium as a lockstep participant: bundles cross only during contacts (docs/design.md section 5).
 
 Reads every satellite's ``/sat_XX/dtn/out`` (raw BPv7 bytes, stamped with the transmission's start
 time by the sending agent), checks the transmission against the truth contact plan with

@@ -4,7 +4,7 @@ What it implements: the value input of Nag et al., "Autonomous Scheduling of Agi
 Constellations with Delay Tolerant Networking for Reactive Imaging" (ICAPS SPARK 2019), section 5,
 where an Observing System Simulation Experiment (WRF-Hydro driven flood model) gives every GP an
 integer value 1..256 per 15-min slot. We do not have their WRF-Hydro run, so the ``synthetic``
-source is a seeded, physically-flavoured stand-in (DESIGN.md section 1):
+source is a seeded, physically-flavoured stand-in (docs/design.md section 1):
 
 * **Watersheds.** Each region gets a static flood susceptibility ``s(x, y)`` in [0.25, 1]: 2-3
   meandering river channels (Gaussian cross-section, 4-10 km wide) and 1-3 low-lying basins.

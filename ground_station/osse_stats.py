@@ -1,6 +1,6 @@
 """Rank statistics of a value field over time: how fast the ranking of the GPs changes.
 
-The transiency of a field (DESIGN.md section 1; the study's precipitation field: 15 min) is the lag
+The transiency of a field (docs/design.md section 1; the study's precipitation field: 15 min) is the lag
 at which the Spearman rank correlation of all GP values falls to 0.5. :func:`rank_correlation` is
 that correlation at a lag of whole slots, averaged over the start slots of the horizon;
 :func:`measured_transiency_min` finds the crossing (linear between slot lags, lag 0 counting 1).

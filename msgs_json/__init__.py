@@ -1,4 +1,4 @@
-"""msgs_json: the message contracts (DESIGN.md section 4).
+"""msgs_json: the message contracts (docs/design.md section 4).
 
 Front door: schemas (one msgspec Struct per message type), topic names and their schemas,
 validating encode/decode, and the lockstep envelope and its wire form.

@@ -1,4 +1,4 @@
-"""Encode/decode msgs_json payloads with validation (DESIGN.md section 4).
+"""Encode/decode msgs_json payloads with validation (docs/design.md section 4).
 
 ``encode(msg) -> str`` gives the JSON text of a schema instance (msgs_json/schemas.py);
 ``decode(topic, text) -> Struct`` parses and validates a payload received on ``topic`` (its type

@@ -1,4 +1,4 @@
-"""The lockstep contract every node logic follows, under both engines (DESIGN.md sections 2-3).
+"""The lockstep contract every node logic follows, under both engines (docs/design.md sections 2-3).
 
 A *participant* is one node's logic (a satellite, the DTN router, the ground station, ...): a
 plain Python object with no rclpy in it. An engine drives all participants through the same

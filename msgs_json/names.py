@@ -1,7 +1,7 @@
 """Satellite names, their ipn node numbers, and the constellation sizes the project accepts.
 
 One scheme, used for topics (``/<sat>/...``), bags, contact plans (CSV, ION, HDTN JSON), bundle
-EIDs and reports (DESIGN.md section 4):
+EIDs and reports (docs/design.md section 4):
 
 * a constellation of at most 9 planes of at most 9 satellites (the study's 24/3/1 among them) names
   its satellites ``sat_PS``: plane P and slot S, one digit each, from 1 (the study's Sat11..Sat38);

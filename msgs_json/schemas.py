@@ -1,4 +1,4 @@
-"""One msgspec Struct per message type: the payloads of DESIGN.md section 4's topics.
+"""One msgspec Struct per message type: the payloads of docs/design.md section 4's topics.
 
 Every payload travels as JSON text (``body`` of the wire envelope, msgs_json/wire.py, on
 std_msgs/msg/String); BPv7 bundles (``/sat_XX/dtn/out|in``) are raw bytes and have no schema here.

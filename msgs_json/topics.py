@@ -1,4 +1,4 @@
-"""Topic names (DESIGN.md section 4) and which payload each carries.
+"""Topic names (docs/design.md section 4) and which payload each carries.
 
 Names are contracts: build them only with these functions. A satellite's topics live under
 ``/<sat>/`` (``sat_PS`` or ``sat_PPPP_SSSS``: msgs_json/names.py). Every lockstep data topic carries a wire envelope (msgs_json/wire.py) on
@@ -11,7 +11,7 @@ A per-satellite topic moved by the ROS engine's namespaces (``/fleet/sat_11/sche
 its schema (:func:`design_topic`), so a bag of such a run reads and reports like any other.
 
 Oracle: tests/unit/test_msgs_json.py checks every builder's name maps back to the right schema, that
-unknown names map to nothing, and that pushed names map like DESIGN.md's.
+unknown names map to nothing, and that pushed names map like docs/design.md's.
 """
 
 from __future__ import annotations
@@ -139,7 +139,7 @@ _SAT_TOPIC_RE = re.compile(rf"^/({SAT_NAME_PATTERN[1:-1]})/(.+)$")
 
 
 def design_topic(topic: str) -> str:
-    """DESIGN.md's name of a per-satellite topic seen under a pushed or remapped namespace (the ROS
+    """docs/design.md's name of a per-satellite topic seen under a pushed or remapped namespace (the ROS
     engine's ``--namespace`` / ``__ns`` remaps keep its ``/<sat>/<leaf>`` end):
     ``/fleet/sat_11/schedule`` -> ``/sat_11/schedule``; any other name unchanged."""
     m = _SAT_TOPIC_RE.match(topic)

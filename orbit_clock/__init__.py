@@ -1,4 +1,4 @@
-"""orbit_clock: orbital mechanics of the constellation (pure, no rclpy; DESIGN.md section 1).
+"""orbit_clock: orbital mechanics of the constellation (pure, no rclpy; docs/design.md section 1).
 
 Front door of the pure core: Walker generation, SGP4 propagation, frames, ground points, GP access,
 ISL and ground-station contact plans, bundle priority order, contact-plan types. Simulated time is

@@ -1,4 +1,4 @@
-"""Contact windows as they open and close, announced on ``/orbit/contacts`` (DESIGN.md section 4).
+"""Contact windows as they open and close, announced on ``/orbit/contacts`` (docs/design.md section 4).
 
 A lockstep participant (msgs_json/envelope.py) present in every run, whatever the mode: for every
 ISL contact of the truth plan (orbit_clock/contact_faults.py: the plan the ISL medium obeys, with

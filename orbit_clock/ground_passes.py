@@ -2,7 +2,7 @@
 
 A station (geodetic lat/lon/height on WGS-84, scenario.ground.stations) sees a satellite while the
 satellite's elevation above the station's ellipsoid horizon is >= scenario.ground.min_elevation_deg
-(paper: polar Svalbard-like and Antarctic-like stations for the centralized mode, DESIGN.md
+(paper: polar Svalbard-like and Antarctic-like stations for the centralized mode, docs/design.md
 section 1). Found on a coarse grid (default 10 s) and refined by bisection with SGP4 to 1 ms
 (orbit_clock.windows.windows_from_margin); passes shorter than the coarse step can be missed.
 Each pass gives two directed contacts (sat -> gs_<name> downlink, gs_<name> -> sat uplink) at

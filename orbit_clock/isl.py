@@ -1,6 +1,6 @@
 """Inter-satellite link (ISL) line of sight and the ISL contact plan.
 
-Model (Nag et al. 2019, section 4; DESIGN.md sections 1 and 5): two satellites are in contact while
+Model (Nag et al. 2019, section 4; docs/design.md sections 1 and 5): two satellites are in contact while
 (a) the segment between them clears the Earth by the grazing height (default 80 km: the atmosphere
 below is taken as opaque) and (b) their range is at most the radio's maximum range (default
 6000 km). The Earth is the WGS-84 ellipsoid: coordinates are scaled by a/b along z, which maps the

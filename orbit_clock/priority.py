@@ -1,4 +1,4 @@
-"""Bundle priority order: who reaches a region next (Nag et al. 2019, section 4; DESIGN.md section 1).
+"""Bundle priority order: who reaches a region next (Nag et al. 2019, section 4; docs/design.md section 1).
 
 An observation of a region at time t is sent to the satellites that will image that region next:
 priority 1 = the satellite whose next access to the region (any of its GPs) begins first after t,

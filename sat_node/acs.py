@@ -1,7 +1,7 @@
 """Attitude control (ACS) slew model: how long a slew between two pointing directions takes.
 
 Model (Nag et al., "Autonomous Scheduling of Agile Spacecraft Constellations with Delay Tolerant
-Networking for Reactive Imaging", ICAPS SPARK 2019, section 5; DESIGN.md section 1): the slew time
+Networking for Reactive Imaging", ICAPS SPARK 2019, section 5; docs/design.md section 1): the slew time
 [s] for an angle ``a`` [deg] between the satellite-to-GP vectors before and after is the cubic fit
 ``t = 6.1974e-6 a^3 + 1.3904e-3 a^2 + 1.4165e-1 a + 4.6231`` plus a 2-sigma margin of 0.4232 s. The
 coefficients come from the scenario (``[acs] slew_coeffs_s``, highest power first) and the angle is

@@ -1,6 +1,6 @@
 """What a planner knows about the value field, and only through the system: named knowledge models.
 
-The rule of the project (DESIGN.md section 1): a planner - a satellite onboard, or the ground segment
+The rule of the project (docs/design.md section 1): a planner - a satellite onboard, or the ground segment
 - knows only what reached it: its own observations, the inferences bundles delivered to it, and for
 the ground what was downlinked at passes. A :class:`KnowledgeState` is that record for one planner
 (the :class:`~sat_node.inference.Inference` of every observation it knows of, and the newest

@@ -1,7 +1,7 @@
 """One satellite's flight software as a lockstep participant (msgs_json/envelope.py contract).
 
 Pure logic, no rclpy: the ROS engine hosts it in a satellite process (bringup/engine/ros/host.py), the
-local engine in one process. It owns the satellite's three functions of DESIGN.md section 2:
+local engine in one process. It owns the satellite's three functions of docs/design.md section 2:
 
 * scheduler - distributed mode: replans every ``scheduler.replan_period_s`` over
   ``plan_lookahead_s`` with the world's planner (sat_node/scheduler/planner.py, the same one the

@@ -1,6 +1,6 @@
 """Observation value (the study's Eq. 1) and each satellite's noisy belief of it.
 
-Nag et al., ICAPS SPARK 2019, section 4 / DESIGN.md section 1: the value of observing GP ``g`` at
+Nag et al., ICAPS SPARK 2019, section 4 / docs/design.md section 1: the value of observing GP ``g`` at
 time ``t`` is
 
 * 0 if ``g`` was seen less than ``revisit_zero_s`` (15 min) before ``t``;

@@ -11,7 +11,7 @@ REPO = Path(__file__).resolve().parents[1]
 # the study's inputs, kept in the repository (tests/fixtures/paper_inputs/README.md); PAPER_INPUTS overrides
 PAPER_INPUTS = Path(os.environ.get("PAPER_INPUTS", REPO / "tests" / "fixtures" / "paper_inputs"))
 
-# Every ROS process a test starts stays on loopback (see ROS2_NOTES.md: network safety).
+# Every ROS process a test starts stays on loopback (docs/design.md section 7: network safety).
 os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
 
 

@@ -3,7 +3,7 @@ scheduling with DTN vs a centralized ground scheduler vs a non-agile constellati
 same seeds.
 
 Each (mode, seed) is one whole run, ``constellation run`` in a subprocess (local or ROS engine), so
-what is compared is exactly what a user gets from a run: its ``report.json`` (DESIGN.md section 6)
+what is compared is exactly what a user gets from a run: its ``report.json`` (docs/design.md section 6)
 and its bag. The sweep (``constellation sweep``) instead runs the local engine in this process on a
 scenario variant and builds the report from the envelopes (bringup/analysis/report.py build_report, the same
 function), since it only needs the value figures.
@@ -18,7 +18,7 @@ that seed.
 
 How we know it is right: tests/unit/test_compare.py - hand-made reports with the means, stds and
 ratios worked out by hand; tests/system/test_compare_modes.py - a reduced real compare (6 sats, 1 h)
-whose JSON has every DESIGN.md report key per mode and whose ratios equal the reports' own values
+whose JSON has every docs/design.md report key per mode and whose ratios equal the reports' own values
 divided (an independent recomputation), with agile > non-agile in value.
 """
 

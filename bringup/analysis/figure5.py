@@ -2,7 +2,7 @@
 
 Nag et al., "Autonomous Scheduling of Agile Spacecraft Constellations with Delay Tolerant Networking
 for Reactive Imaging" (ICAPS SPARK 2019), section 5, Fig. 5: an observation of a region is sent to
-the satellites that reach that region next (priority 1 = the next one, DESIGN.md section 1). Whether
+the satellites that reach that region next (priority 1 = the next one, docs/design.md section 1). Whether
 the implicit consensus works depends on whether a bundle arrives *before* its destination reaches
 the region: its latency must be shorter than the gap between the observation and the destination's
 next access. This module puts the two side by side.

@@ -1,4 +1,4 @@
-"""report.json from a run's envelopes (DESIGN.md section 6), the same function for a live run and a bag.
+"""report.json from a run's envelopes (docs/design.md section 6), the same function for a live run and a bag.
 
 Inputs: the envelopes of a run (observations, bundle events, schedules), the run's metadata
 (scenario, mode, engine, seed, horizon, n_sats, n_gp) and the runtime figures. Everything but
@@ -154,7 +154,7 @@ def _bundle_event(msg):
 
 
 def build_report(envelopes, meta: RunMeta, runtime: dict | None = None, security: dict | None = None) -> dict:
-    """The report dict (nested, DESIGN.md keys) from envelopes (any iterable of Envelope)."""
+    """The report dict (nested, docs/design.md keys) from envelopes (any iterable of Envelope)."""
     b = ReportBuilder()
     for env in envelopes:
         b.add(env)

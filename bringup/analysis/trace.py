@@ -6,7 +6,7 @@
 says); ``plans_from_bag(bag)`` -> sorted [(planned_ns, sat, version, items)] of every plan a satellite
 made or the ground uplinked, items ``((gp, t_ns, value, info_ns), ...)``.
 Two runs of the same scenario and seed must give equal traces whatever the engine, the hosts or the
-crashes on the way (DESIGN.md section 3).
+crashes on the way (docs/design.md section 3).
 
 Used as the oracle of tests/system/test_engines_equal.py, tests/faults/test_restart_ros.py and
 tests/system/test_knowledge_flow.py.

@@ -1,6 +1,6 @@
 """`constellation bench-scheduler`: DP runtime over a whole horizon and DP/MILP value ratio.
 
-Two measurements in one run (DESIGN.md section 1 "scheduler runtime 1 % of the horizon"):
+Two measurements in one run (docs/design.md section 1 "scheduler runtime 1 % of the horizon"):
 
 1. One satellite scheduled over the scenario's whole horizon (all its passes) the way the flight
    software does it: replan every ``scheduler.replan_period_s`` over ``plan_lookahead_s`` on the

@@ -1,4 +1,4 @@
-"""The ``constellation`` command line (DESIGN.md section 6).
+"""The ``constellation`` command line (docs/design.md section 6).
 
 Each subcommand lives in its own module ``bringup/cli/<name>.py`` exposing::
 

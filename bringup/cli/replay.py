@@ -15,7 +15,7 @@ transient local, the envelope topics reliable, volatile, keep-all (bringup/recor
 with it; a bag without ``/clock`` gets one synthesised from the log times (like ``ros2 bag play
 --clock``), so nodes with ``use_sim_time`` follow the replay.
 
-Network safety (ROS2_NOTES.md): the process runs with ``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST``
+Network safety (docs/design.md section 7): the process runs with ``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST``
 and the domain from ``--domain-id`` or ``ROS_DOMAIN_ID`` (default 0); the project's FastDDS profile
 (5 ms heartbeats) is used unless ``FASTRTPS_DEFAULT_PROFILES_FILE`` is already set.
 ``--wait-subscribers N`` waits (up to ``--wait-timeout``) until every topic has N matched

@@ -1,4 +1,4 @@
-"""`constellation run`: one whole run of a scenario, recorded and reported (DESIGN.md section 6).
+"""`constellation run`: one whole run of a scenario, recorded and reported (docs/design.md section 6).
 
 ``--engine ros`` (default): the clock, the router / ground station and one OS process per satellite
 (or per ``--sats-per-process K`` satellites) over DDS (bringup/engine/ros/launcher.py), recording

@@ -1,8 +1,8 @@
 """How the project calls podman on a machine without a Docker engine (podman + runc from Debian).
 
 Every podman command the project runs goes through :func:`podman` so that it carries the two global
-settings measured on the project's machines (/work/shared/CONTAINERS.md): the runtime is runc (the
-default crun stops with "cgroups in hybrid mode not supported") and containers and builds get
+settings measured on the project's machines (docs/design.md section 7): the runtime is runc (the default
+crun stops with "cgroups in hybrid mode not supported") and containers and builds get
 explicit ulimits (podman otherwise asks for RLIMIT_NOFILE 1048576, above the hard limit:
 "setrlimit: Operation not permitted"). ``CONSTELLATION_PODMAN`` overrides the podman binary and
 ``CONSTELLATION_OCI_RUNTIME`` the runtime (empty: podman's own default).

@@ -1,4 +1,4 @@
-"""The local engine: drives participants in one process with an in-memory bus (DESIGN.md section 2).
+"""The local engine: drives participants in one process with an in-memory bus (docs/design.md section 2).
 
 It applies the lockstep rules of msgs_json/envelope.py exactly, so a local run is the reference a
 ROS run must match:

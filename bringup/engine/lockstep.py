@@ -3,8 +3,8 @@
 Pure module (no rclpy): the clock node (bringup/engine/ros/clock_node.py) and the participant host
 (bringup/engine/ros/host.py) are thin adapters around it. It implements the rules of
 msgs_json/envelope.py for participants spread over several OS processes, with one message out
-(/sim/step) and one message back per process (/sim/ack) per step (ROS2_NOTES.md, lockstep traps
-3-6):
+(/sim/step) and one message back per process (/sim/ack) per step (docs/design.md section 7,
+lockstep traps 3-6):
 
 * wire index ``k``: ``k = 0`` is the *start phase* (every participant's ``start(t0)``), ``k >= 1``
   is engine step ``k - 1`` at ``t_ns``; ``final`` marks the step at the horizon (then ``finish``);

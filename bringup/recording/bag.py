@@ -1,4 +1,4 @@
-"""rosbag2-compatible MCAP bags without rclpy: write and read back (DESIGN.md section 6).
+"""rosbag2-compatible MCAP bags without rclpy: write and read back (docs/design.md section 6).
 
 A bag is a directory holding ``metadata.yaml`` and ``<name>.mcap`` (rosbag2 format version 9,
 storage ``mcap``, ROS 2 CDR messages, ``ros2msg`` schemas, an ``offered_qos_profiles`` entry per
@@ -47,7 +47,7 @@ engine's live visualisation publishes with them): reliable/volatile/keep_last(10
 (markers, fixes, /tf, the plotted series); envelopes (std_msgs/String) reliable, volatile, keep all,
 as the ROS engine's data topics; ``/clock`` best effort depth 1 (what rclpy's TimeSource subscribes
 with); ``/tf_static`` reliable, transient local, depth 1 (tf2's static broadcaster); ``/sim/step``
-and ``/sim/ack`` reliable, transient local, keep all (ROS2_NOTES.md lockstep traps 3-4). Override
+and ``/sim/ack`` reliable, transient local, keep all (docs/design.md section 7, lockstep traps 3-4). Override
 with ``qos=`` on a topic's first write.
 
 Reading: :class:`BagReader` (bag_reader.py, re-exported here): the ``.mcap`` is the truth,

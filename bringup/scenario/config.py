@@ -1,4 +1,4 @@
-"""Scenario files: TOML with units in every key, validated on load (DESIGN.md section 1).
+"""Scenario files: TOML with units in every key, validated on load (docs/design.md section 1).
 
 A scenario is named (``paper`` -> ``bringup/scenario/toml/paper.toml``) or given as a path. Loading
 validates every field with msgspec (types, ranges, unknown keys) and cross-field rules below; any
@@ -136,7 +136,7 @@ class IslCfg(_S, kw_only=True):
     forwarding: Literal["multicast", "unicast"] = "multicast"
 
     def ttl_s(self, priority: int) -> float:
-        """Bundle lifetime [s] for a priority 1..15 (DESIGN.md section 1)."""
+        """Bundle lifetime [s] for a priority 1..15 (docs/design.md section 1)."""
         if priority <= 1:
             return self.ttl_p1_s
         if priority <= 3:

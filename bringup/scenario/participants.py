@@ -1,4 +1,4 @@
-"""Which participants a run has, and which process (role) hosts each (DESIGN.md section 2).
+"""Which participants a run has, and which process (role) hosts each (docs/design.md section 2).
 
 Roles: one per satellite (``sat_PS``, one OS process each under the ROS engine), ``router`` (the
 ISL medium; distributed mode only), ``ground`` (the ground segment; centralized mode only) and

@@ -1,6 +1,6 @@
 """The bundle's routing blocks: who the bundle is for, and which next hop serves whom.
 
-One bundle per observation carries its recipient list (DESIGN.md section 5). The layout follows ION's
+One bundle per observation carries its recipient list (docs/design.md section 5). The layout follows ION's
 IPN multicast (ION-DTN bpv7/library/ext/imc/imc.c, bpv7/include/bp.h) where ION has one, and uses
 block types of the private range (RFC 9171 section 9.1: 192-255) that ION does not assign elsewhere:
 

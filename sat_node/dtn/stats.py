@@ -1,4 +1,4 @@
-"""The report's ``dtn.*`` figures (DESIGN.md section 6) from a list of bundle events.
+"""The report's ``dtn.*`` figures (docs/design.md section 6) from a list of bundle events.
 
 Input: :class:`sat_node.dtn.agent.BundleEvent` records of every agent (created, forwarded,
 delivered, dropped(reason), discarded(reason)) and optionally a lower bound on latency per pair.

@@ -1,7 +1,7 @@
 """Non-agile baseline: the satellite points at nadir all the time and observes what passes under it.
 
 The study's comparison case (Nag et al., ICAPS SPARK 2019, section 5: "a non-agile constellation
-sees 8.4 % of GPs"; DESIGN.md section 1). A GP is observed when its centre comes within half the
+sees 8.4 % of GPs"; docs/design.md section 1). A GP is observed when its centre comes within half the
 footprint of the (geocentric) nadir ground track: for each grid interval [t_k, t_k+1] the track is
 the great circle through the two satellite positions; the GP's distance to that plane [km] is its
 cross-track distance and its angle along the arc gives the crossing time inside the interval. Every

@@ -1,6 +1,6 @@
 """One satellite's scheduling instance on a time grid, and the exact evaluation of a plan.
 
-An instance (Nag et al., ICAPS SPARK 2019, Table 1 / DESIGN.md section 1) is everything one satellite
+An instance (Nag et al., ICAPS SPARK 2019, Table 1 / docs/design.md section 1) is everything one satellite
 needs to choose where to point over ``[t0_s, t0_s + n_steps * step_s)``: its ECEF positions on the
 grid, the GP ECEF vectors, which GP is inside the field of regard (FOR) at each step, the believed
 absolute value per (step, GP), what it knows was (or will be, by other satellites) observed before

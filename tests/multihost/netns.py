@@ -21,7 +21,7 @@ one namespace and a subscriber in another exchange messages over DDS, and the ho
 counters show the traffic crossed the veth/bridge (each namespace has its own loopback, so there is
 no other path).
 
-Reference: ip-netns(8), veth(4), ROS2_NOTES.md "Several hosts on one machine".
+Reference: ip-netns(8), veth(4), docs/design.md section 7 "Several hosts on one machine".
 Not done: link delay/rate (``tc netem`` is absent on this kernel; the DTN router emulates them);
 ``cut()`` takes a host's link down and up, which is what the fault tests need.
 """

@@ -1,6 +1,6 @@
 """Names of a run's nodes and topics (bringup/engine/ros/naming.py) resolved by rclpy itself.
 
-Oracles: DESIGN.md section 4's names (what every topic resolves to by default), rclpy's own name
+Oracles: docs/design.md section 4's names (what every topic resolves to by default), rclpy's own name
 resolution and remapping (rcl) for the namespaces, relative names and remap rules we give it, and
 the invariant that both ends of every per-satellite link resolve to one name under a push.
 """
@@ -65,7 +65,7 @@ def test_default_names_are_designs_and_a_push_moves_both_ends(paper_scenario):
             for p, ts in topics.items():
                 fqn, res = _resolve(ctx, p, ts)
                 assert fqn == (f"/{p}/{p}" if p.startswith("sat_") else f"/{p}")
-                assert res == {t: t for t in ts}, p  # by default every name is DESIGN.md's
+                assert res == {t: t for t in ts}, p  # by default every name is docs/design.md's
                 for t in ts:
                     if t.startswith("/sat_"):
                         assert not ros_topic_name(t, p).startswith("/"), (p, t)  # relative

@@ -1,7 +1,7 @@
 """`constellation compare` end to end on a reduced paper scenario (12 satellites, 1 h, 2 seeds).
 
 Oracles: the JSON is exactly one object with the three modes and the ratios; every mode's report
-has the report.json keys of DESIGN.md section 6; the seed means and the ratios equal an independent
+has the report.json keys of docs/design.md section 6; the seed means and the ratios equal an independent
 recomputation from each run folder's own report.json; agile beats non-agile in value; Figure 5's
 gaps equal a brute-force recomputation from the raw access-window arrays.
 """

@@ -1,4 +1,4 @@
-"""House rules of the code base, checked by tools (README "Layout"; DESIGN.md section 2).
+"""House rules of the code base, checked by tools (README "Layout"; docs/design.md section 2).
 
 * The import layering in ``.importlinter`` holds (import-linter's ``lint-imports``: the flight
   software never imports bringup, the core and bringup layers, rclpy only in the ROS engine).

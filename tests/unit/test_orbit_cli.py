@@ -1,4 +1,4 @@
-"""CLI: constellation / access / contacts subcommands (bringup/commands)."""
+"""CLI: constellation / access / contacts subcommands (bringup/cli)."""
 
 from __future__ import annotations
 

@@ -1,10 +1,10 @@
-"""The lockstep coordinator of the ROS engine: owns simulated time (DESIGN.md section 3).
+"""The lockstep coordinator of the ROS engine: owns simulated time (docs/design.md section 3).
 
 Publishes /clock (rosgraph_msgs/Clock, the scenario's UTC instant: epoch + t_ns) and /sim/step, collects one /sim/ack per host process and
 picks the next step with rule 3 of msgs_json/envelope.py (bringup/engine/lockstep.py has the
 protocol). A step ends when every registered host acked it; what was sent in it is counted in the
 acks and the next step message carries the counts, so receivers run the next step only once they
-hold all of it (ROS2_NOTES trap 5). Pacing: as fast as possible, or ``real_time_factor`` sim
+hold all of it (docs/design.md section 7, trap 5). Pacing: as fast as possible, or ``real_time_factor`` sim
 seconds per wall second. Progress: a JSON line on stdout every ``progress_period_s`` (sim time,
 steps, wall time and, when a host holds the DTN router, ``in_flight``: the bundle copies the router
 holds after that step, summed from the acks; bringup/engine/ros/launcher.py reads them). A host that does not
@@ -248,7 +248,7 @@ class LockstepClock:
     def _make_rec_cb(self, topic: str):
         def cb(raw: bytes) -> None:
             text = deserialize_message(raw, String).data
-            # senders seal the participants' own names (DESIGN.md's): a per-satellite topic moved by
+            # senders seal the participants' own names (docs/design.md's): a per-satellite topic moved by
             # a namespace push or remap is checked under that name and recorded under its own
             env = self.gate.envelope(text, design_topic(topic))
             if env is None:

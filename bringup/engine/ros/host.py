@@ -2,8 +2,8 @@
 
 Each participant (msgs_json/envelope.py) gets its own rclpy node with ``use_sim_time`` whose
 /clock subscription is remapped away: the host sets every node's clock from the step it runs
-(``set_ros_time_override``; ROS2_NOTES trap 2), so all nodes of a process see the same time: the
-scenario's UTC instant (epoch + t_ns), as /clock and the bag.
+(``set_ros_time_override``; docs/design.md section 7, trap 2), so all nodes of a process see the same
+time: the scenario's UTC instant (epoch + t_ns), as /clock and the bag.
 
 Names (bringup/engine/ros/naming.py): a satellite's node is ``/<sat>/<sat>`` (under the run's push
 namespace, if any) and names its own topics relatively (``dtn/out``); other participants sit in the

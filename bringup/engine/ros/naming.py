@@ -1,6 +1,6 @@
 """ROS names of a run's nodes and topics: namespaces and relative names, so a push or remap moves them.
 
-Participants speak the topic names of DESIGN.md section 4 (``/sat_11/dtn/out``, ``/ground/uplink``;
+Participants speak the topic names of docs/design.md section 4 (``/sat_11/dtn/out``, ``/ground/uplink``;
 msgs_json/topics.py). The ROS engine gives each participant its own rclpy node and names it the ROS
 way (REP 2 / ROS 2 "Topic and Service name mapping"):
 
@@ -15,13 +15,13 @@ way (REP 2 / ROS 2 "Topic and Service name mapping"):
   ``/diagnostics``) stay absolute.
 
 ``<push>`` is the run spec's ``namespace`` (what launch's PushRosNamespace gives every node; empty by
-default), so by default every name resolves to DESIGN.md's. Remaps come from the run's ROS arguments
+default), so by default every name resolves to docs/design.md's. Remaps come from the run's ROS arguments
 (``ros_args``: ``constellation run --ros-args ...``, every node process's rclpy context) and act as
 in any ROS 2 node. The host keys the lockstep's counting by the *resolved* names (what DDS
 carries) and gives participants their logical names back (bringup/engine/ros/host.py).
 
 How we know it is right: tests/ros/test_ros_naming.py (every topic of a paper run's participants:
-default resolution = DESIGN.md's names; a push moves both ends of each per-satellite link; rclpy's
+default resolution = docs/design.md's names; a push moves both ends of each per-satellite link; rclpy's
 own resolver with remaps), tests/ros/test_live_run.py (a live run with one satellite remapped: its
 topics appear under the new namespace, the run completes).
 """
