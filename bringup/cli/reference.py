@@ -152,12 +152,12 @@ def config_reference_md() -> str:
     """The configuration reference page (Markdown)."""
     notes = _toml_comments()
     lines = ["# Scenario configuration reference", "",
-             "Generated from the scenario schema (bringup/scenario/config.py) when the documentation is "
+             ("Generated from the scenario schema (bringup/scenario/config.py) when the documentation is "
              "built; the descriptions are the comments of the annotated reference scenario "
              "(bringup/scenario/toml/paper.toml). Units are in the key names (`_s`, `_km`, `_deg`, "
              "`_bps`...). Any key can be set on the command line of `run` with `--set KEY=VALUE` where "
              "that option is available; a file or an override that breaks a limit is refused in one line "
-             "naming the key.", ""]
+             "naming the key."), ""]
     section = None
     for k in config_keys():
         top = k["key"].split(".")[0].removesuffix("[]")
@@ -190,8 +190,8 @@ def cli_reference_md() -> str:
     parser = build_parser()
     sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
     lines = ["# Command-line reference", "",
-             "Generated from the argument parsers (bringup/cli/) when the documentation is built. "
-             "Every command exits 0 on success and 2 with one line on a usage or input error.", "",
+             ("Generated from the argument parsers (bringup/cli/) when the documentation is built. "
+             "Every command exits 0 on success and 2 with one line on a usage or input error."), "",
              "| command | what it does |", "|---|---|"]
     lines += [f"| [`{name}`](#{name}) | {_cell(COMMANDS[name][1])} |" for name in COMMANDS]
     for name in COMMANDS:

@@ -22,7 +22,7 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parents[2]
 TOP = ("docs", "tests", "bringup", "sat_node", "orbit_clock", "msgs_json", "dtn_router", "ground_station",
        "scripts", "bench", "docker", ".ci")
-PATH_RE = re.compile(r"(?<![\w./-])((?:%s)/[\w./-]*[\w/])" % "|".join(re.escape(t) for t in TOP))
+PATH_RE = re.compile(r"(?<![\w./-])((?:{})/[\w./-]*[\w/])".format("|".join(re.escape(t) for t in TOP)))
 CAPS_DOC_RE = re.compile(r"(?<![\w./-])([A-Z][A-Z0-9_]+\.md)\b")
 MD_LINK_RE = re.compile(r"\]\(([^)\s]+)\)")
 SECTION_RE = re.compile(r"docs/design\.md,? sections? (\d+)")
@@ -76,7 +76,7 @@ def test_no_reference_outside_the_repository():
 
 def test_markdown_links_and_design_sections_resolve():
     design = (REPO / "docs" / "design.md").read_text()
-    sections = set(re.findall(r"^## (\d+)\.", design, flags=re.M))
+    sections = set(re.findall(r"^## (\d+)\.", design, flags=re.MULTILINE))
     bad = []
     docs = [REPO / "README.md", *sorted((REPO / "docs").rglob("*.md"))]
     for f in docs:
