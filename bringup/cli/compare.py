@@ -35,7 +35,8 @@ from msgs_json import codec
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--scenario", default="paper", help="scenario name or TOML path (default: paper)")
-    p.add_argument("--engine", choices=("local", "ros"), default="local")
+    p.add_argument("--engine", choices=("local", "ros"), default="local",
+                   help="local: every run in one process (fast); ros: every run as real rclpy processes (default: local)")
     p.add_argument("--seeds", type=int, default=1, help="number of seeds K: the scenario seed, +1, ... (default 1)")
     p.add_argument("--sats", type=int, default=None, help="number of satellites (default: scenario)")
     p.add_argument("--hours", type=float, default=None, help="horizon [h] (default: scenario)")

@@ -26,7 +26,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--out", type=Path, default=Path("docker-compose.yml"),
                    help="compose file to write; run_spec.json and world.pkl go beside it (default: ./docker-compose.yml)")
     p.add_argument("--name", default=None, help="compose project name (default: <scenario>-<mode>-<N>sats)")
-    p.add_argument("--domain-id", type=int, default=7, help="ROS_DOMAIN_ID of every service, 0..101 (default: 7)")
+    p.add_argument("--domain-id", type=int, default=7, help="ROS_DOMAIN_ID of every service, 0..232 (default: 7)")
     p.add_argument("--subnet", default="10.231.0.0/24",
                    help="IPv4 subnet of the compose network; fixed service addresses come from it")
     p.add_argument("--image", default=IMAGE, help=f"image of every service (default: {IMAGE})")
@@ -54,11 +54,8 @@ def run(args: argparse.Namespace) -> int:
     router_kw = {"extra_delay_s": args.isl_delay_s, "cuts": cuts} if (args.isl_delay_s or cuts) else None
     out = args.out.resolve()
 
-    def meta(world, mode: str) -> dict:
-        sc = world.scenario
-        return RunMeta(scenario=sc.name, mode=mode, engine="ros", seed=sc.scenario.seed,
-                       horizon_s=sc.scenario.horizon_s, n_sats=len(world.sat_names), n_gp=world.n_gp,
-                       revisit_zero_s=sc.value.revisit_zero_s).__dict__
+    def meta(world, mode: str) -> dict:  # the one path `run` takes too: the same report keys
+        return RunMeta.for_world(world, mode, "ros").__dict__
 
     project = compose_project(scenario=args.scenario, sats=args.sats, hours=args.hours, seed=args.seed,
                               mode=args.mode, domain_id=args.domain_id, subnet=args.subnet,

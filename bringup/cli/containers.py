@@ -28,7 +28,8 @@ HELP = "container images and runs with podman: build, up COMPOSE (run to the end
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    sub = p.add_subparsers(dest="action", metavar="ACTION", required=True)
+    sub = p.add_subparsers(dest="action", metavar="ACTION", required=True,
+                           help="build: the images; up COMPOSE: run to the end; down PROJECT: remove what a run left; ls")
     b = sub.add_parser("build", help="build the base image (debootstrap, when missing) and the project image")
     b.add_argument("--image", default=IMAGE, help=f"tag of the project image (default {IMAGE})")
     b.add_argument("--base", default=BASE_IMAGE,

@@ -40,7 +40,7 @@ from bringup.cli.run_folder import RunFolder, json_text, write_text_atomic
 from bringup.engine.local import run_local
 from bringup.engine.ros.factory import FACTORY, PREPARE
 from bringup.engine.ros.launcher import launch, lease_domain_id
-from bringup.engine.ros.run_spec import RunSpec
+from bringup.engine.ros.run_spec import MAX_DOMAIN_ID, RunSpec
 from bringup.engine.store_batches import StoreBatches
 from bringup.errors import UserError
 from bringup.recording.recorder_process import Recorder
@@ -70,8 +70,13 @@ ACK_TIMEOUT_S = 10.0
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     add_scenario_args(p, knowledge=True)
-    p.add_argument("--mode", choices=("distributed", "centralized", "nonagile"), default="distributed")
-    p.add_argument("--engine", choices=("ros", "local"), default="ros")
+    p.add_argument("--mode", choices=("distributed", "centralized", "nonagile"), default="distributed",
+                   help="distributed: every satellite plans onboard from what reached it over the DTN; "
+                        "centralized: the ground plans from downlinks and uplinks plans at passes; nonagile: "
+                        "satellites look straight down (default: distributed)")
+    p.add_argument("--engine", choices=("ros", "local"), default="ros",
+                   help="ros: real rclpy nodes, one OS process per satellite (or --sats-per-process), DDS on "
+                        "loopback; local: the same logic in one process, identical results (default: ros)")
     p.add_argument("--out", type=Path, default=None, help="run folder (default runs/<scenario>-<mode>)")
     p.add_argument("--real-time-factor", type=float, default=None,
                    help="pace the clock at this many sim seconds per wall second (default: as fast as possible)")
@@ -142,8 +147,8 @@ def run(args: argparse.Namespace) -> int:
     if not 0 <= args.restart <= MAX_RESTARTS:
         raise UserError(f"--restart {args.restart}: must be in 0..{MAX_RESTARTS}")
     sc = scenario_from_args(args)
-    if args.domain_id is not None and not 0 <= args.domain_id <= 232:
-        raise UserError(f"--domain-id {args.domain_id}: expected 0..232")
+    if args.domain_id is not None and not 0 <= args.domain_id <= MAX_DOMAIN_ID:
+        raise UserError(f"--domain-id {args.domain_id}: expected 0..{MAX_DOMAIN_ID}")
     if args.engine != "ros" and (args.domain_id is not None or args.namespace or args.ros_args):
         raise UserError("--domain-id, --namespace and --ros-args are for --engine ros")
     if args.viz_period_s is not None:

@@ -55,7 +55,7 @@ import yaml
 
 from bringup.engine.keys import KEYS_FILE_NAME, RunKeys
 from bringup.engine.ros.factory import FACTORY, PREPARE
-from bringup.engine.ros.run_spec import CLOCK_ROLE, RunSpec
+from bringup.engine.ros.run_spec import CLOCK_ROLE, MAX_DOMAIN_ID, RunSpec
 from bringup.errors import UserError
 from bringup.scenario.config import load_scenario
 from bringup.scenario.participants import CONTACTS_ROLE, GROUND_ROLE, ROUTER_ROLE, roles_for
@@ -152,8 +152,8 @@ def compose_project(
     sc = load_scenario(scenario)
     if sats is not None or hours is not None or seed is not None:
         sc = sc.with_overrides(sats=sats, hours=hours, seed=seed)
-    if not 0 <= domain_id <= 101:
-        raise UserError(f"--domain-id must be 0..101, got {domain_id}")
+    if not 0 <= domain_id <= MAX_DOMAIN_ID:
+        raise UserError(f"--domain-id {domain_id}: expected 0..{MAX_DOMAIN_ID}")
     if restart < 0:
         raise UserError(f"--restart must be >= 0, got {restart}")
     try:

@@ -16,6 +16,7 @@ Oracles, independent of bringup/deploy/compose.py:
 from __future__ import annotations
 
 import ipaddress
+import json
 import re
 import tomllib
 from pathlib import Path
@@ -216,6 +217,20 @@ def test_compose_file_is_valid_and_complete(tmp_path, n_sats):
         assert sorted(env["ROS_STATIC_PEERS"].split(";")) == sorted(a for m, a in addr.items() if m != n)
 
 
+def test_compose_run_meta_is_the_runs(tmp_path):
+    """A container run's /run/meta (so its report.json) has what `run` gives: the knowledge model and
+    the OSSE figures included (compose built it by hand before and lost them)."""
+    from bringup.analysis.report import RunMeta
+    from bringup.scenario.world import World
+
+    _, out = _write(tmp_path, 3)
+    spec = RunSpec.from_file(out.parent / "run_spec.json")
+    world = World.load(out.parent / "world.pkl", spec.extra["world_key"])
+    want = RunMeta.for_world(world, "distributed", "ros").__dict__
+    assert spec.extra["meta"] == json.loads(json.dumps(want))
+    assert spec.extra["meta"]["knowledge"] and spec.extra["meta"]["osse"]
+
+
 @pytest.mark.parametrize("n_sats", [3, 24])
 def test_every_command_is_a_real_subcommand(tmp_path, n_sats):
     doc, out = _write(tmp_path, n_sats)
@@ -313,3 +328,13 @@ def test_dockerfile_profile_is_the_launchers():
     assert installed.startswith(prefix)
     assert (REPO / installed.removeprefix(prefix)).is_file()
     assert env["ROS_AUTOMATIC_DISCOVERY_RANGE"] == "LOCALHOST"
+
+
+def test_the_documented_compose_folder_is_git_ignored():
+    """The containers guide writes compose files - and a key file - into deploy/: never to be committed."""
+    import subprocess
+
+    repo = Path(__file__).resolve().parents[2]
+    assert "deploy/docker-compose.yml" in (repo / "docs" / "guide" / "containers.md").read_text()
+    for f in ("deploy/run.keys", "deploy/docker-compose.yml", "deploy/world.pkl"):
+        assert subprocess.run(["git", "check-ignore", "-q", f], cwd=repo, check=False).returncode == 0, f

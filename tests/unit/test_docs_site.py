@@ -116,3 +116,30 @@ def test_cli_reference_lists_every_command_and_option():
             if s in ("-h", "--help"):
                 continue
             assert f"`{s}`" in page, s
+
+
+def test_every_option_of_every_command_has_help():
+    """An option without help shows nothing in `--help` nor in the CLI reference."""
+    import argparse
+
+    from bringup.cli.main import build_parser
+
+    parser = build_parser()
+    sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    bare = [f"{name} {a.option_strings or a.dest}" for name, p in sub.choices.items() for a in p._actions
+            if not isinstance(a, argparse._HelpAction) and not (a.help or "").strip()]
+    assert not bare, bare
+
+
+def test_compose_and_run_accept_the_same_domain_ids(tmp_path, capsys):
+    from bringup.cli.main import main
+    from bringup.engine.ros.run_spec import MAX_DOMAIN_ID
+
+    out = tmp_path / "c" / "docker-compose.yml"
+    base = ["compose", "--sats", "3", "--hours", "0.1", "--out", str(out)]
+    assert main([*base, "--domain-id", str(MAX_DOMAIN_ID)]) == 0
+    assert main([*base, "--domain-id", str(MAX_DOMAIN_ID + 1)]) == 2
+    assert f"0..{MAX_DOMAIN_ID}" in capsys.readouterr().err
+    assert main(["run", "--sats", "3", "--hours", "0.01", "--out", str(tmp_path / "r"),
+                 "--domain-id", str(MAX_DOMAIN_ID + 1)]) == 2
+    assert f"0..{MAX_DOMAIN_ID}" in capsys.readouterr().err

@@ -32,8 +32,12 @@ from bringup.engine.ros.naming import check_namespace
 from bringup.errors import UserError
 from bringup.scenario.config import load_scenario
 
-__all__ = ["CLOCK_ROLE", "RunSpec", "load_factory"]
+__all__ = ["MAX_DOMAIN_ID", "CLOCK_ROLE", "RunSpec", "load_factory"]
 
+#: the largest ROS_DOMAIN_ID a run may use: DDS (RTPS) ports are 7400 + 250 x domain + offsets, and
+#: 232 is the last domain whose ports stay below 65536. A run that leases an id takes one of 1..101,
+#: whose ports lie below Linux's ephemeral range (32768 on); a chosen one may be anything in 0..232.
+MAX_DOMAIN_ID = 232
 CLOCK_ROLE = "clock"
 
 
