@@ -86,6 +86,7 @@ _META_TYPES = {
     "float": lambda v: type(v) in (int, float) and math.isfinite(v),
     "dict": lambda v: isinstance(v, dict),
     "None": lambda v: v is None,
+    "list": lambda v: isinstance(v, list),
 }
 
 
@@ -101,6 +102,9 @@ class RunMeta:
     revisit_zero_s: float = 900.0
     knowledge: str = ""
     osse: dict | None = None  # the truth field's rank figures (ground_station/osse_stats.py)
+    # regions no satellite has in its field of regard at any time of the horizon: their GPs can only
+    # count 0, whatever the planners do (the run warns when it starts, the report says so)
+    regions_never_in_view: list | None = None
 
     @classmethod
     def for_world(cls, world, mode: str, engine: str) -> RunMeta:
@@ -108,7 +112,8 @@ class RunMeta:
         sc = world.scenario
         return cls(scenario=sc.name, mode=mode, engine=engine, seed=sc.scenario.seed, horizon_s=sc.scenario.horizon_s,
                    n_sats=len(world.sat_names), n_gp=world.n_gp, revisit_zero_s=sc.value.revisit_zero_s,
-                   knowledge=sc.value.knowledge, osse=dict(world.osse.meta.get("rank") or {}))
+                   knowledge=sc.value.knowledge, osse=dict(world.osse.meta.get("rank") or {}),
+                   regions_never_in_view=regions_never_in_view(world))
 
     def to_json(self) -> str:
         return json.dumps(self.__dict__, sort_keys=True)
@@ -248,6 +253,11 @@ class ReportBuilder:
         rep.update(_value_figures(obs, meta))
         rep["knowledge"] = _knowledge_figures(obs, meta)
         rep["osse"] = dict(meta.osse or {})
+        if meta.regions_never_in_view:
+            rep["coverage"]["regions_never_in_view"] = list(meta.regions_never_in_view)
+            rep.setdefault("warnings", []).append(
+                f"no satellite has region(s) {', '.join(meta.regions_never_in_view)} in its field of regard "
+                "during the horizon: their ground points can only count 0")
         rep["schedules"] = {"count": self.n_schedules}
         rep["dtn"] = _dtn_figures(events)
         n_obs = len({(src, gp, obs) for src, gp, obs, _dst in self.created.values()})
@@ -277,6 +287,16 @@ class ReportBuilder:
         rt["scheduler_cpu_s_per_sat"] = (sum(cpu_by_planner.values()) / meta.n_sats) if meta.n_sats else None
         rep["runtime"] = rt
         return rep
+
+
+def regions_never_in_view(world) -> list[str]:
+    """Names of the regions none of whose GPs lies in any satellite's access windows (the world's
+    access search over the horizon), in scenario order."""
+    region_index = np.asarray(world.ctx.gps.region_index)
+    seen = set(np.unique(region_index[np.asarray(world.access.gp, dtype=np.int64)]).tolist()) \
+        if len(world.access.gp) else set()
+    names = [str(n) for n in world.ctx.gps.region_names]
+    return [n for i, n in enumerate(names) if i not in seen]
 
 
 def security_figures(record: dict | None) -> dict:
@@ -560,6 +580,9 @@ def report_from_bag(bag_path, *, warn=None) -> dict:
     for env in envs:
         b.add(env)
     rep = b.build(meta, runtime, security, reached_s=reached, recording=recording)
+    for line in rep.get("warnings", []):
+        if warn is not None:
+            warn(line)
     if partial and warn is not None:
         warn(f"partial report: the run reached t = {reached:g} s of its {meta.horizon_s:g} s horizon "
              f"({'no closing /run/meta record' if not closed else 'data lost from the bag'})")

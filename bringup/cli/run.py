@@ -205,6 +205,9 @@ def _run(sc, cuts, out: Path, bag_dir: Path, args, folder: RunFolder, per_proces
     say(f"run: world ready in {time.perf_counter() - t0:.1f} s ({len(world.isl_plan)} ISL contacts, "
         f"{len(world.ground_plan)} ground contacts, {world.n_gp} ground points)")
     meta = RunMeta.for_world(world, args.mode, args.engine)
+    if meta.regions_never_in_view:
+        print(f"run: warning: no satellite has region(s) {', '.join(meta.regions_never_in_view)} in its field of "
+              "regard during the horizon: their ground points can only count 0", file=sys.stderr)
     router_kw = {"extra_delay_s": args.isl_delay_s, "cuts": cuts} if (args.isl_delay_s or cuts) else None
     rep = None
     if args.engine == "local":
@@ -239,10 +242,38 @@ def _leave_partial_report(folder: RunFolder, bag_dir: Path, exc: BaseException) 
           f"(t = {rep['horizon_reached_s']:g} s of {rep['horizon_s']:g} s)", file=sys.stderr)
 
 
-def _progress_display(show: bool, horizon_ns: int):
-    """A rich progress bar (sim time, real-time factor, envelopes) or a no-op."""
+#: wall seconds between two progress lines when the output is not a terminal (a log, CI, nohup)
+PROGRESS_LOG_PERIOD_S = 10.0
+
+
+def _progress_display(show: bool, horizon_ns: int, *, terminal: bool | None = None, period_s: float | None = None):
+    """A rich progress bar (sim time, real-time factor, envelopes) on a terminal; on anything else
+    (a pipe, a log file, CI) one line on stderr every PROGRESS_LOG_PERIOD_S wall seconds and at every
+    tenth of the horizon; or a no-op with ``show`` False. Returns (rich Progress or None, update)."""
     if not show:
         return None, (lambda **kw: None)
+
+    def hms(t_ns: int) -> str:
+        s = int(t_ns // _NS)
+        return f"{s // 3600}:{s // 60 % 60:02d}:{s % 60:02d}"
+
+    if terminal is None:
+        terminal = sys.stdout.isatty()
+    if not terminal:
+        period = PROGRESS_LOG_PERIOD_S if period_s is None else period_s
+        state = {"wall": time.monotonic(), "tenth": 0}
+
+        def log_line(*, t_ns: int, rtf: float | None, extra: str = ""):
+            tenth = int(10 * t_ns // max(horizon_ns, 1))
+            now = time.monotonic()
+            if now - state["wall"] < period and tenth <= state["tenth"]:
+                return
+            state["wall"], state["tenth"] = now, max(tenth, state["tenth"])
+            rate = f", {rtf:,.0f}x real time" if rtf else ""
+            print(f"run: sim {hms(t_ns)} of {hms(horizon_ns)} ({100.0 * t_ns / max(horizon_ns, 1):.1f} %){rate}"
+                  f"{', ' + extra if extra else ''}", file=sys.stderr, flush=True)
+
+        return None, log_line
 
     prog = Progress(TextColumn("[bold]sim {task.fields[sim]}"), BarColumn(), TextColumn("{task.percentage:>5.1f}%"),
                     TextColumn("RTF {task.fields[rtf]}"), TextColumn("{task.fields[extra]}"), TimeElapsedColumn(),
@@ -250,9 +281,7 @@ def _progress_display(show: bool, horizon_ns: int):
     task = prog.add_task("run", total=horizon_ns, sim="0:00:00", rtf="-", extra="")
 
     def update(*, t_ns: int, rtf: float | None, extra: str = ""):
-        s = int(t_ns // _NS)
-        prog.update(task, completed=t_ns, sim=f"{s // 3600}:{s // 60 % 60:02d}:{s % 60:02d}",
-                    rtf=f"{rtf:,.0f}x" if rtf else "-", extra=extra)
+        prog.update(task, completed=t_ns, sim=hms(t_ns), rtf=f"{rtf:,.0f}x" if rtf else "-", extra=extra)
 
     return prog, update
 
@@ -361,7 +390,7 @@ def _run_ros(world, world_path: Path, args, meta, bag_dir: Path, out: Path, rout
     def progress(p) -> None:
         if p.status:  # before step 0: preparing, or waiting for processes to be ready
             update(t_ns=0, rtf=None, extra=p.status)
-            if not show and p.status != last_status[0]:
+            if (not show or prog is None) and p.status != last_status[0]:
                 print(f"run: {p.status}", file=sys.stderr)
             last_status[0] = p.status
             return
