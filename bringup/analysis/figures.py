@@ -25,7 +25,9 @@ Input mistakes (empty series, unknown region) raise :class:`PlotError` with one 
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterator, Mapping, Sequence
+from contextlib import contextmanager
+from contextvars import ContextVar
 from pathlib import Path
 from typing import Any
 
@@ -57,6 +59,7 @@ __all__ = [
     "plot_value_snapshot",
     "plot_info_age",
     "plot_transiency_sweep",
+    "also_as",
     "save_figure",
 ]
 
@@ -68,12 +71,35 @@ class PlotError(ValueError):
     """Data a plot cannot draw; the message is one line naming the plot and the problem."""
 
 
+#: the vector formats a figure can also be written in, beside its PNG
+VECTOR_FORMATS = ("svg", "pdf")
+_EXTRA_FORMATS: ContextVar[tuple[str, ...]] = ContextVar("figure_formats", default=())
+
+
+@contextmanager
+def also_as(formats) -> Iterator[None]:
+    """Within the block, :func:`save_figure` also writes each figure in ``formats`` (of
+    VECTOR_FORMATS), beside the PNG with the format's suffix (``--plot-formats svg,pdf``)."""
+    extra = tuple(dict.fromkeys(f for f in formats if f != "png"))
+    bad = [f for f in extra if f not in VECTOR_FORMATS]
+    if bad:
+        raise PlotError(f"figure formats {', '.join(bad)}: not one of png, {', '.join(VECTOR_FORMATS)}")
+    token = _EXTRA_FORMATS.set(extra)
+    try:
+        yield
+    finally:
+        _EXTRA_FORMATS.reset(token)
+
+
 def save_figure(fig: Figure, path: str | Path) -> Path:
-    """Write a figure as PNG (folders created) and return the path."""
+    """Write a figure as PNG (folders created), and in the formats of an enclosing :func:`also_as`
+    beside it; return the PNG's path."""
     p = Path(path)
     p.parent.mkdir(parents=True, exist_ok=True)
     FigureCanvasAgg(fig)
     fig.savefig(p, dpi=_DPI, format="png")
+    for fmt in _EXTRA_FORMATS.get():
+        fig.savefig(p.with_suffix(f".{fmt}"), format=fmt)
     return p
 
 
@@ -108,6 +134,10 @@ def figure_ground_tracks(tracks: Mapping[str, tuple[Sequence[float], Sequence[fl
         raise PlotError("ground tracks: no satellite tracks given")
     fig = Figure(figsize=(12, 6.2), layout="constrained")
     ax = fig.add_subplot()
+    from bringup.analysis.coastlines import land_polygons
+
+    for xy in land_polygons():  # GSHHS crude shorelines (bringup/analysis/coastlines.py)
+        ax.plot(xy[:, 0], xy[:, 1], lw=0.4, color="0.55", zorder=0, gid="coastline")
     planes = sorted({_plane_of(n) for n in tracks}, key=lambda p: (not p.isdigit(), int(p) if p.isdigit() else 0, p))
     pcol = dict(zip(planes, _colors(len(planes)), strict=True))
     labelled = set()
@@ -316,7 +346,8 @@ def figure_contact_timeline(plan: Any, title: str = "Contact plan", max_rows: in
 
     plan: an ``orbit_clock.contact_plan.ContactPlan`` (or any iterable of objects with start_s,
     end_s, src, dst). Satellite-satellite pairs come first (blue), pairs with a ground node after
-    (orange). ``max_rows`` keeps the pairs with the most contact time.
+    (orange). ``max_rows`` draws only the pairs with the most contact time; the title always counts
+    the whole plan, and says how many rows are drawn when not all are.
     """
     by_pair: dict[tuple[str, str], list[tuple[float, float]]] = {}
     for c in plan:
@@ -326,6 +357,7 @@ def figure_contact_timeline(plan: Any, title: str = "Contact plan", max_rows: in
         raise PlotError("contact timeline: the plan has no contacts")
     merged = {k: _merge(v) for k, v in by_pair.items()}
     pairs = list(merged)
+    n_pairs, n_windows = len(pairs), sum(len(w) for w in merged.values())
     if max_rows is not None and len(pairs) > max_rows:
         pairs = sorted(pairs, key=lambda k: -sum(b - a for a, b in merged[k]))[:max_rows]
 
@@ -343,8 +375,8 @@ def figure_contact_timeline(plan: Any, title: str = "Contact plan", max_rows: in
     ax.set_ylim(len(pairs) - 0.5, -0.5)
     ax.set_xlabel("time since epoch [h]")
     ax.grid(True, axis="x", lw=0.4, alpha=0.5)
-    n_win = sum(len(merged[k]) for k in pairs)
-    ax.set_title(f"{title}: {len(pairs)} node pairs, {n_win} windows")
+    shown = "" if len(pairs) == n_pairs else f" ({len(pairs)} pairs with the most contact time drawn)"
+    ax.set_title(f"{title}: {n_pairs} node pairs, {n_windows} windows{shown}")
     kinds = [Patch(fc="tab:blue", label="inter-satellite")] if not all(map(is_ground, pairs)) else []
     kinds += [Patch(fc="tab:orange", label="ground")] if any(map(is_ground, pairs)) else []
     ax.legend(handles=kinds, loc="upper left", bbox_to_anchor=(1.0, 1.0), fontsize=8)

@@ -33,7 +33,14 @@ __all__ = ["plot_inputs", "run_plots", "shrink_png"]
 _NS = 1_000_000_000
 
 
-def run_plots(out: Path, bag_dir: Path, world, rep: dict) -> list[Path]:
+def run_plots(out: Path, bag_dir: Path, world, rep: dict, formats=("png",)) -> list[Path]:
+    """The run's figures as PNG in ``out/plots`` (and in the vector ``formats`` beside them); the
+    PNGs' paths."""
+    with plots.also_as(formats):
+        return _run_plots(out, bag_dir, world, rep)
+
+
+def _run_plots(out: Path, bag_dir: Path, world, rep: dict) -> list[Path]:
     d = Path(out) / "plots"
     d.mkdir(parents=True, exist_ok=True)
     sc = world.scenario
@@ -48,8 +55,9 @@ def run_plots(out: Path, bag_dir: Path, world, rep: dict) -> list[Path]:
     made.append(plots.plot_ground_tracks(d / "ground_tracks.png", tracks, regions=sc.regions.list,
                                          stations=sc.ground.stations))
     made.append(plots.plot_osse_snapshot(d / "osse_snapshot.png", world.osse, slot=world.osse.n_slots // 2))
-    if len(world.isl_plan):
-        made.append(plots.plot_contact_timeline(d / "contact_plan.png", world.isl_plan, max_rows=60))
+    if len(world.isl_plan) or len(world.ground_plan):  # ISL and ground passes: the plan of `contacts`
+        made.append(plots.plot_contact_timeline(d / "contact_plan.png", [*world.isl_plan, *world.ground_plan],
+                                                max_rows=120))
     # the study's Fig. 5 (bundle latency vs access gaps by priority) for a distributed run with bundles
     fig5 = rep.get("mode") == "distributed" and bool((rep.get("dtn") or {}).get("bundles_created"))
     obs, events = plot_inputs(bag_dir, bundle_events=fig5)

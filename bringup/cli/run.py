@@ -81,7 +81,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--real-time-factor", type=float, default=None,
                    help="pace the clock at this many sim seconds per wall second (default: as fast as possible)")
     p.add_argument("--no-progress", action="store_true", help="no progress display")
-    p.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
+    p.add_argument("--no-plots", action="store_true", help="skip the plots")
+    p.add_argument("--plot-formats", type=_plot_formats, default=("png",), metavar="png[,svg][,pdf]",
+                   help="write each plot as PNG and also in these vector formats (default: png)")
     p.add_argument("--isl-delay-s", type=float, default=0.0, help="extra one-way ISL delay [s] added by the router")
     p.add_argument("--cut", action="append", default=[], metavar="A-B@T1-T2",
                    help="cut the ISL between satellites A and B from T1 to T2 [s] (repeatable)")
@@ -240,6 +242,15 @@ def _leave_partial_report(folder: RunFolder, bag_dir: Path, exc: BaseException) 
     folder.mark_partial_report()
     print(f"run: the run failed; {folder.path / 'report.json'} is a partial report of what the bag holds "
           f"(t = {rep['horizon_reached_s']:g} s of {rep['horizon_s']:g} s)", file=sys.stderr)
+
+
+def _plot_formats(text: str) -> tuple[str, ...]:
+    """``--plot-formats``: a comma-separated subset of png, svg, pdf (PNG is always written)."""
+    fmts = tuple(dict.fromkeys(f.strip().lower() for f in text.split(",") if f.strip()))
+    bad = [f for f in fmts if f not in ("png", "svg", "pdf")]
+    if bad or not fmts:
+        raise argparse.ArgumentTypeError(f"{text!r}: expected png, svg and/or pdf, comma-separated")
+    return fmts
 
 
 #: wall seconds between two progress lines when the output is not a terminal (a log, CI, nohup)
@@ -440,7 +451,7 @@ def _finish(out: Path, bag_dir: Path, runtime: dict, world, args, say, *, rep: d
 
         stage = out / f".staging-{os.getpid()}"
         shutil.rmtree(stage, ignore_errors=True)
-        made = run_plots(stage, bag_dir, world, rep)
+        made = run_plots(stage, bag_dir, world, rep, formats=args.plot_formats)
         (stage / "plots").rename(out / "plots")
         shutil.rmtree(stage, ignore_errors=True)
         plots = [out / "plots" / p.name for p in made]

@@ -92,6 +92,21 @@ def test_contact_timeline_paper_plan(tmp_path, paper_inputs):
     assert _is_png(plots.plot_contact_timeline(tmp_path / "cp.png", plan))
 
 
+def test_contact_timeline_title_counts_the_whole_plan(paper_inputs):
+    """A plan cut to its busiest rows still says how big it is (the title once counted the drawn rows)."""
+    from orbit_clock.contact_plan_io import read_contact_plan
+
+    plan = read_contact_plan(paper_inputs / "contact_plan_3p_8s.csv", rate_bps=1000.0)
+    n_pairs = len(plan.pairs())
+    windows = sum(len(plots._merge([(c.start_s, c.end_s) for c in plan
+                                    if tuple(sorted((c.src, c.dst))) == p])) for p in
+                  {tuple(sorted((c.src, c.dst))) for c in plan})
+    fig = plots.figure_contact_timeline(plan, max_rows=10)
+    assert len(_by_gid(fig, "pair:")) == 10
+    title = fig.axes[0].get_title()
+    assert f"{n_pairs} node pairs, {windows} windows (10 pairs with the most contact time drawn)" in title
+
+
 def test_contact_timeline_merges_directions():
     plan = ContactPlan([Contact(0, 600, "sat_11", "sat_12", 1e3, 0.01), Contact(0, 600, "sat_12", "sat_11", 1e3, 0.01),
                         Contact(500, 900, "sat_11", "sat_12", 1e3, 0.01),
@@ -178,3 +193,41 @@ def test_plot_inputs_equal_separate_reads(tmp_path):
     assert len(events) > 4000 and events == alone_events
     assert bundle_rows(events) == bundle_rows_from_bag(tmp_path / "bag")
     assert plot_inputs(tmp_path / "bag", bundle_events=False) == (alone_obs, [])
+
+
+def test_vector_formats_beside_the_png(tmp_path):
+    """--plot-formats svg,pdf: each figure also as SVG (well-formed XML, an <svg> root) and PDF."""
+    import xml.etree.ElementTree as ET
+
+    plan = ContactPlan([Contact(0, 600, "sat_11", "sat_12", 1e3, 0.01)])
+    with plots.also_as(("png", "svg", "pdf")):
+        png = plots.plot_contact_timeline(tmp_path / "cp.png", plan)
+    assert _is_png(png)
+    assert ET.parse(tmp_path / "cp.svg").getroot().tag.endswith("svg")
+    assert (tmp_path / "cp.pdf").read_bytes().startswith(b"%PDF-")
+    plots.plot_contact_timeline(tmp_path / "again.png", plan)  # outside the block: PNG only
+    assert not (tmp_path / "again.svg").exists()
+    with pytest.raises(PlotError, match="gif"), plots.also_as(("gif",)):
+        pass
+
+
+def test_coastlines_put_cities_on_land(tmp_path):
+    """GSHHS crude shorelines (bringup/analysis/coastlines.py): the study's cities on land, open ocean not;
+    the ground-track map draws them."""
+    from matplotlib.path import Path as MplPath
+
+    from bringup.analysis.coastlines import land_polygons
+
+    polys = [MplPath(xy) for xy in land_polygons()]
+    assert len(polys) > 100
+
+    def on_land(lon, lat):
+        return any(p.contains_point((lon, lat)) for p in polys)
+
+    cities = {"Dhaka": (90.41, 23.81), "Sydney": (150.9, -33.8), "Dallas": (-96.8, 32.78), "London": (-0.13, 51.51),
+              "Rio": (-43.3, -22.85)}
+    assert all(on_land(*c) for c in cities.values()), [n for n, c in cities.items() if not on_land(*c)]
+    ocean = [(-40.0, 30.0), (-150.0, 0.0), (80.0, -30.0), (160.0, 30.0), (-30.0, -40.0)]
+    assert not any(on_land(*o) for o in ocean)
+    fig = plots.figure_ground_tracks({"sat_11": ([0.0, 10.0], [0.0, 10.0])})
+    assert len(_by_gid(fig, "coastline")) == len(land_polygons())
