@@ -50,6 +50,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "replay": ("replay",
                "republish a recorded bag (raw CDR, with /clock) onto a live ROS 2 graph at a chosen rate"),
     "bag-info": ("bag_info", "print a recorded bag's topics, message types, counts and time span"),
+    "czml": ("czml", "the run on a globe: a CZML document of a bag and a CesiumJS page to view it"),
     "compare": ("compare",
                 "run distributed, centralized and non-agile on the same scenario and seeds; Table 2 with ratios"),
     "sweep": ("sweep",
