@@ -29,13 +29,23 @@ from ground_station.osse_transient import TransientParams, transient_field_array
 __all__ = ["OSSE_SOURCES", "osse_from_scenario"]
 
 
-def _regions(scenario) -> tuple[list[str], list[tuple[float, float]], list[float]]:
+def _regions(scenario, gps=None) -> tuple[list[str], list[tuple[float, float]], list[float]]:
+    """Names, centres and sizes [km]: a square's own; a drawn shape's (bbox, polygon) from its GPs
+    (orbit_clock/ground_points.py: centre of the GPs, the square that reaches every GP)."""
     rl = scenario.regions.list
-    return [r.name for r in rl], [(r.lat_deg, r.lon_deg) for r in rl], [r.size_km for r in rl]
+    centers, sizes = [], []
+    for i, r in enumerate(rl):
+        if getattr(r, "shape_deg", None) is None:
+            centers.append((r.lat_deg, r.lon_deg))
+            sizes.append(r.size_km)
+        else:
+            centers.append((float(gps.region_center_lat_deg[i]), float(gps.region_center_lon_deg[i])))
+            sizes.append(float(gps.region_size_km[i]))
+    return [r.name for r in rl], centers, sizes
 
 
 def _synthetic_from_scenario(scenario, gps) -> OsseField:
-    names, centers, sizes = _regions(scenario)
+    names, centers, sizes = _regions(scenario, gps)
     v = scenario.value
     if v.transiency_min == 0:  # the slow storm-cell field
         return synthetic_field(gps, region_names=names, region_centers_deg=centers, region_sizes_km=sizes,

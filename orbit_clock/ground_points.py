@@ -1,4 +1,4 @@
-"""Ground points (GPs): each scenario region (a city centre and a square side) cut into a grid.
+"""Ground points (GPs): each scenario region (a city centre and a square side, or a drawn shape) cut into a grid.
 
 A region of side ``size_km`` at spacing ``spacing_km`` holds n x n points, n = round(size/spacing)
 (paper: the GPs Nyquist-sample the 8 km footprint, Nag et al. 2019, section 5: 80 km / 4 km =
@@ -6,14 +6,17 @@ A region of side ``size_km`` at spacing ``spacing_km`` holds n x n points, n = r
 centre, converted to geodetic lat/lon with the WGS-84 meridian radius of curvature at the centre (rows) and
 the prime-vertical radius at each row's latitude (columns), so neighbours are spacing_km apart to
 0.1 % (rows are parallels: columns converge by cos(lat) only across rows, < 1 % over 80 km). GPs lie on the
-ellipsoid (height 0).
+ellipsoid (height 0). Regions drawn as shapes (a bounding box or a GeoJSON Polygon / MultiPolygon, the
+scenario's ``bbox_deg`` / ``polygon_deg``) are gridded by orbit_clock/region_shapes.py on an equal-area
+grid at the same spacing; their centre is the direction of their GPs' mean and their half diagonal the
+farthest GP from it.
 
 Global GP id 0..n-1: region order of the scenario, then row (north to south), then column (west to
 east). ``GroundPoints.region_names[region_index[g]]`` is the region of GP g.
 
 How we know it is right: tests/unit/test_orbit_propagation.py checks the paper's counts (400 per
 region, 2000 in all), that neighbours are ``spacing_km`` apart (chord on the ellipsoid, to 0.1 %),
-the region's extent and the id order.
+the region's extent and the id order; tests/unit/test_region_shapes.py the shapes.
 """
 
 from __future__ import annotations
@@ -22,7 +25,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from orbit_clock.frames import WGS84_A_KM, WGS84_E2, geodetic_to_ecef_km, up_unit
+from orbit_clock.frames import (
+    WGS84_A_KM,
+    WGS84_B_KM,
+    WGS84_E2,
+    ecef_to_geodetic,
+    geodetic_to_ecef_km,
+    up_unit,
+)
 
 __all__ = ["GroundPoints", "ground_points", "region_grid"]
 
@@ -41,6 +51,9 @@ class GroundPoints:
     region_center_lat_deg: np.ndarray  # (n_regions,)
     region_center_lon_deg: np.ndarray
     region_half_diag_km: np.ndarray  # (n_regions,) farthest GP from the centre [km]
+    # (n_regions,) side of the square about the centre that the synthetic field spreads over [km]:
+    # a square's size_km; a shape's sqrt(2) x its half diagonal
+    region_size_km: np.ndarray | None = None
 
     def __len__(self) -> int:
         return int(self.lat_deg.size)
@@ -89,16 +102,40 @@ def region_grid(lat_deg: float, lon_deg: float, size_km: float, spacing_km: floa
     return lat.ravel(), lon.ravel(), rows.ravel(), cols.ravel()
 
 
+def _shape_region(reg, shape, spacing: float):
+    """A shape region's grid, centre (lat, lon), half diagonal and size [km]."""
+    from orbit_clock.region_shapes import shape_grid
+
+    label = getattr(reg, "label", None) or f"region '{reg.name}'"
+    la, lo, r, c = shape_grid(shape, spacing, name=label)
+    xyz = geodetic_to_ecef_km(la, lo, 0.0)
+    gu = xyz / np.linalg.norm(xyz, axis=1, keepdims=True)
+    m = gu.mean(axis=0)
+    c_lat, c_lon, _ = ecef_to_geodetic(m / np.linalg.norm(m) * WGS84_A_KM)
+    cu = geodetic_to_ecef_km(c_lat, c_lon, 0.0)
+    cu = cu / np.linalg.norm(cu)
+    half = float(np.max(np.arccos(np.clip(gu @ cu, -1.0, 1.0)))) * WGS84_B_KM + 1e-6
+    return (la, lo, r, c), float(c_lat), float(c_lon), half, np.sqrt(2.0) * half + spacing
+
+
 def ground_points(scenario, spacing_km: float | None = None) -> GroundPoints:
-    """The scenario's regions cut at ``spacing_km`` (default scenario.gp_spacing_km)."""
+    """The scenario's regions cut at ``spacing_km`` (default scenario.gp_spacing_km). A region whose
+    ``shape_deg`` is not None (scenario regions drawn as shapes) is gridded by
+    orbit_clock/region_shapes.py; others are squares (lat_deg, lon_deg, size_km)."""
     spacing = float(spacing_km if spacing_km is not None else scenario.gp_spacing_km)
     regions = scenario.regions.list
-    lats, lons, rows, cols, ridx, half = [], [], [], [], [], []
+    lats, lons, rows, cols, ridx, half, c_lat, c_lon, size = [], [], [], [], [], [], [], [], []
     for i, reg in enumerate(regions):
-        la, lo, r, c = region_grid(reg.lat_deg, reg.lon_deg, reg.size_km, spacing)
+        shape = getattr(reg, "shape_deg", None)
+        if shape is not None:
+            (la, lo, r, c), cla, clo, h, sz = _shape_region(reg, shape, spacing)
+        else:
+            la, lo, r, c = region_grid(reg.lat_deg, reg.lon_deg, reg.size_km, spacing)
+            cla, clo, sz = reg.lat_deg, reg.lon_deg, reg.size_km
+            h = np.sqrt(2.0) * (max(1, round(reg.size_km / spacing)) * spacing) / 2.0
         lats.append(la), lons.append(lo), rows.append(r), cols.append(c)
         ridx.append(np.full(la.size, i))
-        half.append(np.sqrt(2.0) * (max(1, round(reg.size_km / spacing)) * spacing) / 2.0)
+        half.append(h), c_lat.append(cla), c_lon.append(clo), size.append(sz)
     lat = np.concatenate(lats)
     lon = np.concatenate(lons)
     return GroundPoints(
@@ -109,7 +146,8 @@ def ground_points(scenario, spacing_km: float | None = None) -> GroundPoints:
         lat_deg=lat,
         lon_deg=lon,
         ecef_km=geodetic_to_ecef_km(lat, lon, 0.0),
-        region_center_lat_deg=np.array([r.lat_deg for r in regions]),
-        region_center_lon_deg=np.array([r.lon_deg for r in regions]),
+        region_center_lat_deg=np.array(c_lat, dtype=np.float64),
+        region_center_lon_deg=np.array(c_lon, dtype=np.float64),
         region_half_diag_km=np.array(half),
+        region_size_km=np.array(size, dtype=np.float64),
     )

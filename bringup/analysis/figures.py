@@ -128,7 +128,8 @@ def figure_ground_tracks(tracks: Mapping[str, tuple[Sequence[float], Sequence[fl
 
     tracks: sat name -> (lat_deg[], lon_deg[]). Satellites (``sat_PS``, ``sat_PPPP_SSSS``) share
     a colour per plane P. regions / stations: dicts or objects with name, lat_deg, lon_deg (and size_km for
-    regions). Tracks are broken where they cross the dateline.
+    square regions, or outline_deg, GeoJSON MultiPolygon coordinates, for drawn shapes). Tracks are broken
+    where they cross the dateline.
     """
     if not tracks:
         raise PlotError("ground tracks: no satellite tracks given")
@@ -154,11 +155,19 @@ def figure_ground_tracks(tracks: Mapping[str, tuple[Sequence[float], Sequence[fl
         ax.plot(lon_b, lat_b, lw=0.7, alpha=0.75, color=pcol[pl], label=label, gid=f"track:{name}")
         ax.plot(lon[:1], lat[:1], "o", ms=3, color=pcol[pl])
     for r in regions:
-        lat0, lon0, size = float(_get(r, "lat_deg")), float(_get(r, "lon_deg")), float(_get(r, "size_km", 80.0))
-        h = size / _KM_PER_DEG
-        w = h / max(math.cos(math.radians(lat0)), 0.05)
-        ax.add_patch(Rectangle((lon0 - w / 2, lat0 - h / 2), w, h, fill=False, ec="crimson", lw=1.5,
-                               gid=f"region:{_get(r, 'name')}"))
+        lat0, lon0 = float(_get(r, "lat_deg")), float(_get(r, "lon_deg"))
+        outline = _get(r, "outline_deg", None)
+        if outline is not None:  # a drawn shape: its rings ([[[lon, lat], ...], ...] per polygon)
+            for poly in outline:
+                for ring in poly:
+                    xy = np.asarray(ring, dtype=float)
+                    ax.plot((xy[:, 0] + 180.0) % 360.0 - 180.0, xy[:, 1], color="crimson", lw=1.5,
+                            gid=f"region:{_get(r, 'name')}")
+        else:
+            h = float(_get(r, "size_km", 80.0)) / _KM_PER_DEG
+            w = h / max(math.cos(math.radians(lat0)), 0.05)
+            ax.add_patch(Rectangle((lon0 - w / 2, lat0 - h / 2), w, h, fill=False, ec="crimson", lw=1.5,
+                                   gid=f"region:{_get(r, 'name')}"))
         ax.plot([lon0], [lat0], marker="s", ms=9, mfc="none", mec="crimson", mew=1.8)
         ax.annotate(str(_get(r, "name")), (lon0, lat0), xytext=(6, 6), textcoords="offset points",
                     color="crimson", fontsize=10, fontweight="bold",

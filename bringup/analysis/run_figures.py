@@ -52,7 +52,12 @@ def _run_plots(out: Path, bag_dir: Path, world, rep: dict) -> list[Path]:
     for i, name in enumerate(world.sat_names):
         lat, lon, _ = ecef_to_geodetic(pos[i])
         tracks[name] = (np.asarray(lat), np.asarray(lon))
-    made.append(plots.plot_ground_tracks(d / "ground_tracks.png", tracks, regions=sc.regions.list,
+    g = world.gps
+    regions = [r if r.shape_deg is None else  # a drawn shape: its outline, labelled at its GPs' centre
+               {"name": r.name, "lat_deg": float(g.region_center_lat_deg[i]),
+                "lon_deg": float(g.region_center_lon_deg[i]), "outline_deg": r.shape_deg}
+               for i, r in enumerate(sc.regions.list)]
+    made.append(plots.plot_ground_tracks(d / "ground_tracks.png", tracks, regions=regions,
                                          stations=sc.ground.stations))
     made.append(plots.plot_osse_snapshot(d / "osse_snapshot.png", world.osse, slot=world.osse.n_slots // 2))
     if len(world.isl_plan) or len(world.ground_plan):  # ISL and ground passes: the plan of `contacts`

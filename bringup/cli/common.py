@@ -14,6 +14,7 @@ from pathlib import Path
 from bringup.engine.keys import ENV_BPSEC_KEY, ENV_BPSEC_KEY_FILE, RunKeys
 from bringup.errors import UserError
 from bringup.scenario.config import KNOWLEDGE_MODELS, Scenario, load_scenario
+from bringup.scenario.regions_geojson import regions_arg
 from msgs_json.names import MAX_PLANES, MAX_SATS
 
 _OVERRIDES = ("sats", "planes", "hours", "seed", "knowledge", "transiency_min", "gp_spacing_km", "joint_planning",
@@ -56,8 +57,16 @@ def add_scenario_args(p: argparse.ArgumentParser, *, overrides: bool = True, kno
                             f"scenario's, or the largest below it that divides --sats)")
         p.add_argument("--hours", type=float, default=None, help="horizon [h] (default: scenario)")
         p.add_argument("--seed", type=int, default=None, help="seed (default: scenario)")
+        add_regions_arg(p)
     if knowledge:
         add_knowledge_args(p)
+
+
+def add_regions_arg(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--regions", default=None, metavar="FILE.geojson|W,S,E,N",
+                   help="regions instead of the scenario's: the Polygon / MultiPolygon features of a GeoJSON file "
+                        "(named by their 'name' property), or one bounding box in degrees (write --regions=W,S,E,N "
+                        "when W is negative) (docs/guide/regions-and-fields.md)")
 
 
 def add_knowledge_args(p: argparse.ArgumentParser) -> None:
@@ -91,6 +100,8 @@ def overrides_of(args: argparse.Namespace) -> dict:
     kw = {k: getattr(args, k, None) for k in _OVERRIDES if k != "joint_planning"}
     planning = getattr(args, "planning", None)
     kw["joint_planning"] = None if planning is None else planning == "joint"
+    regions = getattr(args, "regions", None)
+    kw["regions"] = None if regions is None else regions_arg(regions)
     return kw
 
 

@@ -25,7 +25,7 @@ from pathlib import Path
 from bringup.analysis import compare as C
 from bringup.analysis.figure5 import bundle_rows_from_bag, figure5_data, figure5_summary, plot_figure5
 from bringup.analysis.report import true_values
-from bringup.cli.common import add_knowledge_args, scenario_from_args
+from bringup.cli.common import add_knowledge_args, add_regions_arg, scenario_from_args
 from bringup.cli.run_folder import RunFolder, json_text, write_text_atomic
 from bringup.errors import UserError
 from bringup.recording.bag import BagReader
@@ -45,6 +45,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--out", type=Path, default=None, help="folder (default runs/compare-<scenario>)")
     p.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
     add_knowledge_args(p)
+    add_regions_arg(p)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -82,6 +83,9 @@ def _compare(args, sc, seeds: list[int], out: Path) -> None:
         extra += ["--joint-max-partners", str(args.joint_max_partners)]
     if getattr(args, "forwarding", None) is not None:
         extra += ["--forwarding", args.forwarding]
+    if getattr(args, "regions", None) is not None:
+        box = args.regions.split(",")
+        extra += [f"--regions={args.regions if len(box) == 4 else Path(args.regions).resolve()}"]
     say(f"compare: knowledge {sc.value.knowledge}, transiency {sc.value.transiency_min:g} min "
         f"(0: slow), {sc.gp_spacing_km:g} km GPs, planning {_planning(sc)}")
     by_mode = C.run_matrix(scenario=args.scenario, seeds=seeds, out=out, engine=args.engine, sats=args.sats,

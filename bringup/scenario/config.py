@@ -82,14 +82,55 @@ class AcsCfg(_S, kw_only=True):
     slew_margin_s: NonNeg = 0.0
 
 
+_UNSET = msgspec.UNSET
+_Unset = msgspec.UnsetType
+
+
 class Region(_S, kw_only=True):
+    """A region: a square (``lat_deg``, ``lon_deg``, ``size_km``: its centre and side), a bounding box
+    (``bbox_deg = [west, south, east, north]``), or a drawn shape (``polygon_deg``: GeoJSON
+    MultiPolygon coordinates, what ``regions.geojson_file`` and ``--regions FILE.geojson`` become);
+    exactly one of the three. ``source`` names where a shape came from (file and feature) for errors.
+    Gridding: orbit_clock/ground_points.py (squares), orbit_clock/region_shapes.py (the others)."""
+
     name: Name
-    lat_deg: Lat
-    lon_deg: Lon
-    size_km: Annotated[float, msgspec.Meta(gt=0, le=2000)]
+    lat_deg: Lat | _Unset = _UNSET
+    lon_deg: Lon | _Unset = _UNSET
+    size_km: Annotated[float, msgspec.Meta(gt=0, le=2000)] | _Unset = _UNSET
+    bbox_deg: Annotated[list[float], msgspec.Meta(min_length=4, max_length=4)] | _Unset = _UNSET
+    polygon_deg: list[list[list[list[float]]]] | _Unset = _UNSET
+    source: str | _Unset = _UNSET
+
+    @property
+    def kind(self) -> str:
+        """'square', 'bbox' or 'polygon'."""
+        if self.polygon_deg is not _UNSET:
+            return "polygon"
+        return "bbox" if self.bbox_deg is not _UNSET else "square"
+
+    @property
+    def shape_deg(self) -> list | None:
+        """MultiPolygon coordinates of a box or a polygon; None for a square."""
+        if self.polygon_deg is not _UNSET:
+            return self.polygon_deg
+        if self.bbox_deg is not _UNSET:
+            from orbit_clock.region_shapes import bbox_polygon
+
+            return bbox_polygon(self.bbox_deg)
+        return None
+
+    @property
+    def label(self) -> str:
+        """How errors name it: ``region 'X'`` and, for a shape from a file, ``(FILE feature N)``."""
+        return f"region '{self.name}'" + (f" ({self.source})" if self.source is not _UNSET and self.source else "")
 
 
 class RegionsCfg(_S, kw_only=True):
+    """``list``: the regions in GP id order. A ``geojson_file`` key (a path, relative to the scenario
+    file) is read on load: its features are appended to ``list`` as polygon regions (names from the
+    ``name`` property) and the key is dropped, so a loaded scenario holds its shapes (the world's cache
+    key and a resolved scenario's TOML include them): bringup/scenario/regions_geojson.py."""
+
     gp_spacing_km: NonNeg = 0.0
     list: Annotated[List[Region], msgspec.Meta(min_length=1)]
 
@@ -209,10 +250,12 @@ class Scenario(_S, kw_only=True):
                        seed: int | None = None, planes: int | None = None, knowledge: str | None = None,
                        transiency_min: float | None = None, gp_spacing_km: float | None = None,
                        joint_planning: bool | None = None, joint_max_partners: int | None = None,
-                       viz_period_s: float | None = None, forwarding: str | None = None) -> "Scenario":
+                       viz_period_s: float | None = None, forwarding: str | None = None,
+                       regions: list[dict] | None = None) -> "Scenario":
         """A copy with the CLI overrides applied (``--sats``, ``--planes``, ``--hours``, ``--seed``,
         ``--knowledge``, ``--transiency-min``, ``--gp-spacing-km``, ``--planning``,
-        ``--joint-max-partners``, ``--viz-period-s``, ``--forwarding``).
+        ``--joint-max-partners``, ``--viz-period-s``, ``--forwarding``, ``--regions``: region tables that
+        replace the scenario's, bringup/scenario/regions_geojson.py).
 
         ``sats`` without ``planes`` keeps the number of planes when it divides evenly, else takes
         the largest number of planes below it that does; ``planes`` sets it (``phasing_f`` is kept
@@ -246,6 +289,8 @@ class Scenario(_S, kw_only=True):
             raw["scenario"]["seed"] = int(seed)
         if joint_max_partners is not None:  # an integer key: not made a float like the others
             raw["scheduler"]["joint_max_partners"] = joint_max_partners
+        if regions is not None:
+            raw["regions"]["list"] = [dict(r) for r in regions]
         return _validate(raw, self.source_path or "<overrides>")
 
 
@@ -328,7 +373,30 @@ def _non_finite(raw, key: str = "") -> str | None:
     return None
 
 
+def _expand_geojson(raw: dict, where: str) -> None:
+    """``regions.geojson_file``: its features appended to ``regions.list`` and the key dropped
+    (RegionsCfg), the path relative to the scenario file."""
+    regions = raw.get("regions")
+    if not isinstance(regions, dict) or "geojson_file" not in regions:
+        return
+    name = regions.pop("geojson_file")
+    if not isinstance(name, str) or not name:
+        raise ScenarioError(f"{where}: key 'regions.geojson_file': must be a path to a GeoJSON file (got {name!r})")
+    from bringup.scenario.regions_geojson import read_geojson_regions
+
+    path = Path(name).expanduser()
+    if not path.is_absolute() and not where.startswith("<"):
+        path = Path(where).parent / path
+    try:
+        shapes = read_geojson_regions(path)
+    except ValueError as exc:
+        raise ScenarioError(f"{where}: key 'regions.geojson_file': {exc}") from None
+    existing = regions.get("list", [])
+    regions["list"] = (existing if isinstance(existing, list) else [existing]) + shapes
+
+
 def _validate(raw: dict, where: str) -> Scenario:
+    _expand_geojson(raw, where)
     bad = _non_finite(raw)
     if bad is not None:
         raise ScenarioError(f"{where}: key '{bad}': must be a finite number (got {_lookup(raw, bad)!r})")
@@ -382,9 +450,34 @@ def _cross_checks(sc: Scenario, where: str) -> None:
     i = sc.isl
     if not (i.ttl_p1_s <= i.ttl_p2_3_s <= i.ttl_p4_15_s):
         bad("isl.ttl_p1_s", "TTLs must not shrink with priority number (p1 <= p2_3 <= p4_15)")
+    for k, r in enumerate(sc.regions.list):
+        why = _region_problem(r)
+        if why:
+            bad(f"regions.list[{k}]", f"{r.label}: {why}")
     names = [r.name for r in sc.regions.list]
     if len(set(names)) != len(names):
         bad("regions.list", f"region names repeat: {names}")
     gs = [s.name for s in sc.ground.stations]
     if len(set(gs)) != len(gs):
         bad("ground.stations", f"station names repeat: {gs}")
+
+
+def _region_problem(r: Region) -> str | None:
+    """A region's form (exactly one of square, box, polygon) and its shape (orbit_clock/region_shapes.py)."""
+    square = [r.lat_deg is not _UNSET, r.lon_deg is not _UNSET, r.size_km is not _UNSET]
+    forms = int(any(square)) + int(r.bbox_deg is not _UNSET) + int(r.polygon_deg is not _UNSET)
+    if forms != 1:
+        return ("give exactly one of: lat_deg + lon_deg + size_km (a square), bbox_deg = [west, south, east, "
+                "north], or polygon_deg (GeoJSON MultiPolygon coordinates; or regions.geojson_file)")
+    if any(square) and not all(square):
+        missing = [k for k, s in zip(("lat_deg", "lon_deg", "size_km"), square, strict=True) if not s]
+        return f"a square needs lat_deg, lon_deg and size_km: missing {', '.join(missing)}"
+    if r.bbox_deg is not _UNSET:
+        from bringup.scenario.regions_geojson import bbox_problem
+
+        return bbox_problem(r.bbox_deg)
+    if r.polygon_deg is not _UNSET:
+        from orbit_clock.region_shapes import shape_problem
+
+        return shape_problem(r.polygon_deg)
+    return None

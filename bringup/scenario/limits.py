@@ -67,11 +67,17 @@ def gib(n: float) -> str:
 
 
 def _gps_per_region(sc: Scenario) -> list[float]:
-    """max(1, round(size_km / spacing))^2 per region (orbit_clock/ground_points.py region_grid), as
-    floats: a spacing near 0 gives inf, not an OverflowError."""
+    """max(1, round(size_km / spacing))^2 per square region (orbit_clock/ground_points.py region_grid),
+    area / spacing^2 per drawn shape, as floats: a spacing near 0 gives inf, not an OverflowError."""
     spacing = sc.gp_spacing_km
     out = []
     for r in sc.regions.list:
+        shape = r.shape_deg
+        if shape is not None:  # a drawn shape: its equal-area area over the GP cell's (region_shapes.py)
+            from orbit_clock.region_shapes import shape_area_km2
+
+            out.append(max(1.0, shape_area_km2(shape) / spacing / spacing))
+            continue
         n = r.size_km / spacing
         side = max(1.0, float(round(n))) if math.isfinite(n) else math.inf
         out.append(side * side)  # (float ** 2 raises OverflowError past 1e308; * gives inf)
