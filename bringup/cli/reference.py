@@ -64,8 +64,9 @@ def _limits(t) -> str:
 def _default(f) -> str:
     if f.required:
         return "required"
-    d = f.default if f.default is not msgspec.NODEFAULT else (
-        f.default_factory() if f.default_factory is not msgspec.NODEFAULT else None)
+    if f.default is msgspec.NODEFAULT and f.default_factory is msgspec.NODEFAULT:
+        return "optional"  # (msgspec.UNSET: a key that may be left out, e.g. one form of a region)
+    d = f.default if f.default is not msgspec.NODEFAULT else f.default_factory()
     if isinstance(d, msgspec.Struct):
         return "(table)"
     if isinstance(d, str):
