@@ -12,9 +12,14 @@ Formats (by file suffix):
   ``lon``/``longitude``).
 * ``.csv``: header ``t_s,lat_deg,lon_deg,value`` (any column order), one row per grid cell; the rows
   must fill the grid exactly once.
-* ``.nc``: NetCDF-3 classic/64-bit offset (read with ``scipy.io.netcdf_file``, no extra dependency)
-  with the same variable names as NPZ; NetCDF-4 (HDF5) files get a one-line error suggesting
-  ``nccopy -k classic`` or NPZ.
+* ``.nc``: NetCDF-3 classic/64-bit offset (read with ``scipy.io.netcdf_file``) with the same variable
+  names as NPZ; a NetCDF-4 (HDF5) file, ``.nc4``, or a NetCDF-3 file with ``value.grid.variable`` set
+  is read as CF (any regular lat/lon grid and CF time axis) by ground_station/osse_geofiles.py.
+* ``.tif`` / ``.tiff``: a GeoTIFF, bands = time steps, any CRS (ground_station/osse_geofiles.py).
+
+Values are 1..256 (the study's scale), or physical units mapped to it by ``value.grid.scale``
+(linear, log, quantile: ground_station/osse_scale.py) after interpolation onto the GPs; a physical
+grid may hold NaN (missing cells) away from the GPs, but a GP next to one is an error.
 
 Axes may be ascending or descending (flipped on load); longitudes in -180..180; regions crossing the
 dateline are not supported. The grid must cover every GP and every slot start of the horizon; a
@@ -25,7 +30,8 @@ a-priori forecast (``value.osse_forecast_file``): what a planner knows before it
 How we know it is right: ``tests/unit/test_osse_io.py`` writes a synthetic field with
 :func:`write_value_grid` in each format and loads it back onto the same GPs bit for bit (GPs sit on
 grid nodes, where bilinear interpolation is exact); an analytic linear field is reproduced at
-off-node GPs; every bad-file case raises :class:`~ground_station.osse.OsseError` with one line.
+off-node GPs; every bad-file case raises :class:`~ground_station.osse.OsseError` with one line;
+``tests/unit/test_geo_fields.py`` the geoscience formats and the value scales.
 """
 
 from __future__ import annotations
@@ -33,16 +39,19 @@ from __future__ import annotations
 import csv
 import math
 from collections.abc import Sequence
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from ground_station.osse import VALUE_MAX, VALUE_MIN, OsseError, OsseField, as_ground_point_arrays
+from ground_station.osse_geofiles import GeoFileOptions, RawGrid, is_hdf5, read_geotiff, read_netcdf_cf
+from ground_station.osse_scale import ValueScale, scale_values
 
 __all__ = ["GRID_SUFFIXES", "ValueGrid", "load_value_grid", "read_grid", "write_value_grid"]
 
-GRID_SUFFIXES = (".npz", ".csv", ".nc")
+GRID_SUFFIXES = (".npz", ".csv", ".nc", ".nc4", ".tif", ".tiff")
 _ALIASES = {
     "value": ("value", "values", "flood_value"),
     "t_s": ("t_s", "time_s", "time"),
@@ -52,10 +61,15 @@ _ALIASES = {
 
 
 class ValueGrid:
-    """A validated rectilinear grid: value [T, NLAT, NLON] float64, ascending axes."""
+    """A validated rectilinear grid: value [T, NLAT, NLON] float64, ascending axes. ``physical``: the
+    values are physical units (any finite number or NaN); else 1..256. ``to_grid(lat, lon)`` gives the
+    GPs' (y, x) in the grid's own coordinates when these are not lat/lon degrees -180..180 (a
+    projected GeoTIFF, a 0..360 longitude axis); ``lat_deg``/``lon_deg`` then hold y and x."""
 
-    def __init__(self, path: Path, t_s, lat_deg, lon_deg, value):
+    def __init__(self, path: Path, t_s, lat_deg, lon_deg, value, *, physical: bool = False, to_grid=None,
+                 axis_names: tuple[str, str] = ("lat_deg", "lon_deg")):
         self.path = path
+        self.physical, self.to_grid, self.axis_names = physical, to_grid, axis_names
         axes = {}
         for name, a in (("t_s", t_s), ("lat_deg", lat_deg), ("lon_deg", lon_deg)):
             a = np.asarray(a, dtype=np.float64)
@@ -75,11 +89,14 @@ class ValueGrid:
                 v = np.flip(v, axis=k)
             elif a.size > 1 and not np.all(np.diff(a) > 0):
                 raise OsseError(f"{path}: axis '{name}' is not strictly monotonic (repeated or unsorted values)")
-        if np.any(np.abs(axes["lat_deg"]) > 90) or np.any(np.abs(axes["lon_deg"]) > 180):
+        if to_grid is None and (np.any(np.abs(axes["lat_deg"]) > 90) or np.any(np.abs(axes["lon_deg"]) > 180)):
             raise OsseError(f"{path}: lat_deg must be in -90..90 and lon_deg in -180..180")
         for name in ("lat_deg", "lon_deg"):
             if axes[name].size < 2:
                 raise OsseError(f"{path}: axis '{name}' needs at least 2 values to interpolate, got 1")
+        self.t_s, self.lat_deg, self.lon_deg, self.value = axes["t_s"], axes["lat_deg"], axes["lon_deg"], v
+        if physical:
+            return
         bad = ~np.isfinite(v)
         if bad.any():
             k, i, j = np.argwhere(bad)[0]
@@ -91,7 +108,6 @@ class ValueGrid:
             raise OsseError(f"{path}: 'value' has {int(out.sum())} cells outside {VALUE_MIN}..{VALUE_MAX} "
                             f"(first {v[k, i, j]:g} at t_s={axes['t_s'][k]:g}, lat_deg={axes['lat_deg'][i]:g}, "
                             f"lon_deg={axes['lon_deg'][j]:g})")
-        self.t_s, self.lat_deg, self.lon_deg, self.value = axes["t_s"], axes["lat_deg"], axes["lon_deg"], v
 
 
 # --------------------------------------------------------------------------------------------
@@ -105,16 +121,17 @@ def _pick(path: Path, arrays: dict, key: str):
                     f"found: {', '.join(sorted(arrays)) or 'none'})")
 
 
-def _read_npz(path: Path) -> ValueGrid:
+def _read_npz(path: Path, physical: bool = False) -> ValueGrid:
     try:
         with np.load(path, allow_pickle=False) as z:
             arrays = {k: z[k] for k in z.files}
     except (OSError, ValueError) as exc:
         raise OsseError(f"{path}: not a readable NPZ file ({exc})") from None
-    return ValueGrid(path, *(_pick(path, arrays, k) for k in ("t_s", "lat_deg", "lon_deg", "value")))
+    return ValueGrid(path, *(_pick(path, arrays, k) for k in ("t_s", "lat_deg", "lon_deg", "value")),
+                     physical=physical)
 
 
-def _read_csv(path: Path) -> ValueGrid:
+def _read_csv(path: Path, physical: bool = False) -> ValueGrid:
     try:
         fh = open(path, newline="", encoding="utf-8")  # noqa: SIM115 - closed by the with below
     except OSError as exc:
@@ -159,10 +176,10 @@ def _read_csv(path: Path) -> ValueGrid:
                         f"{int((counts == 0).sum())} cells missing")
     value = np.empty(math.prod(shape))
     value[flat] = a[:, 3]
-    return ValueGrid(path, axes[0], axes[1], axes[2], value.reshape(shape))
+    return ValueGrid(path, axes[0], axes[1], axes[2], value.reshape(shape), physical=physical)
 
 
-def _read_nc(path: Path) -> ValueGrid:
+def _read_nc(path: Path, physical: bool = False) -> ValueGrid:
     # here, not at the top: scipy.io costs ~0.08 s to import (python -X importtime) in every process
     # that loads the ground segment or a satellite, and only NetCDF value files need it
     from scipy.io import netcdf_file
@@ -178,21 +195,37 @@ def _read_nc(path: Path) -> ValueGrid:
             arrays = {k: np.array(v[:], dtype=np.float64) for k, v in nc.variables.items()}
     except Exception as exc:  # noqa: BLE001 - scipy raises assorted errors on corrupt files; report all as one line
         raise OsseError(f"{path}: unreadable NetCDF-3 file ({type(exc).__name__}: {exc})") from None
-    return ValueGrid(path, *(_pick(path, arrays, k) for k in ("t_s", "lat_deg", "lon_deg", "value")))
+    return ValueGrid(path, *(_pick(path, arrays, k) for k in ("t_s", "lat_deg", "lon_deg", "value")),
+                     physical=physical)
 
 
 _READERS = {".npz": _read_npz, ".csv": _read_csv, ".nc": _read_nc}
+_ALL = (-90.0, 90.0), (-180.0, 360.0), (-np.inf, np.inf)
 
 
-def read_grid(path: str | Path) -> ValueGrid:
-    """Read and validate a value grid file; raises OsseError (one line) on any problem."""
+def read_grid(path: str | Path, *, scale: ValueScale | None = None, options: GeoFileOptions | None = None,
+              gp_lat=None, gp_lon=None, t_range: tuple[float, float] | None = None) -> ValueGrid:
+    """Read and validate a value grid file; raises OsseError (one line) on any problem. ``scale``
+    says whether its values are physical; a geoscience file (NetCDF-4 / CF, GeoTIFF) is read with
+    ``options`` around the GPs ``gp_lat``/``gp_lon`` and the times ``t_range`` (default: all of it)."""
     p = Path(path)
     suffix = p.suffix.lower()
-    if suffix not in _READERS:
+    if suffix not in GRID_SUFFIXES:
         raise OsseError(f"{p}: unknown OSSE file type '{suffix}' (supported: {', '.join(GRID_SUFFIXES)})")
     if not p.is_file():
         raise OsseError(f"{p}: OSSE value file not found")
-    return _READERS[suffix](p)
+    scale = scale or ValueScale()
+    opts = options or GeoFileOptions()
+    geo = suffix in (".tif", ".tiff", ".nc4") or (suffix == ".nc" and (bool(opts.variable) or is_hdf5(p)))
+    if not geo:
+        return _READERS[suffix](p, scale.physical)
+    la = np.asarray(gp_lat if gp_lat is not None else _ALL[0], dtype=np.float64)
+    lo = np.asarray(gp_lon if gp_lon is not None else _ALL[1], dtype=np.float64)
+    tr = t_range if t_range is not None else _ALL[2]
+    reader = read_geotiff if suffix in (".tif", ".tiff") else read_netcdf_cf
+    raw: RawGrid = reader(p, opts, la, lo, tr)
+    return ValueGrid(p, raw.t_s, raw.y, raw.x, raw.value, physical=scale.physical, to_grid=raw.to_grid,
+                     axis_names=raw.axis_names)
 
 
 # --------------------------------------------------------------------------------------------
@@ -207,10 +240,13 @@ def _bilinear_weights(axis: np.ndarray, x: np.ndarray):
 
 def load_value_grid(path: str | Path, gps: Any, *, horizon_s: float, slot_s: float = 900.0,
                     region_names: Sequence[str] | None = None,
-                    forecast_path: str | Path | None = None) -> OsseField:
+                    forecast_path: str | Path | None = None, scale: ValueScale | None = None,
+                    options: GeoFileOptions | None = None, forecast_variable: str = "") -> OsseField:
     """Load a gridded truth value file and interpolate it onto the GPs at every slot start; with
-    ``forecast_path``, the a-priori forecast from a second grid file the same way (else the field's
-    default forecast: the first slot held over the horizon).
+    ``forecast_path`` and/or ``forecast_variable``, the a-priori forecast from that file (default:
+    the truth's) and variable (default: ``options.variable``) the same way (else the field's default
+    forecast: the first slot held over the horizon). Physical values become 1..256 by ``scale``
+    (ground_station/osse_scale.py; quantile against the truth's GP values).
 
     Returns an :class:`OsseField` with n_slots = ceil(horizon_s / slot_s). Raises OsseError if a
     file is missing or malformed, or a grid does not cover every GP and slot start.
@@ -218,52 +254,77 @@ def load_value_grid(path: str | Path, gps: Any, *, horizon_s: float, slot_s: flo
     g = as_ground_point_arrays(gps)
     names = list(region_names) if region_names is not None else [f"region_{i}" for i in
                                                                  range(int(g.region_index.max()) + 1)]
-    grid = read_grid(path)
-    vals = _onto_gps(grid, g, names, horizon_s, slot_s)
-    meta = {"path": str(grid.path), "grid_shape": grid.value.shape}
+    scale = scale or ValueScale()
+    bad = scale.problem()
+    if bad:
+        raise OsseError(bad)
+    opts = options or GeoFileOptions()
+    n_slots = math.ceil(horizon_s / slot_s - 1e-9)
+    t_range = (0.0, (n_slots - 1) * float(slot_s))
+    kw = {"scale": scale, "gp_lat": g.lat_deg, "gp_lon": g.lon_deg, "t_range": t_range}
+    grid = read_grid(path, options=opts, **kw)
+    truth = _onto_gps(grid, g, names, horizon_s, slot_s)
+    meta = {"path": str(grid.path), "grid_shape": grid.value.shape, "scale": scale.method}
+    if scale.method in ("linear", "log"):
+        meta.update(scale_low=scale.low, scale_high=scale.high)
     forecast = None
-    if forecast_path:
-        fgrid = read_grid(forecast_path)
-        forecast = _onto_gps(fgrid, g, names, horizon_s, slot_s)
+    if forecast_path or forecast_variable:
+        fopts = replace(opts, variable=forecast_variable) if forecast_variable else opts
+        fgrid = read_grid(forecast_path or path, options=fopts, **kw)
+        forecast = scale_values(_onto_gps(fgrid, g, names, horizon_s, slot_s), scale, reference=truth)
         meta.update(forecast_path=str(fgrid.path), forecast="from the forecast file")
+        if forecast_variable:
+            meta.update(forecast_variable=forecast_variable, forecast="from the forecast variable")
+    vals = scale_values(truth, scale)
     return OsseField(values=vals, slot_s=float(slot_s), lat_deg=g.lat_deg, lon_deg=g.lon_deg,
                      region_index=g.region_index, region_names=names, source="file", meta=meta,
                      forecast=forecast)
 
 
 def _onto_gps(grid: ValueGrid, g, names: list[str], horizon_s: float, slot_s: float) -> np.ndarray:
-    """int16 [n_slots, n_gp]: the grid interpolated onto the GPs at every slot start."""
+    """float [n_slots, n_gp]: the grid interpolated onto the GPs at every slot start."""
     p = grid.path
     n_slots = math.ceil(horizon_s / slot_s - 1e-9)
     t_slot = np.arange(n_slots) * float(slot_s)
+    gy, gx = (g.lat_deg, g.lon_deg) if grid.to_grid is None else grid.to_grid(g.lat_deg, g.lon_deg)
+    ny, nx = grid.axis_names
 
-    outside = ((g.lat_deg < grid.lat_deg[0]) | (g.lat_deg > grid.lat_deg[-1])
-               | (g.lon_deg < grid.lon_deg[0]) | (g.lon_deg > grid.lon_deg[-1]))
+    outside = ((gy < grid.lat_deg[0]) | (gy > grid.lat_deg[-1]) | (gx < grid.lon_deg[0]) | (gx > grid.lon_deg[-1]))
     if outside.any():
         i = int(np.flatnonzero(outside)[0])
         r = int(g.region_index[i])
         rname = names[r] if r < len(names) else str(r)
-        raise OsseError(f"{p}: grid lat {grid.lat_deg[0]:g}..{grid.lat_deg[-1]:g}, lon {grid.lon_deg[0]:g}.."
+        raise OsseError(f"{p}: grid {ny} {grid.lat_deg[0]:g}..{grid.lat_deg[-1]:g}, {nx} {grid.lon_deg[0]:g}.."
                         f"{grid.lon_deg[-1]:g} does not cover {int(outside.sum())} GPs (first: GP {i} of "
                         f"'{rname}' at {g.lat_deg[i]:g}, {g.lon_deg[i]:g})")
     if grid.t_s.size > 1 and (t_slot[0] < grid.t_s[0] or t_slot[-1] > grid.t_s[-1]):
         raise OsseError(f"{p}: grid t_s {grid.t_s[0]:g}..{grid.t_s[-1]:g} s does not cover the slot starts "
-                        f"{t_slot[0]:g}..{t_slot[-1]:g} s of the {horizon_s:g} s horizon")
+                        f"{t_slot[0]:g}..{t_slot[-1]:g} s of the {horizon_s:g} s horizon (times are seconds "
+                        "since the scenario epoch)")
 
-    ii, wi = _bilinear_weights(grid.lat_deg, g.lat_deg)
-    jj, wj = _bilinear_weights(grid.lon_deg, g.lon_deg)
+    ii, wi = _bilinear_weights(grid.lat_deg, gy)
+    jj, wj = _bilinear_weights(grid.lon_deg, gx)
 
     def spatial(v2: np.ndarray) -> np.ndarray:       # v2 [..., NLAT, NLON] -> [..., n_gp]
         return ((1 - wi) * (1 - wj) * v2[..., ii, jj] + (1 - wi) * wj * v2[..., ii, jj + 1]
                 + wi * (1 - wj) * v2[..., ii + 1, jj] + wi * wj * v2[..., ii + 1, jj + 1])
 
-    at_nodes = spatial(grid.value)                    # [T, n_gp]
     if grid.t_s.size == 1:
-        vals = np.repeat(at_nodes, n_slots, axis=0)
+        vals = np.repeat(spatial(grid.value), n_slots, axis=0)
     else:
         k, wk = _bilinear_weights(grid.t_s, t_slot)
+        used = np.union1d(k, k + 1)                   # only the time steps the slots fall between
+        at_nodes = np.zeros((grid.t_s.size, ii.size))
+        at_nodes[used] = spatial(grid.value[used])
         vals = (1 - wk)[:, None] * at_nodes[k] + wk[:, None] * at_nodes[k + 1]
-    return np.clip(np.rint(vals), VALUE_MIN, VALUE_MAX).astype(np.int16)
+    bad = ~np.isfinite(vals)
+    if bad.any():
+        s, i = (int(a[0]) for a in np.nonzero(bad))
+        r = int(g.region_index[i])
+        raise OsseError(f"{p}: {int(bad.any(axis=0).sum())} GPs sit next to missing cells (NaN / fill value), "
+                        f"first GP {i} of '{names[r] if r < len(names) else r}' at {g.lat_deg[i]:g}, "
+                        f"{g.lon_deg[i]:g} in slot {s}")
+    return vals
 
 
 # --------------------------------------------------------------------------------------------

@@ -17,12 +17,15 @@ one line naming the known ones.
 
 from __future__ import annotations
 
+import datetime as _dt
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 from ground_station.osse import OsseError, OsseField, as_ground_point_arrays, synthetic_field
+from ground_station.osse_geofiles import GeoFileOptions
 from ground_station.osse_io import load_value_grid
+from ground_station.osse_scale import ValueScale
 from ground_station.osse_stats import field_rank_figures
 from ground_station.osse_transient import TransientParams, transient_field_arrays
 
@@ -70,19 +73,32 @@ def _resolve(scenario, name: str) -> Path:
 
 
 def _file_from_scenario(scenario, gps) -> OsseField:
-    names, _, _ = _regions(scenario)
+    names = [r.name for r in scenario.regions.list]
     v = scenario.value
+    gc = getattr(v, "grid", None)
+    scale, opts, fvar = ValueScale(), GeoFileOptions(epoch=scenario.epoch), ""
+    if gc is not None:
+        start = 0.0
+        if gc.band_start_utc:
+            start = (_dt.datetime.fromisoformat(gc.band_start_utc[:-1]).replace(tzinfo=_dt.UTC)
+                     - scenario.epoch).total_seconds()
+        scale = ValueScale(gc.scale, gc.low, gc.high)
+        opts = GeoFileOptions(variable=gc.variable, units=gc.units, band_start_s=start, band_step_s=gc.band_step_s,
+                              max_memory_mib=gc.max_memory_mib, epoch=scenario.epoch)
+        fvar = gc.forecast_variable
     return load_value_grid(_resolve(scenario, v.osse_file), gps, horizon_s=scenario.scenario.horizon_s,
                            slot_s=v.slot_s, region_names=names,
-                           forecast_path=_resolve(scenario, v.osse_forecast_file) if v.osse_forecast_file else None)
+                           forecast_path=_resolve(scenario, v.osse_forecast_file) if v.osse_forecast_file else None,
+                           scale=scale, options=opts, forecast_variable=fvar)
 
 
 #: name -> (builder(scenario, gps) -> OsseField, one-line help). Drives scenario validation/CLI help.
 OSSE_SOURCES: dict[str, tuple[Callable[[Any, Any], OsseField], str]] = {
     "synthetic": (_synthetic_from_scenario, ("seeded synthetic flood field with value.transiency_min (0: the slow "
                                             "storm cells), its own forecast (seed = scenario.seed)")),
-    "file": (_file_from_scenario, ("gridded (time, lat, lon) values from value.osse_file (.npz, .csv, .nc), "
-                                  "forecast from value.osse_forecast_file")),
+    "file": (_file_from_scenario, ("gridded (time, lat, lon) values from value.osse_file (.npz, .csv, .nc, "
+                                  "NetCDF-4 / CF, GeoTIFF), read and scaled as [value.grid] says, forecast "
+                                  "from value.osse_forecast_file or value.grid.forecast_variable")),
 }
 
 

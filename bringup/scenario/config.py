@@ -138,10 +138,32 @@ class RegionsCfg(_S, kw_only=True):
 KNOWLEDGE_MODELS = ("study", "observed", "oracle")  # sat_node/knowledge.py MODELS (checked by a test)
 
 
+class GridCfg(_S, kw_only=True):
+    """How ``value.osse_file`` is read and scaled (ground_station/osse_geofiles.py, osse_scale.py)."""
+
+    # NetCDF: the truth's variable ('' = the file's only gridded variable, or NPZ/NetCDF-3 names)
+    variable: str = ""
+    # the forecast's variable, in value.osse_forecast_file if given, else in value.osse_file
+    forecast_variable: str = ""
+    # the variable's (band's) units attribute must read this ('' = not checked; no conversion is made)
+    units: str = ""
+    # physical values -> 1..256: none (already 1..256), linear or log between low and high, quantile
+    scale: Literal["none", "linear", "log", "quantile"] = "none"
+    low: float = 0.0
+    high: float = 0.0
+    # GeoTIFF bands: band 1 at band_start_utc ('' = the scenario epoch), then every band_step_s
+    # (0: the bands' ISO 8601 descriptions, or one band held over the run)
+    band_start_utc: str = ""
+    band_step_s: NonNeg = 0.0
+    # refuse to read more of a file than this (the part around the regions and the run)
+    max_memory_mib: Annotated[float, msgspec.Meta(gt=0, le=2 ** 20)] = 1024.0
+
+
 class ValueCfg(_S, kw_only=True):
     osse_source: Literal["synthetic", "file"] = "synthetic"
     osse_file: str = ""
     osse_forecast_file: str = ""
+    grid: GridCfg = GridCfg()
     slot_s: Pos = 900.0
     revisit_zero_s: NonNeg = 900.0
     belief_sigma_min: Frac = 0.02
@@ -439,6 +461,19 @@ def _cross_checks(sc: Scenario, where: str) -> None:
     if v.osse_forecast_file and v.osse_source != "file":
         bad("value.osse_forecast_file", "a forecast file goes with osse_source 'file' (the synthetic "
             "sources make their own forecast)")
+    gc = v.grid
+    if gc != GridCfg() and v.osse_source != "file":
+        bad("value.grid", "reads value.osse_file: it goes with osse_source 'file'")
+    if gc.scale in ("linear", "log") and not gc.high > gc.low:
+        bad("value.grid.high", f"scale '{gc.scale}' maps low..high to 1..256: high ({gc.high:g}) must be above "
+            f"low ({gc.low:g})")
+    if gc.scale == "log" and not gc.low > 0:
+        bad("value.grid.low", f"scale 'log' needs low > 0 (got {gc.low:g})")
+    if gc.band_start_utc:
+        try:
+            _parse_epoch(gc.band_start_utc)
+        except ValueError as exc:
+            bad("value.grid.band_start_utc", f"{exc} (got {gc.band_start_utc!r})")
     if 0 < v.transiency_min < v.slot_s / 60.0:
         bad("value.transiency_min", f"{v.transiency_min} min is shorter than one value slot "
             f"({v.slot_s / 60.0:g} min; 0 = the slow storm-cell field)")

@@ -93,7 +93,7 @@ def test_missing_and_unknown_files(tmp_path):
     with pytest.raises(OsseError, match="not a readable NPZ"):
         load_value_grid(tmp_path / "junk.npz", GPS, horizon_s=3600.0)
     (tmp_path / "h5.nc").write_bytes(b"\x89HDF\r\n\x1a\n" + b"\0" * 64)
-    with pytest.raises(OsseError, match="NetCDF-4/HDF5 is not supported"):
+    with pytest.raises(OsseError, match="h5.nc: unreadable NetCDF file"):
         load_value_grid(tmp_path / "h5.nc", GPS, horizon_s=3600.0)
 
 
