@@ -47,6 +47,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    if getattr(args, "regions", None) is not None:
+        raise UserError("--regions: compose takes the scenario's regions only (put regions.geojson_file or "
+                        "bbox_deg in the scenario file)")
     context = (args.context or repo_root()).resolve()
     if not (context / "docker" / "Dockerfile").is_file() or not (context / "pyproject.toml").is_file():
         raise UserError(f"--context {context}: no docker/Dockerfile and pyproject.toml there")
