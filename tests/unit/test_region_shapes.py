@@ -212,3 +212,13 @@ def test_bbox_on_the_command_line(capsys):
     assert json.loads(capsys.readouterr().out)["scenario"] == "paper"
     code = main(["access", "--regions=-91,30.1,-90,30", "--hours", "0.1"])
     assert code == 2 and "south must be below north" in capsys.readouterr().err
+
+
+def test_ground_track_figure_draws_a_shape_outline():
+    from bringup.analysis.figures import figure_ground_tracks
+
+    fig = figure_ground_tracks({"sat_11": ([30.0, 31.0], [-91.0, -90.0])},
+                               regions=[{"name": "Amite", "lat_deg": 30.5, "lon_deg": -90.5, "outline_deg": [BASIN]}])
+    lines = [ln for ln in fig.axes[0].get_lines() if ln.get_gid() == "region:Amite"]
+    assert len(lines) == 2  # the outer ring and the lake
+    assert np.allclose(lines[0].get_xydata(), np.asarray(BASIN[0]))
