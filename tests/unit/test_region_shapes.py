@@ -222,3 +222,22 @@ def test_ground_track_figure_draws_a_shape_outline():
     lines = [ln for ln in fig.axes[0].get_lines() if ln.get_gid() == "region:Amite"]
     assert len(lines) == 2  # the outer ring and the lake
     assert np.allclose(lines[0].get_xydata(), np.asarray(BASIN[0]))
+
+
+def test_regions_override_reaches_the_ros_processes(tmp_path):
+    """A ROS run's processes load the scenario from the run spec file the launcher writes: with
+    --regions they must get the same shapes, hence the same world key, as the launcher."""
+    from bringup.engine.ros.run_spec import RunSpec
+    from bringup.scenario.regions_geojson import regions_arg
+    from bringup.scenario.world import scenario_key
+
+    f = _write(tmp_path / "basins.geojson", {"type": "FeatureCollection", "features": [
+        _feature("Amite", "Polygon", BASIN), _feature("Fiji", "MultiPolygon", FIJI)]})
+    launcher = load_scenario("paper").with_overrides(regions=regions_arg(str(f)), sats=2, planes=1)
+    spec = RunSpec(factory="m:f", roles=["sat_11"], scenario=launcher.source_path,
+                   overrides={"regions": regions_arg(str(f)), "sats": 2, "planes": 1})
+    spec.to_file(tmp_path / "spec.json")
+    f.unlink()  # the processes need the spec only, not the file
+    process = RunSpec.from_file(tmp_path / "spec.json").load_scenario()
+    assert [r.name for r in process.regions.list] == ["Amite", "Fiji"]
+    assert scenario_key(process) == scenario_key(launcher)
