@@ -205,6 +205,10 @@ def _read_cf(path, ds, opts, gp_lat, gp_lon, t_range) -> RawGrid:
     if "lat" not in roles or "lon" not in roles:
         raise OsseError(f"{path}: variable '{name}' has no latitude and longitude dimensions (dims: "
                         f"{', '.join(map(str, da.dims))}); only regular lat/lon grids are read")
+    for role in ("lat", "lon"):
+        if roles[role] not in ds.variables:
+            raise OsseError(f"{path}: dimension '{roles[role]}' of variable '{name}' has no coordinate variable "
+                            f"(its {'latitudes' if role == 'lat' else 'longitudes'} are not in the file)")
     da = da.isel(squeeze)
     _check_units(path, f"variable '{name}'", da.attrs.get("units"), opts)
     lat = np.asarray(ds[roles["lat"]].values, dtype=np.float64)

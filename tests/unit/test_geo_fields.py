@@ -189,6 +189,8 @@ def _write_bad(d):
     xr.Dataset({"precip": (("y", "x"), v[0], {"grid_mapping": "crs"}), "crs": ((), 0, {
         "grid_mapping_name": "lambert_conformal_conic"})},
         coords={"y": np.arange(NY) * 1000.0, "x": np.arange(NX) * 1000.0}).to_netcdf(d / "lcc.nc", engine="h5netcdf")
+    xr.Dataset({"precip": (("time", "lat", "lon"), v)}, coords={"time": ("time", T_S)}
+               ).to_netcdf(d / "nocoords.nc", engine="h5netcdf")
     with warnings.catch_warnings():  # (rasterio: NotGeoreferencedWarning, what this file is for)
         warnings.simplefilter("ignore")
         with rasterio.open(d / "nocrs.tif", "w", driver="GTiff", width=NX, height=NY, count=1, dtype="float64") as dst:
@@ -208,12 +210,15 @@ def _bad_cases(files):
         "units": (files / "rain.nc", {**lin, "variable": "precip", "units": "m"}, "has units 'mm h-1'"),
         "memory": (files / "rain.nc", {**lin, "variable": "precip", "max_memory_mib": 0.01}, "value.grid.max_memory_mib"),
         "bands untimed": (files / "rain.tif", lin, "7 bands and no time for them"),
+        "no coordinates": (files / "nocoords.nc", {**lin, "variable": "precip"}, "dimension 'lat' of variable "
+                           "'precip' has no coordinate variable"),
         "not scaled": (files / "rain.npz", {}, "outside 1..256"),
     }
 
 
 @pytest.mark.parametrize("case", ["missing variable", "no CRS", "projected NetCDF", "time axis short",
-                                  "time without units", "units", "memory", "bands untimed", "not scaled"])
+                                  "time without units", "units", "memory", "bands untimed", "no coordinates",
+                                  "not scaled"])
 def test_bad_field_files_are_one_line_exit_2(tmp_path, base, files, capsys, case):
     path, grid, want = _bad_cases(files)[case]
     sc = _scenario(tmp_path, base, osse_file=str(path), grid=grid)
