@@ -12,10 +12,11 @@ Omega and Delta). Here an :class:`Inference` holds:
   weighted mean of ``ln(inferred / forecast)`` over every observation of the region it knows
   (weights decaying with age, sat_node/knowledge.py), and ``delta`` - how fast that changes [1/h].
 
-How a receiver uses it depends on its knowledge model (sat_node/knowledge.py): ``study`` takes the
-insight as entitling it to the region's field as of ``t_ns``; ``observed`` updates its belief of the
-GP (and, spread in space, of its neighbours) from ``value`` and of the whole region from
-``omega``/``delta``.
+How a receiver uses it depends on its knowledge model (sat_node/knowledge.py): ``observed`` (the
+default) updates its belief of the GP (and, spread in space, of its neighbours) from ``value`` and of
+the whole region from ``omega``/``delta`` - only what the payload carries; the ``region-truth``
+sensitivity takes the bundle's time as entitling it to the true field of the whole region as of
+``t_ns`` (an upper bound, not something a receiver can do).
 
 Wire form (the bundle payload, :func:`encode_inference` / :func:`decode_inference`): compact JSON
 ``{"src","gp","t_ns","v","r","om","de"}``, values rounded to 1e-3 (value) and 1e-4 (insight), about

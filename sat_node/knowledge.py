@@ -1,49 +1,61 @@
 """What a planner knows about the value field, and only through the system: named knowledge models.
 
-The rule of the project (docs/design.md section 1): a planner - a satellite onboard, or the ground segment
-- knows only what reached it: its own observations, the inferences bundles delivered to it, and for
-the ground what was downlinked at passes. A :class:`KnowledgeState` is that record for one planner
-(the :class:`~sat_node.inference.Inference` of every observation it knows of, and the newest
-information time per region); :meth:`KnowledgeState.knowledge` turns it into the
+The rule of the project (docs/design.md section 1): a planner - a satellite onboard, or the ground
+segment - knows only what reached it, down to the single ground point (GP): its own observations,
+the inferences bundles delivered to it, and for the ground what was downlinked at passes. A
+:class:`KnowledgeState` is that record for one planner (the :class:`~sat_node.inference.Inference`
+of every observation it knows of, and the newest information time per region);
+:meth:`KnowledgeState.knowledge` turns it into the
 :class:`~sat_node.scheduler.planner.Knowledge` the planner plans with. How it values the GPs is a
 named strategy (:data:`MODELS`, scenario key ``value.knowledge``):
 
-* ``study`` - the study's reading (Nag et al., ICAPS SPARK 2019, sections 4-5): the planner values
-  each GP with the field as it was at the time of its newest information about the GP's region (an
-  own look, a delivered bundle's observation with its region insight, a downlinked observation's
-  collection time; before any, the epoch - the state the a-priori forecast was issued with), through
-  its own inference noise (:class:`sat_node.value.Belief`). It never reads the field at a later time
-  (:class:`RegionPersistenceView`).
-* ``observed`` - beyond the study: the planner starts from the a-priori forecast (which does not hold
-  the events nobody could foresee, ground_station/osse.py ``OsseField.forecast``) and updates it from
-  the inferred values it knows only (:class:`ObservedView`): in log space, the innovation
-  ``d = ln(v / forecast)`` of each observation spreads to the GPs of its region with a Gaussian
-  kernel of ``observation_spread_km`` and fades with e-folding time ``observation_memory_min``; where
-  the observations' total weight ``W`` is below one, the region insight of the newest inference
-  (``omega`` + ``delta`` x time, fading alike) fills ``1 - W`` of it::
+* ``observed`` - the default, and the only model that knows nothing but what reached the planner:
+  it starts from the a-priori forecast (issued at the epoch; it does not hold the events nobody could
+  foresee, ground_station/osse.py ``OsseField.forecast``) and updates it from the inferred values
+  it knows only (:class:`ObservedView`): in log space, the innovation ``d = ln(v / forecast)`` of
+  each observation spreads to the GPs of its region with a Gaussian kernel of
+  ``observation_spread_km`` and fades with e-folding time ``observation_memory_min``; where the
+  observations' total weight ``W`` is below one, the region insight of the newest inference
+  (``omega`` + ``delta`` x time, fading alike; computed by the observer from the looks it knew,
+  :meth:`KnowledgeState.region_insight`) fills ``1 - W`` of it::
 
       D(g, t) = sum_o k(g, o, t) d_o / max(1, W) + (1 - min(1, W)) omega_r(t),   W = sum_o k(g, o, t)
       value(g, t) = clip(forecast(g, t) exp(D), 1, 256)
 
   so an observed GP, right after its observation, is valued at what was seen, its neighbours move
   with it, and the rest of the region follows the region's insight.
+* ``region-truth`` - a sensitivity, never a default: the OSSE truth delayed to the region's
+  information time - an upper bound on what a perfect onboard hydrologic model could infer. The
+  planner values *every* GP of a region with the true field as it was at the time of its newest
+  information about the region (an own look, a delivered bundle's observation, a downlinked
+  observation's collection time; before any, the epoch), through its own inference noise
+  (:class:`sat_node.value.Belief`) (:class:`RegionPersistenceView`). One look at one GP unlocks the
+  truth of all the region's GPs at that time, so it reads ground points nobody observed: it is
+  the reading of Nag et al. (ICAPS SPARK 2019, sections 4-5) that a bundle's region insight lets a
+  receiver know the region, taken literally.
 * ``oracle`` - the behaviour before knowledge models (kept for comparison, never a default): the true
   field as of planning time, for every GP, through the belief noise
   (:class:`~sat_node.scheduler.planner.PersistenceView`). It reads the truth; it is not a planner
   anyone could fly.
 
+The name ``study`` (the former default, now ``region-truth``) is refused with a one-line error that
+names the models (:data:`RENAMED`, :func:`check_model`), never mapped silently.
+
 Each model also names the information time of a region for a plan (:meth:`KnowledgeState.info_time_s`):
-``study``/``observed`` the newest known observation there (0: the epoch), ``oracle`` the planning
-time. Each executed look carries it (``Observation.info_ns``); the report's
+``observed``/``region-truth`` the newest known observation there (0: the epoch), ``oracle`` the
+planning time. Each executed look carries it (``Observation.info_ns``); the report's
 ``knowledge.info_age_s`` is the look's time minus it.
 
 How we know it is right (tests/unit/test_knowledge.py): two truth fields that differ only in a
-region nobody observed give the same planner inputs (``study``, ``observed``) until an observation
-of it is known, and different ones under ``oracle``; ``study`` reads the truth at no time later than
-the region's information time; the observed view equals a scalar re-computation of the formula on
-random observations, is exact at an observation just made, and reverts to the forecast far away and
-long after; a flood seen by one satellite makes the next one choose it. The whole-run check, both
-engines: tests/system/test_knowledge_flow.py.
+region nobody observed give the same planner inputs (``region-truth``, ``observed``) until an
+observation of it is known, and different ones under ``oracle``; ``region-truth`` reads the truth at
+no time later than the region's information time; the observed view equals a scalar re-computation
+of the formula on random observations, is exact at an observation just made, and reverts to the
+forecast far away and long after; a flood seen by one satellite makes the next one choose it. The
+whole-run checks, both engines: tests/system/test_gp_twin.py (the ground-point twin test: changing
+only the GPs a run never observed changes nothing under ``observed``, distributed and centralized,
+and changes the plans under ``region-truth`` and ``oracle``) and tests/system/test_knowledge_flow.py
+(a whole region changed).
 """
 
 from __future__ import annotations
@@ -57,15 +69,33 @@ from sat_node.inference import Inference
 from sat_node.scheduler.planner import Knowledge, PersistenceView
 from sat_node.value import Belief
 
-__all__ = ["MODELS", "SLOW_FIELD_TRANSIENCY_MIN", "KnowledgeParams", "KnowledgeState", "ObservedView",
-           "RegionPersistenceView"]
+__all__ = ["DEFAULT_MODEL", "MODELS", "RENAMED", "SLOW_FIELD_TRANSIENCY_MIN", "KnowledgeParams", "KnowledgeState",
+           "ObservedView", "RegionPersistenceView", "check_model"]
 
-#: name -> one line of help (scenario validation and the CLI use the names)
+#: name -> one line of help (scenario validation and the CLI use the names); the first is the default
 MODELS: dict[str, str] = {
-    "study": "the field as of the newest information about each region (own looks, bundles, downlinks)",
-    "observed": "the a-priori forecast updated by the inferred values that reached the planner",
+    "observed": "the a-priori forecast updated by the inferred values that reached the planner (the default)",
+    "region-truth": "the OSSE truth delayed to the region's information time: an upper bound on what a perfect "
+                    "onboard hydrologic model could infer (a sensitivity, never a default)",
     "oracle": "the true field at planning time for every GP (comparison only: no planner can know it)",
 }
+DEFAULT_MODEL = "observed"
+
+#: former names -> what became of them (refused with this hint, never mapped silently)
+RENAMED: dict[str, str] = {
+    "study": "renamed 'region-truth' (a sensitivity that reads the truth of GPs nobody observed); "
+             "the default is now 'observed'",
+}
+
+
+def check_model(name: str) -> str:
+    """``name`` if it is a knowledge model, else ValueError in one line naming the models."""
+    if name in MODELS:
+        return name
+    known = ", ".join(MODELS)
+    if name in RENAMED:
+        raise ValueError(f"knowledge model {name!r} was {RENAMED[name]} (models: {known})")
+    raise ValueError(f"knowledge model {name!r}: unknown (models: {known})")
 
 #: the slow storm-cell field's transiency (``value.transiency_min = 0``), measured on seeds 1-3:
 #: 144-238 min (ground_station/osse_stats.py); what the observed model assumes of it
@@ -77,13 +107,12 @@ _LN_MAX = math.log(256.0)
 class KnowledgeParams:
     """A planner's knowledge model and its two parameters (units in names)."""
 
-    model: str = "study"
+    model: str = DEFAULT_MODEL
     spread_km: float = 10.0
     memory_s: float = 15.0 * 60.0 / math.log(2.0)
 
     def __post_init__(self) -> None:
-        if self.model not in MODELS:
-            raise ValueError(f"knowledge model {self.model!r}: unknown (known: {', '.join(MODELS)})")
+        check_model(self.model)
         if not (self.spread_km > 0 and self.memory_s > 0):
             raise ValueError(f"knowledge: spread_km ({self.spread_km}) and memory_s ({self.memory_s}) must be > 0")
 
@@ -97,7 +126,7 @@ class KnowledgeParams:
 
 
 class RegionPersistenceView:
-    """``study``: the field read at each GP's region information time, never later. ``info_s`` [s]:
+    """``region-truth``: the true field read at each GP's region information time, never later. ``info_s`` [s]:
     per GP (all GPs of the scenario), the time of the newest information about its region;
     ``t_now_s``: planning time (the belief noise's slot, as :class:`PersistenceView`)."""
 
@@ -269,7 +298,7 @@ class KnowledgeState:
         model = self.params.model
         if model == "oracle":
             return Knowledge(PersistenceView(field, t_now_s), known, belief)
-        if model == "study":
+        if model == "region-truth":
             info = np.zeros(len(region_index))
             for r, t in self.region_info_s.items():
                 info[region_index == r] = min(t, t_now_s)

@@ -14,6 +14,9 @@ Definitions:
   before.
 * value.assumed_error_mean - mean over observations with a true Eq. 1 value > 0 of
   |assumed - true| / true, where assumed is what the planner expected (Observation.assumed_value).
+* value.assumed_error.{mean,median,sum_based,se,n} and the same for ``same_slot`` / ``other_slot``
+  (looks whose information time lies in their own OSSE slot, or in an earlier one) -
+  bringup/analysis/assumed_error.py.
 * value.first_look_share - the share of value.cumulative that came from the first look at each GP.
 * coverage.gp_observed_fraction - distinct GPs observed / GPs of the scenario;
   coverage.looks_per_gp - observations / GPs of the scenario.
@@ -61,6 +64,7 @@ from dataclasses import MISSING, dataclass, fields
 
 import numpy as np
 
+from bringup.analysis.assumed_error import assumed_error_figures
 from bringup.errors import UserError
 from bringup.recording.bag import BagReader
 from ground_station.osse import VALUE_MAX, VALUE_MIN
@@ -105,6 +109,7 @@ class RunMeta:
     # regions no satellite has in its field of regard at any time of the horizon: their GPs can only
     # count 0, whatever the planners do (the run warns when it starts, the report says so)
     regions_never_in_view: list | None = None
+    slot_s: float = 900.0  # the OSSE's time resolution (slot) [s]
 
     @classmethod
     def for_world(cls, world, mode: str, engine: str) -> RunMeta:
@@ -113,7 +118,8 @@ class RunMeta:
         return cls(scenario=sc.name, mode=mode, engine=engine, seed=sc.scenario.seed, horizon_s=sc.scenario.horizon_s,
                    n_sats=len(world.sat_names), n_gp=world.n_gp, revisit_zero_s=sc.value.revisit_zero_s,
                    knowledge=sc.value.knowledge, osse=dict(world.osse.meta.get("rank") or {}),
-                   regions_never_in_view=regions_never_in_view(world))
+                   regions_never_in_view=regions_never_in_view(world),
+                   slot_s=float(world.osse.slot_s))
 
     def to_json(self) -> str:
         return json.dumps(self.__dict__, sort_keys=True)
@@ -141,6 +147,8 @@ class RunMeta:
         if kw["horizon_s"] <= 0 or kw["n_sats"] < 1 or kw["n_gp"] < 0 or kw["seed"] < 0 or kw.get("revisit_zero_s", 0) < 0:
             raise ValueError(f"meta out of range: horizon_s {kw['horizon_s']}, n_sats {kw['n_sats']}, "
                              f"n_gp {kw['n_gp']}, seed {kw['seed']}")
+        if kw.get("slot_s", 900.0) <= 0:
+            raise ValueError(f"meta.slot_s = {kw['slot_s']} is not > 0")
         return cls(**kw)
 
 
@@ -251,6 +259,8 @@ class ReportBuilder:
         if recording:
             rep["recording"] = recording
         rep.update(_value_figures(obs, meta))
+        rep["value"]["assumed_error"] = assumed_error_figures(true_values(obs, meta.revisit_zero_s), meta.slot_s,
+                                                              meta.horizon_s)
         rep["knowledge"] = _knowledge_figures(obs, meta)
         rep["osse"] = dict(meta.osse or {})
         if meta.regions_never_in_view:

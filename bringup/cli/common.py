@@ -13,7 +13,7 @@ from pathlib import Path
 
 from bringup.engine.keys import ENV_BPSEC_KEY, ENV_BPSEC_KEY_FILE, RunKeys
 from bringup.errors import UserError
-from bringup.scenario.config import KNOWLEDGE_MODELS, Scenario, load_scenario
+from bringup.scenario.config import KNOWLEDGE_MODELS, RENAMED_KNOWLEDGE, Scenario, load_scenario
 from bringup.scenario.regions_geojson import regions_arg
 from msgs_json.names import MAX_PLANES, MAX_SATS
 
@@ -33,6 +33,20 @@ def transiency_arg(text: str) -> float:
     if v < 0:
         raise argparse.ArgumentTypeError(f"{text!r}: must be >= 0 minutes")
     return v
+
+
+def knowledge_arg(text: str) -> str:
+    """``--knowledge``: a model of sat_node/knowledge.py; a former name is refused naming the models."""
+    if text in KNOWLEDGE_MODELS:
+        return text
+    if text in RENAMED_KNOWLEDGE:
+        from sat_node.knowledge import check_model  # here: the flight software's one message for it
+
+        try:
+            check_model(text)
+        except ValueError as exc:
+            raise argparse.ArgumentTypeError(str(exc)) from None
+    raise argparse.ArgumentTypeError(f"{text!r}: unknown knowledge model (models: {', '.join(KNOWLEDGE_MODELS)})")
 
 
 def max_partners_arg(text: str) -> int:
@@ -73,10 +87,11 @@ def add_knowledge_args(p: argparse.ArgumentParser) -> None:
     """What the planners know and of which field (scenario keys value.knowledge, value.transiency_min,
     regions.gp_spacing_km, scheduler.joint_planning, scheduler.joint_max_partners), and how the news
     travels (isl.forwarding)."""
-    p.add_argument("--knowledge", choices=KNOWLEDGE_MODELS, default=None,
-                   help="what a planner knows: study (the field as of its newest information per region), "
-                        "observed (forecast + observations), oracle (the truth; comparison only) "
-                        "(default: scenario)")
+    p.add_argument("--knowledge", type=knowledge_arg, default=None, metavar="|".join(KNOWLEDGE_MODELS),
+                   help="what a planner knows: observed (the a-priori forecast updated by what reached it; "
+                        "the paper scenario's), region-truth (the OSSE truth delayed to the region's "
+                        "information time: an upper bound on what a perfect onboard hydrologic model could "
+                        "infer), oracle (the truth at planning time; comparison only) (default: scenario)")
     p.add_argument("--transiency-min", type=transiency_arg, default=None, metavar="MIN|slow",
                    help="transiency of the synthetic field [min] (the study's: 15), or 'slow' for the storm-cell "
                         "field (default: scenario)")

@@ -135,7 +135,9 @@ class RegionsCfg(_S, kw_only=True):
     list: Annotated[List[Region], msgspec.Meta(min_length=1)]
 
 
-KNOWLEDGE_MODELS = ("study", "observed", "oracle")  # sat_node/knowledge.py MODELS (checked by a test)
+# sat_node/knowledge.py MODELS, the default first (checked by a test); RENAMED_KNOWLEDGE its RENAMED keys
+KNOWLEDGE_MODELS = ("observed", "region-truth", "oracle")
+RENAMED_KNOWLEDGE = ("study",)
 
 
 class GridCfg(_S, kw_only=True):
@@ -168,7 +170,7 @@ class ValueCfg(_S, kw_only=True):
     revisit_zero_s: NonNeg = 900.0
     belief_sigma_min: Frac = 0.02
     belief_sigma_max: Frac = 0.08
-    knowledge: Literal["study", "observed", "oracle"] = "study"
+    knowledge: Literal["observed", "region-truth", "oracle"] = "observed"
     # 0: the slow storm-cell field; else the transient field's transiency [min] (up to a day)
     transiency_min: Annotated[float, msgspec.Meta(ge=0, le=1440)] = 15.0
     observation_spread_km: Annotated[float, msgspec.Meta(gt=0, le=500)] = 10.0
@@ -422,6 +424,14 @@ def _validate(raw: dict, where: str) -> Scenario:
     bad = _non_finite(raw)
     if bad is not None:
         raise ScenarioError(f"{where}: key '{bad}': must be a finite number (got {_lookup(raw, bad)!r})")
+    model = _lookup(raw, "value.knowledge")
+    if isinstance(model, str) and model in RENAMED_KNOWLEDGE:
+        from sat_node.knowledge import check_model  # the flight software's one message for it
+
+        try:
+            check_model(model)
+        except ValueError as exc:
+            raise ScenarioError(f"{where}: key 'value.knowledge': {exc}") from None
     try:
         sc = msgspec.convert(raw, Scenario, strict=True)
     except msgspec.ValidationError as exc:

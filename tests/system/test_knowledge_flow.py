@@ -3,14 +3,15 @@
 Two truth fields (value files, ``value.osse_source = "file"``) are equal everywhere except in one
 region R, with one a-priori forecast. The scenario is the paper's reduced to 12 satellites and 1 h
 (DTN traffic crosses planes), the transient field of 15 min. R is the region observed last in the
-first run. Oracles:
+first run. (What changes only the GPs nobody observed is tests/system/test_gp_twin.py.) Oracles:
 
 * ``observed`` knowledge, R's truth different from the start: every plan (satellite schedules with
   items, values and information times) and every look (assumed, recorded, information time) before
   the first look at R, and every bundle delivered before it, are identical in the two runs - on the
   local engine and on the ROS engine; after it, the runs part (R's recorded values differ);
-* ``study`` knowledge, R's truth different after the first slot (the epoch state is what the
-  forecast was issued with, which the study model may know): the same;
+* ``region-truth`` knowledge (the sensitivity), R's truth different after the first slot (the
+  epoch state is what the forecast was issued with, which that model may know): the same - it reads
+  a region's truth no later than the region's information time;
 * ``oracle`` knowledge (the truth at planning time, the behaviour before knowledge models): the plans
   part *before* the first look at R - the comparison can fail, and does on a peeking planner.
 """
@@ -44,7 +45,7 @@ def _base(model: str):
 def _write_fields(tmp: Path, region: int | None, from_slot: int) -> tuple[Path, Path]:
     """truth.npz (R's values v -> 257 - v from ``from_slot`` on; region None: unchanged) and
     forecast.npz, both on the GP nodes (exact on load)."""
-    sc = _base("study")
+    sc = _base("observed")
     gps = ground_points(sc)
     f = osse_from_scenario(sc, gps)
     fc_path = tmp / "forecast.npz"
@@ -81,7 +82,7 @@ def _run(scenario: Path, engine: str, out: Path) -> Path:
 def work(tmp_path_factory):
     tmp = tmp_path_factory.mktemp("knowledge")
     _write_fields(tmp, None, 0)
-    return {"tmp": tmp, "gp_region": ground_points(_base("study")).region_index}
+    return {"tmp": tmp, "gp_region": ground_points(_base("observed")).region_index}
 
 
 def _until(rows: list, t_ns: int, key=lambda x: x[0]) -> list:
@@ -149,8 +150,8 @@ def test_observed_knowledge_plans_nothing_from_an_unobserved_region(work, engine
     _assert_same_until(a, b, t_first, t_change, work["gp_region"], r)
 
 
-def test_study_knowledge_uses_nothing_before_its_information_time(work):
-    a, b, t_first, r, t_change = _pair(work, "study", _seen_then_gap, "local")
+def test_region_truth_uses_nothing_before_its_information_time(work):
+    a, b, t_first, r, t_change = _pair(work, "region-truth", _seen_then_gap, "local")
     _assert_same_until(a, b, t_first, t_change, work["gp_region"], r)
 
 

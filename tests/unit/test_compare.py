@@ -148,7 +148,7 @@ def test_transiency_sweep_rows_and_plot(paper_scenario, tmp_path):
     want = [135.0 / 85.0, 235.0 / 185.0]
     assert rows[0]["values"] == pytest.approx(want) and rows[0]["mean"] == pytest.approx(sum(want) / 2)
     assert rows[0]["measured_min"] == pytest.approx(16.5) and rows[1]["ci95"] > 0
-    md = transiency_markdown({"scenario": "paper", "sats": 24, "hours": 6.0, "seeds": [1, 2], "knowledge": "study",
+    md = transiency_markdown({"scenario": "paper", "sats": 24, "hours": 6.0, "seeds": [1, 2], "knowledge": "observed",
                               "rows": rows})
     assert md.count("\n| ") == 3 and "| 1.429 |" in md
     fig = figure_transiency_sweep(rows)

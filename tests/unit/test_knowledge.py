@@ -1,15 +1,18 @@
 """Knowledge models (sat_node/knowledge.py) and the inference a bundle carries (sat_node/inference.py).
 
 Oracles: a scalar re-computation of the observed model's formula; a field that records every time
-it is read (the study model must never read a region later than its information time); two truth
-fields differing only in a region nobody observed (the planner inputs must not differ, except under
-the oracle model, which must see the difference); a drawn two-GP case where a flood one satellite
-saw decides what the next one observes.
+it is read (the region-truth model must never read a region later than its information time); two
+truth fields differing only in a region nobody observed (the planner inputs must not differ, except
+under the oracle model, which must see the difference); two truth fields differing only at the GPs
+nobody observed, inside observed regions (the default model's inputs must not differ; region-truth
+and oracle, which peek, must differ); a drawn two-GP case where a flood one satellite saw decides
+what the next one observes; the former name ``study`` refused in one line, naming the models.
 """
 
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -17,7 +20,16 @@ from dp_instances import PAPER_SLEW, gp_ecef, track
 
 from ground_station.osse import OsseField
 from sat_node.inference import Inference, decode_inference, encode_inference
-from sat_node.knowledge import MODELS, KnowledgeParams, KnowledgeState, ObservedView, RegionPersistenceView
+from sat_node.knowledge import (
+    DEFAULT_MODEL,
+    MODELS,
+    RENAMED,
+    KnowledgeParams,
+    KnowledgeState,
+    ObservedView,
+    RegionPersistenceView,
+    check_model,
+)
 from sat_node.scheduler.planner import Planner, PlannerSettings
 from sat_node.value import Belief, KnownObservation
 
@@ -53,11 +65,41 @@ def test_malformed_inference_is_one_value_error(payload, field):
 
 
 def test_models_are_the_scenario_choices():
-    from bringup.scenario.config import KNOWLEDGE_MODELS
+    from bringup.scenario.config import KNOWLEDGE_MODELS, RENAMED_KNOWLEDGE, load_scenario
 
-    assert tuple(MODELS) == KNOWLEDGE_MODELS
+    assert tuple(MODELS) == KNOWLEDGE_MODELS and tuple(RENAMED) == RENAMED_KNOWLEDGE
+    assert KnowledgeParams().model == DEFAULT_MODEL == KNOWLEDGE_MODELS[0] == "observed"
+    assert load_scenario("paper").value.knowledge == "observed"  # the scenario never peeks by default
     with pytest.raises(ValueError, match="unknown"):
         KnowledgeParams(model="psychic")
+
+
+def test_the_former_name_is_refused_naming_the_models(tmp_path, capsys):
+    """``study`` (now ``region-truth``) is a clear one-line error, never silently mapped: in the flight
+    software, in a scenario file, and on the command line."""
+    from bringup.cli.main import main
+    from bringup.scenario.config import ScenarioError, load_scenario
+
+    for call in (lambda: KnowledgeParams(model="study"), lambda: check_model("study")):
+        with pytest.raises(ValueError, match="'study' was renamed 'region-truth'") as exc:
+            call()
+        assert "\n" not in str(exc.value) and all(m in str(exc.value) for m in MODELS)
+    text = Path(load_scenario("paper").source_path).read_text().replace('knowledge = "observed"', 'knowledge = "study"')
+    assert 'knowledge = "study"' in text
+    (tmp_path / "old.toml").write_text(text)
+    with pytest.raises(ScenarioError) as exc:
+        load_scenario(tmp_path / "old.toml")
+    msg = str(exc.value)
+    assert "\n" not in msg and "old.toml" in msg and "value.knowledge" in msg and "region-truth" in msg
+    assert main(["run", "--scenario", str(tmp_path / "old.toml"), "--out", str(tmp_path / "o"), "--no-plots"]) == 2
+    err = [ln for ln in capsys.readouterr().err.splitlines() if ln.strip()]
+    assert len(err) == 1 and "'study' was renamed 'region-truth'" in err[0]
+    with pytest.raises(SystemExit) as ex:
+        main(["run", "--knowledge", "study", "--out", str(tmp_path / "o"), "--no-plots"])
+    assert ex.value.code == 2
+    last = capsys.readouterr().err.strip().splitlines()[-1]
+    assert "argument --knowledge" in last and "'study' was renamed 'region-truth'" in last and "observed" in last
+    assert not (tmp_path / "o" / "report.json").exists()
 
 
 # ------------------------------------------------------------------------------------------ fields
@@ -173,9 +215,9 @@ def _two_fields(rng, from_slot: int):
     return _field(a, fc, reg), _field(b, fc, reg), reg
 
 
-@pytest.mark.parametrize("model, from_slot", [("study", 1), ("observed", 1), ("observed", 0), ("oracle", 1)])
+@pytest.mark.parametrize("model, from_slot", [("region-truth", 1), ("observed", 1), ("observed", 0), ("oracle", 1)])
 def test_unobserved_region_changes_no_input_except_under_the_oracle(model, from_slot):
-    """``study`` may know the epoch state (the forecast is issued with it): its fields differ after
+    """``region-truth`` may know the epoch state (the forecast is issued with it): its fields differ after
     the epoch only; ``observed`` knows only the forecast: its fields may differ from the start."""
     rng = np.random.default_rng(11)
     fa, fb, reg = _two_fields(rng, from_slot)
@@ -192,10 +234,43 @@ def test_unobserved_region_changes_no_input_except_under_the_oracle(model, from_
         assert not np.array_equal(va[:, 30:], vb[:, 30:])   # the oracle reads the truth: the test can fail
     else:
         assert np.array_equal(va, vb)
-    # once region 1 is observed, its news reaches the planner (study and observed alike)
+    # once region 1 is observed, its news reaches the planner (region-truth and observed alike)
     ks.learn(Inference("sat_21", 40, int(2400 * 1e9), float(fb.values[2, 40]), 1))
     vb2 = ks.knowledge(fb, reg, xyz, 2500.0, [], belief).value.value_at(ids[None, :], times[:, None])
     assert not np.array_equal(vb2[:, 30:], va[:, 30:])
+
+
+@pytest.mark.parametrize("model", ["observed", "region-truth", "oracle"])
+def test_unobserved_gps_of_an_observed_region_change_no_input_only_under_the_default(model):
+    """The ground-point twin at the planner's input: region 0 is observed at three GPs; field B is A
+    with every *other* GP changed (v -> 257 - v) from slot 1 on, the forecast the same. ``observed``
+    (forecast + what reached it) gives identical values everywhere; ``region-truth`` (the region's
+    truth at its information time) and ``oracle`` read the changed GPs, so the comparison can fail."""
+    rng = np.random.default_rng(5)
+    a = rng.integers(1, 257, (24, 60)).astype(np.int16)
+    seen = np.array([3, 12, 20])
+    b = a.copy()
+    other = np.setdiff1d(np.arange(60), seen)
+    b[1:, other] = 257 - a[1:, other]
+    fc = rng.integers(1, 257, (24, 60)).astype(np.int16)
+    reg = np.repeat([0, 1], 30)
+    fa, fb = _field(a, fc, reg), _field(b, fc, reg)
+    xyz = np.column_stack([np.arange(60.0) * 4, np.zeros(60), np.zeros(60)])
+    belief = Belief(seed=1, sat_name="sat_11", n_gp=60, n_slots=24)
+
+    def values(f):
+        ks = KnowledgeState(KnowledgeParams(model=model), "sat_11")
+        for g, t in zip(seen, (1000.0, 1900.0, 2000.0)):  # own looks: the instrument reads field f there
+            ks.observe(f, int(g), int(t * 1e9), float(f.values[int(t // 900), g]), 0)
+        ids = np.arange(60)
+        times = np.arange(2500.0, 9000.0, 60.0)
+        return ks.knowledge(f, reg, xyz, 2500.0, [], belief).value.value_at(ids[None, :], times[:, None])
+
+    va, vb = values(fa), values(fb)
+    if model == "observed":
+        assert np.array_equal(va, vb)
+    else:
+        assert not np.array_equal(va[:, other[other < 30]], vb[:, other[other < 30]])
 
 
 # ------------------------------------------------------------------------------ the drawn case
@@ -206,7 +281,7 @@ class _TwoBody:
         return track(np.asarray(t_s, float))
 
 
-@pytest.mark.parametrize("model", ["study", "observed"])
+@pytest.mark.parametrize("model", ["region-truth", "observed"])
 def test_a_flood_seen_by_one_satellite_makes_the_next_choose_it(model):
     """Two GPs under sat B's track, B has time for one look. The forecast (and the field at the epoch)
     prefers GP 1; a flood appears at GP 0 after the epoch. Sat A saw it; its bundle's inference makes
@@ -243,7 +318,7 @@ def test_a_flood_seen_by_one_satellite_makes_the_next_choose_it(model):
 
 
 def test_knowledge_state_keeps_each_inference_once_and_the_newest_region_time():
-    ks = KnowledgeState(KnowledgeParams(model="study"), "sat_11")
+    ks = KnowledgeState(KnowledgeParams(model="region-truth"), "sat_11")
     inf = Inference("sat_12", 4, 5 * 10 ** 9, 10.0, 2)
     assert ks.learn(inf) and not ks.learn(inf)
     ks.learn(Inference("sat_13", 5, 3 * 10 ** 9, 10.0, 2))

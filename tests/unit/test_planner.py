@@ -102,13 +102,11 @@ def test_prefiltered_plan_equals_the_plan_on_the_exact_columns(world):
 
 def test_satellite_and_ground_plan_through_the_world_planner(world):
     """The satellite's plan at its start and the ground's first uplinks are the planner's plans for
-    what each knows then: nothing observed, so (the study's knowledge model) the field as of the
-    epoch, through its own belief."""
+    what each knows then: nothing observed, so (the default knowledge model, ``observed``) the
+    a-priori forecast itself, read here straight from the field (:class:`_Forecast`), no belief noise."""
     from msgs_json import codec
-    from sat_node.knowledge import RegionPersistenceView
 
-    assert world.scenario.value.knowledge == "study"
-    epoch = np.zeros(world.n_gp)
+    assert world.scenario.value.knowledge == "observed"
 
     sc = world.scenario
     lookahead = float(sc.scheduler.plan_lookahead_s)
@@ -117,7 +115,7 @@ def test_satellite_and_ground_plan_through_the_world_planner(world):
         t0_ns = int(t0 * 1e9)
         sat = SatelliteLogic(world, SAT, "distributed", dtn=False)
         sched = codec.decode(*_first(sat.start(t0_ns).emits, "/schedule"))
-        k = Knowledge(RegionPersistenceView(world.osse, epoch, t0_ns / 1e9), (), sat.belief)
+        k = Knowledge(_Forecast(world.osse), (), None)
         plan = world.planner.plan(SAT, t0_ns / 1e9, lookahead, k)
         assert [(it.gp, it.t_ns) for it in sched.items] == [(g, round(t * 1e9)) for g, t in plan.as_list()]
         planned += len(sched.items)
@@ -126,7 +124,7 @@ def test_satellite_and_ground_plan_through_the_world_planner(world):
     SAT = world.sat_names[0]
     nonagile = SatelliteLogic(world, SAT, "nonagile", dtn=False)
     sched = codec.decode(*_first(nonagile.start(0).emits, "/schedule"))
-    k = Knowledge(RegionPersistenceView(world.osse, epoch, 0.0), (), nonagile.belief)
+    k = Knowledge(_Forecast(world.osse), (), None)
     plan = world.planner.plan(SAT, 0.0, sc.scenario.horizon_s, k, solver="nonagile")
     assert [(it.gp, it.t_ns) for it in sched.items] == [(g, round(t * 1e9)) for g, t in plan.as_list()]
 
@@ -137,13 +135,26 @@ def test_satellite_and_ground_plan_through_the_world_planner(world):
     for up in uplinks:  # each satellite's plan respects the plans uplinked before it
         nxt = ground._next_pass_after(up.sat, 0)
         window_s = min(sc.horizon_ns, (nxt if nxt is not None else sc.horizon_ns) + ground.margin_ns) / 1e9
-        k = Knowledge(RegionPersistenceView(world.osse, epoch, 0.0), list(known), ground.belief)
+        k = Knowledge(_Forecast(world.osse), list(known), None)
         plan = world.planner.plan(up.sat, 0.0, window_s, k)
         got = [(it.gp, it.t_ns) for it in up.schedule.items]
         assert got == ([(g, round(t * 1e9)) for g, t in plan.as_list()] if plan is not None else [])
         known += [KnownObservation(t_ns / 1e9, gp, "", planned=True) for gp, t_ns in got]
         planned += len(got)
     assert planned > 0
+
+
+class _Forecast:
+    """The a-priori forecast as a value source: what a planner that observed nothing knows."""
+
+    def __init__(self, field):
+        self._f = field
+
+    def value_at(self, gp_idx, t_s):
+        return self._f.forecast_at(gp_idx, t_s)
+
+    def slot_of(self, t_s):
+        return self._f.slot_of(t_s)
 
 
 def _first(emits, suffix: str):

@@ -73,7 +73,7 @@ N_GP = 10
 GP_OBSERVED, GP_FRACTION, LOOKS_PER_GP = 3, 3 / 10, 8 / 10
 
 META = RunMeta(scenario="hand-worked", mode="distributed", engine="local", seed=1, horizon_s=3600.0, n_sats=2,
-               n_gp=N_GP, revisit_zero_s=900.0, knowledge="study", osse={})
+               n_gp=N_GP, revisit_zero_s=900.0, knowledge="observed", osse={})
 
 
 def _write_bag(path) -> None:
