@@ -8,18 +8,24 @@ and its bag. The sweep (``constellation sweep``) instead runs the local engine i
 scenario variant and builds the report from the envelopes (bringup/analysis/report.py build_report, the same
 function), since it only needs the value figures.
 
-Combining K seeds (``combine``): each mode's entry is the *first* seed's report.json unchanged, plus
-``"seeds": {"seeds": [...], "mean": {key: ...}, "std": {key: ...}, "per_seed": {key: [...]}}``
-over the Table-2 keys (TABLE_KEYS, dotted report.json paths; std is the population standard
-deviation, 0 for one seed; a key missing or null in some seed is averaged over the others).
-Ratios (``ratios``) are formed per seed, numerator and denominator from the same seed, then
-summarised as mean/std/min/max with the per-seed list; a zero or missing denominator gives null for
-that seed.
+Combining K seeds (``combine``): each mode's entry is report-shaped and holds the *means over the
+seeds* (:func:`mean_report`: every number of report.json averaged over the seeds that have it, a
+non-number kept where all seeds agree; ``seed`` the list of seeds), plus ``"seeds"``: ``{"seeds",
+"n", "figures": {key: {mean, sd, ci95, n, min, max, per_seed}}}`` over the Table-2 keys (TABLE_KEYS,
+dotted report.json paths), each summary from bringup/analysis/stats.py (sample standard deviation,
+Student-t 95 % interval of the mean; a key missing or null in some seed is summarised over the
+others). Ratios (``ratios``) are formed per seed, numerator and denominator from the same seed, then
+summarised alike with the per-seed list; a zero or missing denominator gives null for that seed.
+``table2`` sets the figures the study's Table 2 reports beside the study's own: its 11.3x is a
+*coverage* ratio (agile 95.2 % of GPs / non-agile 8.4 %); the study gives no non-agile value, so the
+value ratio is shown as not in the study.
 
-How we know it is right: tests/unit/test_compare.py - hand-made reports with the means, stds and
-ratios worked out by hand; tests/system/test_compare_modes.py - a reduced real compare (6 sats, 1 h)
-whose JSON has every docs/design.md report key per mode and whose ratios equal the reports' own values
-divided (an independent recomputation), with agile > non-agile in value.
+How we know it is right: tests/unit/test_compare.py - hand-made reports with the means, sample
+standard deviations, intervals and ratios worked out by hand; tests/system/test_compare_modes.py - a
+reduced real compare (12 sats, 1 h, 2 seeds) whose JSON has every docs/design.md report key per
+mode, whose top-level figures equal the mean of the run folders' own report.json, whose ratios
+equal the reports' own values divided (an independent recomputation), with agile > non-agile in
+value.
 """
 
 from __future__ import annotations
@@ -36,6 +42,7 @@ import msgspec
 from scipy.stats import t as student_t
 
 from bringup.analysis.report import REPORT_TOPIC_SUFFIXES, RunMeta, build_report
+from bringup.analysis.stats import summarize
 from bringup.engine.keys import resolve_bpsec_key
 from bringup.engine.local import run_local
 from bringup.errors import UserError
@@ -46,17 +53,21 @@ from bringup.scenario.world import World
 __all__ = [
     "MODES",
     "RATIOS",
+    "STUDY_TABLE2",
     "TABLE_KEYS",
     "combine",
     "compare_result",
     "get_path",
-    "ratios",
     "mean_ci95",
+    "mean_report",
+    "ratios",
     "ratios_markdown",
     "run_in_process",
     "run_matrix",
     "run_one",
     "scenario_variant",
+    "table2",
+    "table2_markdown",
     "table_markdown",
 ]
 
@@ -68,7 +79,11 @@ TABLE_KEYS: tuple[tuple[str, str, str], ...] = (
     ("coverage.gp_observed_fraction", "GPs observed", "{:.1%}"),
     ("observations.count", "observations", "{:.0f}"),
     ("observations.duplicates_15min", "duplicate obs. (<15 min)", "{:.0f}"),
-    ("value.assumed_error_mean", "assumed-vs-recorded error", "{:.1%}"),
+    ("value.assumed_error_mean", "assumed-value error, mean", "{:.1%}"),
+    ("value.assumed_error.median", "error, median", "{:.1%}"),
+    ("value.assumed_error.sum_based", "error, sum-based", "{:.1%}"),
+    ("value.assumed_error.same_slot.mean", "error, same-slot looks", "{:.1%}"),
+    ("value.assumed_error.other_slot.mean", "error, other-slot looks", "{:.1%}"),
     ("coverage.looks_per_gp", "looks per GP", "{:.2f}"),
     ("value.first_look_share", "value from first looks", "{:.0%}"),
     ("knowledge.info_age_s.median", "info age median [s]", "{:.0f}"),
@@ -86,6 +101,15 @@ RATIOS: dict[str, tuple[str, str, str]] = {
     "assumed_error.distributed_over_centralized": ("value.assumed_error_mean", "distributed", "centralized"),
 }
 
+# The study's Table 2 (Nag et al. 2019, section 5): what it reports, for ``table2``. Its 11.3x is the
+# coverage ratio 95.2 % / 8.4 %; it gives no non-agile value (None: not in the study).
+STUDY_TABLE2: dict[str, float | None] = {
+    "coverage.distributed": 0.952,
+    "coverage.nonagile": 0.084,
+    "coverage.agile_over_nonagile": 0.952 / 0.084,
+    "value.agile_over_nonagile": None,
+}
+
 
 def get_path(rep: dict, key: str):
     """``rep["a"]["b"]`` for ``key = "a.b"``; None when any part is missing."""
@@ -97,31 +121,74 @@ def get_path(rep: dict, key: str):
     return d
 
 
-def _stats(xs: list) -> dict:
-    v = [float(x) for x in xs if x is not None and math.isfinite(float(x))]
-    if not v:
-        return {"mean": None, "std": None, "min": None, "max": None, "n": 0}
-    m = sum(v) / len(v)
-    sd = math.sqrt(sum((x - m) ** 2 for x in v) / len(v))
-    return {"mean": m, "std": sd, "min": min(v), "max": max(v), "n": len(v)}
+_MISSING = object()
+
+
+def _leaves(d: dict, prefix: tuple = ()):
+    for k, v in d.items():
+        if isinstance(v, dict) and v:
+            yield from _leaves(v, prefix + (k,))
+        else:
+            yield prefix + (k,), v
+
+
+def _at(d: dict, path: tuple):
+    for k in path:
+        if not isinstance(d, dict) or k not in d:
+            return _MISSING
+        d = d[k]
+    return d
+
+
+def _is_number(v) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool)
+
+
+def mean_report(reports: list[dict]) -> dict:
+    """One report-shaped dict of the means over ``reports``: a leaf that is a number (or null) in
+    every report that has it is the mean of its finite values (null if none); any other leaf is kept
+    where every report that has it agrees, else left out. Keys in first-seen order."""
+    paths: dict[tuple, None] = {}
+    for r in reports:
+        for path, _v in _leaves(r):
+            paths.setdefault(path, None)
+    out: dict = {}
+    for path in paths:
+        vals = [v for v in (_at(r, path) for r in reports) if v is not _MISSING]
+        if all(v is None or _is_number(v) for v in vals):
+            value = summarize(vals)["mean"]
+        elif all(v == vals[0] for v in vals):
+            value = vals[0]
+        else:
+            continue
+        d = out
+        for k in path[:-1]:
+            d = d.setdefault(k, {}) if isinstance(d, dict) else None
+        if isinstance(d, dict):  # (a key that is a leaf in one report and a table in another: the table)
+            d.setdefault(path[-1], value)
+    return out
 
 
 def combine(reports: list[dict], seeds: list[int]) -> dict:
-    """One mode's reports over seeds (same order as ``seeds``) -> first report + ``"seeds"`` summary."""
+    """One mode's reports over seeds (same order as ``seeds``) -> the means (:func:`mean_report`,
+    ``seed`` the list of seeds) + ``"seeds"``: each Table-2 key's summary over the seeds."""
     if not reports:
         raise ValueError("combine: no reports")
     if len(reports) != len(seeds):
         raise ValueError(f"combine: {len(reports)} reports for {len(seeds)} seeds")
-    out = json.loads(json.dumps(reports[0]))
-    per = {k: [get_path(r, k) for r in reports] for k, _, _ in TABLE_KEYS}
-    st = {k: _stats(v) for k, v in per.items()}
-    out["seeds"] = {"seeds": list(seeds), "per_seed": per,
-                    "mean": {k: s["mean"] for k, s in st.items()}, "std": {k: s["std"] for k, s in st.items()}}
+    out = mean_report(reports)
+    out["seed"] = list(seeds)
+    figures = {}
+    for k, _, _ in TABLE_KEYS:
+        per = [get_path(r, k) for r in reports]
+        figures[k] = summarize(per) | {"per_seed": per}
+    out["seeds"] = {"seeds": list(seeds), "n": len(seeds), "figures": figures}
     return out
 
 
 def ratios(by_mode: dict[str, list[dict]], seeds: list[int]) -> dict:
-    """Per-seed ratios of RATIOS and their spread; ``by_mode[mode][i]`` is seed ``seeds[i]``'s report."""
+    """Per-seed ratios of RATIOS and their summary over seeds (bringup/analysis/stats.py);
+    ``by_mode[mode][i]`` is seed ``seeds[i]``'s report."""
     out = {}
     for name, (key, num, den) in RATIOS.items():
         if num not in by_mode or den not in by_mode:
@@ -130,16 +197,35 @@ def ratios(by_mode: dict[str, list[dict]], seeds: list[int]) -> dict:
         for a, b in zip(by_mode[num], by_mode[den]):
             x, y = get_path(a, key), get_path(b, key)
             per.append(float(x) / float(y) if x is not None and y not in (None, 0) else None)
-        s = _stats(per)
         out[name] = {"key": key, "numerator": num, "denominator": den, "per_seed": per, "seeds": list(seeds),
-                     "mean": s["mean"], "std": s["std"], "min": s["min"], "max": s["max"]}
+                     **summarize(per)}
     return out
 
 
+def table2(result: dict) -> list[dict]:
+    """The study's Table 2 beside ours: rows ``{"figure", "ours" (a summary over seeds), "study"
+    (None: not in the study), "note"}``."""
+    rows = []
+    for m, label in (("distributed", "GPs observed, agile (distributed)"), ("nonagile", "GPs observed, non-agile")):
+        if m in result:
+            rows.append({"figure": label, "ours": result[m]["seeds"]["figures"]["coverage.gp_observed_fraction"],
+                         "study": STUDY_TABLE2[f"coverage.{m}"], "format": "{:.1%}", "note": ""})
+    r = result.get("ratios", {})
+    if "coverage.agile_over_nonagile" in r:
+        rows.append({"figure": "coverage ratio agile / non-agile", "ours": r["coverage.agile_over_nonagile"],
+                     "study": STUDY_TABLE2["coverage.agile_over_nonagile"], "format": "{:.1f}x",
+                     "note": "the study's 11.3x (95.2 % / 8.4 %)"})
+    if "value.agile_over_nonagile" in r:
+        rows.append({"figure": "value ratio agile / non-agile", "ours": r["value.agile_over_nonagile"],
+                     "study": None, "format": "{:.1f}x", "note": "not in the study (no non-agile value)"})
+    return rows
+
+
 def compare_result(by_mode: dict[str, list[dict]], seeds: list[int]) -> dict:
-    """The ``--json`` object: {"distributed": report, "centralized": report, "nonagile": report, "ratios"}."""
+    """The ``--json`` object: {"distributed", "centralized", "nonagile": mean reports, "ratios", "table2"}."""
     res = {m: combine(by_mode[m], seeds) for m in MODES if m in by_mode}
     res["ratios"] = ratios(by_mode, seeds)
+    res["table2"] = table2(res)
     return res
 
 
@@ -196,30 +282,48 @@ def _fmt(v, f: str) -> str:
     return "-" if v is None else f.format(v)
 
 
+def _ci(s: dict, f: str) -> str:
+    ci = s.get("ci95")
+    return "-" if not ci else f"[{_fmt(ci[0], f)}, {_fmt(ci[1], f)}]"
+
+
 def table_markdown(result: dict) -> str:
-    """Table 2 equivalent: one row per mode (mean over seeds, ± std when K > 1)."""
+    """Table 2 equivalent: one row per mode, each cell the mean over seeds ± the sample standard
+    deviation (K > 1; the 95 % intervals are in compare.json and the ratio table)."""
+    k = max((len(result[m]["seeds"]["seeds"]) for m in MODES if m in result), default=1)
     head = "| mode | " + " | ".join(t for _, t, _ in TABLE_KEYS) + " |"
-    lines = [head, "|" + "---|" * (len(TABLE_KEYS) + 1)]
+    lines = [f"Mean over {k} seed{'s' if k > 1 else ''}" + (" ± sample standard deviation" if k > 1 else "") + ".",
+             "", head, "|" + "---|" * (len(TABLE_KEYS) + 1)]
     for m in MODES:
         if m not in result:
             continue
-        s = result[m]["seeds"]
-        k = len(s["seeds"])
+        figs = result[m]["seeds"]["figures"]
         cells = []
         for key, _, f in TABLE_KEYS:
-            c = _fmt(s["mean"][key], f)
-            if k > 1 and s["std"][key] is not None:
-                c += " ± " + _fmt(s["std"][key], f)
+            c = _fmt(figs[key]["mean"], f)
+            if figs[key]["sd"] is not None:
+                c += " ± " + _fmt(figs[key]["sd"], f)
             cells.append(c)
         lines.append(f"| {m} | " + " | ".join(cells) + " |")
     return "\n".join(lines)
 
 
 def ratios_markdown(result: dict) -> str:
-    lines = ["| ratio | mean | std | min | max | seeds |", "|---|---|---|---|---|---|"]
+    lines = ["| ratio (per seed, then over seeds) | mean | sample sd | 95 % CI (Student t) | min | max | n |",
+             "|---|---|---|---|---|---|---|"]
     for name, r in result.get("ratios", {}).items():
-        lines.append(f"| {name} | {_fmt(r['mean'], '{:.3f}')} | {_fmt(r['std'], '{:.3f}')} | "
-                     f"{_fmt(r['min'], '{:.3f}')} | {_fmt(r['max'], '{:.3f}')} | {len(r['per_seed'])} |")
+        lines.append(f"| {name} | {_fmt(r['mean'], '{:.3f}')} | {_fmt(r['sd'], '{:.3f}')} | {_ci(r, '{:.3f}')} | "
+                     f"{_fmt(r['min'], '{:.3f}')} | {_fmt(r['max'], '{:.3f}')} | {r['n']} |")
+    return "\n".join(lines)
+
+
+def table2_markdown(result: dict) -> str:
+    """The study's Table 2 figures beside ours (mean, 95 % CI over seeds)."""
+    lines = ["| Table 2 figure | here: mean | 95 % CI | the study | note |", "|---|---|---|---|---|"]
+    for row in result.get("table2", []):
+        f, o = row["format"], row["ours"]
+        study = "not in the study" if row["study"] is None else _fmt(row["study"], f)
+        lines.append(f"| {row['figure']} | {_fmt(o['mean'], f)} | {_ci(o, f)} | {study} | {row['note']} |")
     return "\n".join(lines)
 
 

@@ -19,6 +19,10 @@ def _fmt(v, nd=3):
     return f"{v:,}" if isinstance(v, int) else str(v)
 
 
+def _pct(x) -> str:
+    return "-" if x is None else f"{x * 100:.1f} %"
+
+
 def _rejected(sec: dict) -> str:
     rej = sec.get("rejected") or {}
     if not rej:
@@ -30,6 +34,8 @@ def report_md(rep: dict, plots: list[Path] = (), base: Path | None = None) -> st
     v, c, o, d, r = rep["value"], rep["coverage"], rep["observations"], rep.get("dtn", {}), rep.get("runtime", {})
     k, f = rep.get("knowledge") or {}, rep.get("osse") or {}
     age = k.get("info_age_s") or {}
+    ae = v.get("assumed_error") or {}
+    same, other = ae.get("same_slot") or {}, ae.get("other_slot") or {}
     lines = [
         f"# Run report: {rep['scenario']} / {rep['mode']} / {rep['engine']} engine",
         "",
@@ -41,6 +47,9 @@ def report_md(rep: dict, plots: list[Path] = (), base: Path | None = None) -> st
         f"| GPs observed | {c['gp_observed']} / {c['gp_total']} ({_fmt((c['gp_observed_fraction'] or 0) * 100, 1)} %) |",
         f"| observations | {o['count']} ({o['duplicates_15min']} within 15 min of another) |",
         f"| assumed vs recorded value error (mean) | {_fmt((v['assumed_error_mean'] or 0) * 100, 1)} % |",
+        f"| error median / sum-based | {_pct(ae.get('median'))} / {_pct(ae.get('sum_based'))} |",
+        f"| error of same-slot looks (mean, n) / other-slot looks | {_pct(same.get('mean'))} ({same.get('n', '-')}) / "
+        f"{_pct(other.get('mean'))} ({other.get('n', '-')}) |",
         f"| looks per GP / value from first looks | {_fmt(c.get('looks_per_gp'), 2)} / "
         f"{_fmt((v.get('first_look_share') or 0) * 100, 1)} % |",
         f"| knowledge model; information age mean / median / p90 [s] | {k.get('model') or '-'}; "

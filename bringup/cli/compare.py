@@ -8,8 +8,10 @@ runs also their plots), ``OUT/compare.json`` (the ``--json`` object), ``OUT/comp
 ``OUT/plots/info_age.png`` (the age of the information each look was planned with, distributed and
 centralized, first seed). ``--knowledge``, ``--transiency-min``, ``--gp-spacing-km`` and
 ``--planning`` go to every run.
-With K seeds each mode's report is the first seed's report.json plus per-key mean/std under
-``"seeds"`` (bringup/analysis/compare.py combine).
+With K seeds each mode's entry holds the means over the seeds, report-shaped, plus each Table-2
+figure's mean, sample standard deviation, Student-t 95 % interval, n and per-seed list under
+``"seeds"`` (bringup/analysis/compare.py combine); ``"table2"`` sets the study's Table 2 beside ours
+(the coverage ratio against its 11.3x; the value ratio is not in the study).
 
 Checked by tests/system/test_compare_modes.py (a reduced real compare) and
 tests/unit/test_compare.py.
@@ -99,7 +101,7 @@ def _compare(args, sc, seeds: list[int], out: Path) -> None:
              f"seeds {seeds}, engine {args.engine}, knowledge {sc.value.knowledge}, transiency "
              f"{sc.value.transiency_min:g} min (0: slow)")
     md = [title, "",
-          C.table_markdown(res), "", C.ratios_markdown(res), ""]
+          C.table_markdown(res), "", C.ratios_markdown(res), "", C.table2_markdown(res), ""]
     md += [f"![{p.stem}](plots/{p.name})" for p in extra_plots]
     write_text_atomic(out / "compare.md", "\n".join(md) + "\n")
     if args.json:
@@ -108,6 +110,8 @@ def _compare(args, sc, seeds: list[int], out: Path) -> None:
         print(C.table_markdown(res))
         print()
         print(C.ratios_markdown(res))
+        print()
+        print(C.table2_markdown(res))
         print(f"\n-> {out / 'compare.json'}, {out / 'compare.md'}")
 
 

@@ -1,8 +1,9 @@
 """`constellation compare` end to end on a reduced paper scenario (12 satellites, 1 h, 2 seeds).
 
-Oracles: the JSON is exactly one object with the three modes and the ratios; every mode's report
-has the report.json keys of docs/design.md section 6; the seed means and the ratios equal an independent
-recomputation from each run folder's own report.json; agile beats non-agile in value; Figure 5's
+Oracles: the JSON is exactly one object with the three modes, the ratios and the Table 2 rows; every
+mode's entry has the report.json keys of docs/design.md section 6; its top-level figures are the
+means over the seeds, and they, the sample standard deviations and the ratios equal an independent
+recomputation (numpy) from each run folder's own report.json; agile beats non-agile in value; Figure 5's
 gaps equal a brute-force recomputation from the raw access-window arrays.
 """
 
@@ -51,12 +52,12 @@ def cmp(tmp_path_factory):
 def test_json_is_one_object_with_design_keys(cmp):
     out, stdout = cmp
     res = json.loads(stdout)  # exactly one JSON document (json.loads rejects trailing data)
-    assert set(res) == {"distributed", "centralized", "nonagile", "ratios"}
+    assert set(res) == {"distributed", "centralized", "nonagile", "ratios", "table2"}
     for mode in ("distributed", "centralized", "nonagile"):
         rep = res[mode]
         missing = [k for k in DESIGN_KEYS if _get(rep, k) is _MISSING]
         assert not missing, f"{mode}: {missing}"
-        assert rep["mode"] == mode and rep["n_sats"] == SATS and rep["seed"] == 1
+        assert rep["mode"] == mode and rep["n_sats"] == SATS and rep["seed"] == [1, 2]
         assert rep["seeds"]["seeds"] == [1, 2]
         for k in range(1, 16):
             assert _get(rep, f"dtn.latency_s_by_priority.{k}.median") is not _MISSING
@@ -71,9 +72,12 @@ def test_means_and_ratios_recomputed_from_run_folders(cmp):
     for m, rs in reps.items():
         assert [r["seed"] for r in rs] == [1, 2]
         vals = [r["value"]["cumulative"] for r in rs]
-        assert res[m]["seeds"]["mean"]["value.cumulative"] == pytest.approx(np.mean(vals))
-        assert res[m]["seeds"]["std"]["value.cumulative"] == pytest.approx(np.std(vals))
-        assert res[m]["value"]["cumulative"] == rs[0]["value"]["cumulative"]
+        fig = res[m]["seeds"]["figures"]["value.cumulative"]
+        assert fig["mean"] == pytest.approx(np.mean(vals)) and fig["per_seed"] == vals
+        assert fig["sd"] == pytest.approx(np.std(vals, ddof=1))
+        assert res[m]["value"]["cumulative"] == pytest.approx(np.mean(vals))  # the mean, not seed 1's
+        cov = [r["coverage"]["gp_observed_fraction"] for r in rs]
+        assert res[m]["coverage"]["gp_observed_fraction"] == pytest.approx(np.mean(cov))
     r = res["ratios"]["value.distributed_over_centralized"]
     exp = [a["value"]["cumulative"] / b["value"]["cumulative"] for a, b in zip(reps["distributed"], reps["centralized"])]
     assert r["per_seed"] == pytest.approx(exp)
@@ -83,9 +87,9 @@ def test_means_and_ratios_recomputed_from_run_folders(cmp):
 def test_agile_beats_nonagile(cmp):
     res = json.loads(cmp[1])
     for s in range(SEEDS):
-        na = res["nonagile"]["seeds"]["per_seed"]["value.cumulative"][s]
-        assert res["distributed"]["seeds"]["per_seed"]["value.cumulative"][s] > na
-        assert res["centralized"]["seeds"]["per_seed"]["value.cumulative"][s] > na
+        na = res["nonagile"]["seeds"]["figures"]["value.cumulative"]["per_seed"][s]
+        assert res["distributed"]["seeds"]["figures"]["value.cumulative"]["per_seed"][s] > na
+        assert res["centralized"]["seeds"]["figures"]["value.cumulative"]["per_seed"][s] > na
     # the ground never sends two satellites to one GP within 15 min (uplinked plans are commitments)
     assert res["centralized"]["observations"]["duplicates_15min"] == 0
 

@@ -66,3 +66,8 @@ def test_report_carries_it_beside_the_unchanged_mean():
     assert e["same_slot"]["n"] == 1 and e["other_slot"]["n"] == 1 and e["other_slot"]["mean"] == pytest.approx(0.5)
     with pytest.raises(ValueError, match="slot_s"):
         RunMeta.from_dict(dict(meta.__dict__, slot_s=0.0))
+    from bringup.analysis.report_md import report_md
+
+    md = report_md(rep)
+    assert "| error median / sum-based | 27.0 % / 27.0 % |" in md  # (4 + 50) / (100 + 100); median of 0.04, 0.5
+    assert "| error of same-slot looks (mean, n) / other-slot looks | 4.0 % (1) / 50.0 % (1) |" in md

@@ -1,4 +1,5 @@
-"""bringup/analysis/compare.py: combining seeds, ratios and tables on hand-made reports (values worked out by hand)."""
+"""bringup/analysis/compare.py: combining seeds (means at the top, sample sd, 95 % CI), ratios and tables on
+hand-made reports (values worked out by hand)."""
 
 from __future__ import annotations
 
@@ -21,18 +22,34 @@ def test_get_path():
     assert C.get_path(r, "mode.x") is None
 
 
-def test_combine_first_report_plus_mean_std():
+def test_combine_means_at_the_top_with_sample_sd_and_ci():
     a, b = _rep("distributed", 100.0, 0.9, 10, 1, 0.04), _rep("distributed", 300.0, 0.7, 20, 3, None)
+    a["engine"], b["engine"] = "local", "ros"  # a non-number the seeds disagree on: left out
+    a["seed"], b["seed"] = 1, 2
     out = C.combine([a, b], [1, 2])
-    assert out["value"]["cumulative"] == 100.0  # first seed's report unchanged
+    # the top level holds the means over seeds, report-shaped (not seed 1's figures)
+    assert out["value"]["cumulative"] == 200.0 and out["observations"]["count"] == 15.0
+    assert out["coverage"]["gp_observed_fraction"] == pytest.approx(0.8)
+    assert out["value"]["assumed_error_mean"] == 0.04  # null in seed 2: the mean of the others
+    assert out["mode"] == "distributed" and "engine" not in out and out["seed"] == [1, 2]
     s = out["seeds"]
-    assert s["seeds"] == [1, 2]
-    assert s["mean"]["value.cumulative"] == 200.0
-    assert s["std"]["value.cumulative"] == 100.0  # population std of 100, 300
-    assert s["mean"]["coverage.gp_observed_fraction"] == pytest.approx(0.8)
-    assert s["mean"]["value.assumed_error_mean"] == 0.04  # null in seed 2: mean over the rest
-    assert s["per_seed"]["observations.count"] == [10, 20]
-    assert "seeds" not in a  # inputs not mutated
+    assert s["seeds"] == [1, 2] and s["n"] == 2
+    v = s["figures"]["value.cumulative"]
+    # sample sd of (100, 300): sqrt((100^2 + 100^2) / 1); t(0.975, 1) = 12.706205: half-width 12.706205 x 100
+    assert v["mean"] == 200.0 and v["sd"] == pytest.approx(math.sqrt(20000.0)) and v["n"] == 2
+    assert v["ci95"] == pytest.approx([200.0 - 1270.6205, 200.0 + 1270.6205], abs=1e-3)
+    assert v["per_seed"] == [100.0, 300.0] and (v["min"], v["max"]) == (100.0, 300.0)
+    e = s["figures"]["value.assumed_error_mean"]
+    assert e["mean"] == 0.04 and e["n"] == 1 and e["sd"] is None and e["per_seed"] == [0.04, None]
+    assert s["figures"]["observations.count"]["per_seed"] == [10, 20]
+    assert "seeds" not in a and a["seed"] == 1  # inputs not mutated
+
+
+def test_mean_report_nested_and_missing_keys():
+    r1 = {"a": {"x": 1, "y": [1, 2], "z": None}, "k": "same", "t": True}
+    r2 = {"a": {"x": 3, "y": [1, 2], "w": 5.0}, "k": "same", "t": True}
+    m = C.mean_report([r1, r2])
+    assert m == {"a": {"x": 2.0, "y": [1, 2], "z": None, "w": 5.0}, "k": "same", "t": True}
 
 
 def test_combine_rejects_mismatch():
@@ -42,18 +59,20 @@ def test_combine_rejects_mismatch():
         C.combine([_rep("x", 1, 1, 1, 0, 0)], [1, 2])
 
 
-def test_ratios_per_seed_then_spread():
+def test_ratios_per_seed_then_summary():
     by = {"distributed": [_rep("d", 120.0, 0.95, 100, 0, 0.04), _rep("d", 90.0, 0.9, 90, 0, 0.05)],
           "centralized": [_rep("c", 100.0, 0.99, 80, 2, 0.7), _rep("c", 100.0, 0.98, 85, 1, 0.5)],
           "nonagile": [_rep("n", 10.0, 0.08, 8, 0, 0.0), _rep("n", 0.0, 0.0, 0, 0, None)]}
     r = C.ratios(by, [1, 2])
     v = r["value.distributed_over_centralized"]
     assert v["per_seed"] == [pytest.approx(1.2), pytest.approx(0.9)]
-    assert v["mean"] == pytest.approx(1.05) and v["std"] == pytest.approx(0.15)
-    assert v["min"] == pytest.approx(0.9) and v["max"] == pytest.approx(1.2)
+    # sample sd of (1.2, 0.9) = 0.3 / sqrt(2); 95 % CI half-width t(0.975, 1) x sd / sqrt(2) = 12.706205 x 0.15
+    assert v["mean"] == pytest.approx(1.05) and v["sd"] == pytest.approx(0.3 / math.sqrt(2.0))
+    assert v["ci95"] == pytest.approx([1.05 - 12.706205 * 0.15, 1.05 + 12.706205 * 0.15], rel=1e-6)
+    assert v["min"] == pytest.approx(0.9) and v["max"] == pytest.approx(1.2) and v["n"] == 2
     an = r["value.agile_over_nonagile"]
     assert an["per_seed"] == [pytest.approx(12.0), None]  # zero denominator -> null for that seed
-    assert an["mean"] == pytest.approx(12.0) and an["std"] == 0.0
+    assert an["mean"] == pytest.approx(12.0) and an["sd"] is None and an["n"] == 1
     e = r["assumed_error.distributed_over_centralized"]
     assert e["per_seed"] == [pytest.approx(0.04 / 0.7), pytest.approx(0.1)]
 
@@ -62,17 +81,19 @@ def test_compare_result_shape_and_tables():
     by = {m: [_rep(m, v, f, 5, 0, 0.1)] for m, v, f in
           (("distributed", 50.0, 0.9), ("centralized", 40.0, 0.95), ("nonagile", 5.0, 0.1))}
     res = C.compare_result(by, [7])
-    assert set(res) == {"distributed", "centralized", "nonagile", "ratios"}
+    assert set(res) == {"distributed", "centralized", "nonagile", "ratios", "table2"}
     assert res["ratios"]["value.agile_over_nonagile"]["mean"] == pytest.approx(10.0)
     t = C.table_markdown(res)
-    assert t.count("\n") == 4 and "| distributed | 50 | 90.0% |" in t
+    assert t.startswith("Mean over 1 seed.") and t.count("\n") == 6 and "| distributed | 50 | 90.0% |" in t
     assert "±" not in t  # one seed: no spread shown
-    assert "value.distributed_over_centralized | 1.250" in C.ratios_markdown(res)
-
-
-def test_stats_ignores_non_finite():
-    s = C._stats([1.0, None, float("nan"), 3.0])
-    assert s["n"] == 2 and s["mean"] == 2.0 and math.isclose(s["std"], 1.0)
+    rm = C.ratios_markdown(res)
+    assert "sample sd" in rm and "95 % CI" in rm and "value.distributed_over_centralized | 1.250 | - | - |" in rm
+    # Table 2: the study's 11.3x is a coverage ratio (95.2 % / 8.4 %); our coverage ratio 0.9 / 0.1 = 9
+    t2 = C.table2_markdown(res)
+    assert "| coverage ratio agile / non-agile | 9.0x | - | 11.3x |" in t2
+    assert "| GPs observed, agile (distributed) | 90.0% | - | 95.2% |" in t2
+    assert "| value ratio agile / non-agile | 10.0x | - | not in the study |" in t2
+    assert C.STUDY_TABLE2["coverage.agile_over_nonagile"] == pytest.approx(11.33, abs=0.005)
 
 
 def test_scenario_variant_changes_one_parameter(paper_scenario):
