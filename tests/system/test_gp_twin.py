@@ -31,42 +31,15 @@ from __future__ import annotations
 
 import json
 import math
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
-from scenario_edit import raw_scenario, to_toml
 
 from bringup.analysis.trace import deliveries_from_bag, looks_from_bag, plans_from_bag
-from bringup.scenario.config import load_scenario
-from ground_station import osse_from_scenario, write_value_grid
-from ground_station.osse import OsseField
-from orbit_clock import ground_points
 from sat_node.value import Belief
 
 pytestmark = [pytest.mark.system]
-
-SATS, HOURS = 12, 1.0
-
-
-def _base(model: str):
-    return load_scenario("paper").with_overrides(sats=SATS, hours=HOURS, knowledge=model, transiency_min=15.0)
-
-
-def _run(work: dict, model: str, mode: str, truth: Path, engine: str, tag: str) -> Path:
-    raw = raw_scenario(_base(model))
-    raw["value"].update(osse_source="file", osse_file=str(truth), osse_forecast_file=str(work["forecast"]))
-    sc = work["tmp"] / f"{tag}.toml"
-    sc.write_text(to_toml(raw))
-    out = work["tmp"] / tag
-    cmd = [sys.executable, "-m", "bringup.cli", "run", "--scenario", str(sc), "--mode", mode, "--engine", engine,
-           "--out", str(out), "--no-plots", "--no-progress"]
-    r = subprocess.run(cmd, capture_output=True, text=True, timeout=900, check=False)
-    assert r.returncode == 0, r.stderr[-3000:]
-    return out
-
 
 def _trace(out: Path) -> dict:
     bag = out / "bag"
@@ -74,33 +47,29 @@ def _trace(out: Path) -> dict:
 
 
 @pytest.fixture(scope="module")
-def work(tmp_path_factory):
-    tmp = tmp_path_factory.mktemp("gp_twin")
-    sc = _base("observed")
-    field = osse_from_scenario(sc, ground_points(sc))
-    write_value_grid(field, tmp / "forecast.npz", which="forecast")
-    write_value_grid(field, tmp / "truth-a.npz")
-    return {"tmp": tmp, "field": field, "forecast": tmp / "forecast.npz", "truth_a": tmp / "truth-a.npz",
-            "runs": {}}
+def work(field_runs):
+    """The reduced scenario's runs on field files (tests/system/conftest.py), and each twin's truth B."""
+    return {"runs": field_runs, "field": field_runs.field, "truth_b": {}}
+
+
+def _truth_b(work: dict, model: str, mode: str) -> Path:
+    """Field B of (model, mode): A with the GPs its run A never observed changed from slot 1 on."""
+    key = (model, mode)
+    if key not in work["truth_b"]:
+        a = work["runs"].run(model, mode)
+        seen = {gp for _t, _s, gp, *_ in looks_from_bag(a / "bag")}
+        v = work["field"].values.copy()
+        never = np.setdiff1d(np.arange(v.shape[1]), np.fromiter(seen, int, len(seen)))
+        v[1:, never] = 257 - v[1:, never]
+        work["truth_b"][key] = (work["runs"].truth(v, f"truth-b-{model}-{mode}"), len(never))
+    return work["truth_b"][key][0]
 
 
 def _twin(work: dict, model: str, mode: str = "distributed") -> tuple[Path, Path, int]:
-    """(run A's folder, run B's folder, how many GPs B changed) on the local engine, made once."""
-    key = (model, mode)
-    if key not in work["runs"]:
-        a = _run(work, model, mode, work["truth_a"], "local", f"{model}-{mode}-a")
-        seen = {gp for _t, _s, gp, *_ in looks_from_bag(a / "bag")}
-        f = work["field"]
-        never = np.setdiff1d(np.arange(f.values.shape[1]), np.fromiter(seen, int, len(seen)))
-        v = f.values.copy()
-        v[1:, never] = 257 - v[1:, never]
-        g = OsseField(values=v, slot_s=f.slot_s, lat_deg=f.lat_deg, lon_deg=f.lon_deg, region_index=f.region_index,
-                      region_names=f.region_names, forecast=f.forecast)
-        truth_b = work["tmp"] / f"truth-b-{model}-{mode}.npz"
-        write_value_grid(g, truth_b)
-        b = _run(work, model, mode, truth_b, "local", f"{model}-{mode}-b")
-        work["runs"][key] = (a, b, len(never), truth_b)
-    return work["runs"][key][:3]
+    """(run A's folder, run B's folder, how many GPs B changed) on the local engine."""
+    truth_b = _truth_b(work, model, mode)
+    return (work["runs"].run(model, mode), work["runs"].run(model, mode, "local", truth_b),
+            work["truth_b"][(model, mode)][1])
 
 
 def _assert_twins(ta: dict, tb: dict, *, deliveries: bool) -> None:
@@ -121,9 +90,8 @@ def test_the_default_model_plans_nothing_from_a_gp_nobody_observed(work):
 
 @pytest.mark.ros
 def test_the_ros_engine_plans_nothing_from_a_gp_nobody_observed(work):
-    a, _b, _n = _twin(work, "observed")
-    truth_b = work["runs"][("observed", "distributed")][3]
-    ros_b = _run(work, "observed", "distributed", truth_b, "ros", "observed-distributed-b-ros")
+    a = work["runs"].run("observed")
+    ros_b = work["runs"].run("observed", "distributed", "ros", _truth_b(work, "observed", "distributed"))
     _assert_twins(_trace(a), _trace(ros_b), deliveries=True)
 
 
@@ -159,7 +127,7 @@ def test_same_slot_error_under_region_truth_is_the_belief_noise(work):
     from bringup.analysis.report import true_values
     from msgs_json import schemas as S
 
-    sc = _base("region-truth")
+    sc = work["runs"].scenario("region-truth")
     slot_ns = int(sc.value.slot_s * 1e9)
     obs = [S.Observation(sat=s, gp=gp, t_ns=t, assumed_value=av, recorded_value=rv, schedule_version=0, info_ns=i)
            for t, s, gp, av, rv, i in looks_from_bag(a / "bag")]

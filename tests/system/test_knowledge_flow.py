@@ -19,70 +19,26 @@ first run. (What changes only the GPs nobody observed is tests/system/test_gp_tw
 from __future__ import annotations
 
 import json
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
-from scenario_edit import raw_scenario, to_toml
 
 from bringup.analysis.trace import deliveries_from_bag, looks_from_bag, plans_from_bag
-from bringup.scenario.config import load_scenario
-from ground_station import osse_from_scenario, write_value_grid
-from ground_station.osse import OsseField
-from orbit_clock import ground_points
 
 pytestmark = [pytest.mark.system]
 
-SATS, HOURS = 12, 1.0
-
-
-def _base(model: str):
-    return load_scenario("paper").with_overrides(sats=SATS, hours=HOURS, knowledge=model, transiency_min=15.0)
-
-
-def _write_fields(tmp: Path, region: int | None, from_slot: int) -> tuple[Path, Path]:
-    """truth.npz (R's values v -> 257 - v from ``from_slot`` on; region None: unchanged) and
-    forecast.npz, both on the GP nodes (exact on load)."""
-    sc = _base("observed")
-    gps = ground_points(sc)
-    f = osse_from_scenario(sc, gps)
-    fc_path = tmp / "forecast.npz"
-    if not fc_path.exists():
-        write_value_grid(f, fc_path, which="forecast")
-    v = f.values.copy()
-    if region is not None:
-        cols = np.flatnonzero(f.region_index == region)
-        v[from_slot:, cols] = 257 - v[from_slot:, cols]
-    g = OsseField(values=v, slot_s=f.slot_s, lat_deg=f.lat_deg, lon_deg=f.lon_deg, region_index=f.region_index,
-                  region_names=f.region_names, forecast=f.forecast)
-    truth = tmp / f"truth-{region}-{from_slot}.npz"
-    write_value_grid(g, truth)
-    return truth, fc_path
-
-
-def _scenario_file(tmp: Path, model: str, truth: Path, forecast: Path, tag: str) -> Path:
-    raw = raw_scenario(_base(model))
-    raw["value"].update(osse_source="file", osse_file=str(truth), osse_forecast_file=str(forecast))
-    p = tmp / f"{tag}.toml"
-    p.write_text(to_toml(raw))
-    return p
-
-
-def _run(scenario: Path, engine: str, out: Path) -> Path:
-    cmd = [sys.executable, "-m", "bringup.cli", "run", "--scenario", str(scenario), "--engine", engine,
-           "--out", str(out), "--no-plots", "--no-progress"]
-    r = subprocess.run(cmd, capture_output=True, text=True, timeout=900, check=False)
-    assert r.returncode == 0, r.stderr[-3000:]
-    return out / "bag"
-
 
 @pytest.fixture(scope="module")
-def work(tmp_path_factory):
-    tmp = tmp_path_factory.mktemp("knowledge")
-    _write_fields(tmp, None, 0)
-    return {"tmp": tmp, "gp_region": ground_points(_base("observed")).region_index}
+def work(field_runs):
+    """The reduced scenario's runs on field files (tests/system/conftest.py: run A shared with
+    tests/system/test_gp_twin.py)."""
+    return {"runs": field_runs, "gp_region": field_runs.gp_region}
+
+
+def _trace(out: Path) -> dict:
+    bag = out / "bag"
+    return {"plans": plans_from_bag(bag), "looks": looks_from_bag(bag), "deliveries": deliveries_from_bag(bag)}
 
 
 def _until(rows: list, t_ns: int, key=lambda x: x[0]) -> list:
@@ -115,17 +71,15 @@ def _seen_then_gap(looks, gp_region, slot_ns) -> tuple[int, int]:
 
 
 def _pair(work, model: str, choose, engine: str) -> tuple[dict, dict, int, int, int]:
-    tmp = work["tmp"]
-    same, fc = _write_fields(tmp, None, 0)
-    runs = {}
-    bag = _run(_scenario_file(tmp, model, same, fc, f"{model}-a"), engine, tmp / f"{model}-{engine}-a")
-    runs["a"] = {"plans": plans_from_bag(bag), "looks": looks_from_bag(bag), "deliveries": deliveries_from_bag(bag)}
+    fr = work["runs"]
+    runs = {"a": _trace(fr.run(model, "distributed", engine))}
     gp_region = work["gp_region"]
     slot_ns = 900 * 10 ** 9
     r, k = choose(runs["a"]["looks"], gp_region, slot_ns)
-    changed, _ = _write_fields(tmp, r, k)
-    bag = _run(_scenario_file(tmp, model, changed, fc, f"{model}-b"), engine, tmp / f"{model}-{engine}-b")
-    runs["b"] = {"plans": plans_from_bag(bag), "looks": looks_from_bag(bag), "deliveries": deliveries_from_bag(bag)}
+    v = fr.field.values.copy()
+    cols = np.flatnonzero(fr.field.region_index == r)
+    v[k:, cols] = 257 - v[k:, cols]
+    runs["b"] = _trace(fr.run(model, "distributed", engine, fr.truth(v, f"truth-{r}-{k}")))
     t_first = min(t for x in runs.values() for t, _s, gp, *_ in x["looks"] if gp_region[gp] == r and t >= k * slot_ns)
     return runs["a"], runs["b"], t_first, r, k * slot_ns
 
@@ -162,7 +116,7 @@ def test_the_oracle_peeks_and_the_comparison_sees_it(work, choose):
 
 
 def test_reports_carry_the_knowledge_figures(work):
-    rep = json.loads((work["tmp"] / "observed-local-a" / "report.json").read_text())
+    rep = json.loads((work["runs"].run("observed") / "report.json").read_text())
     assert rep["knowledge"]["model"] == "observed"
     ages = rep["knowledge"]["info_age_s"]
     assert 0 <= ages["median"] <= ages["p90"] and ages["mean"] >= 0
