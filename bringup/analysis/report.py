@@ -14,9 +14,7 @@ Definitions:
   before.
 * value.assumed_error_mean - mean over observations with a true Eq. 1 value > 0 of
   |assumed - true| / true, where assumed is what the planner expected (Observation.assumed_value).
-* value.assumed_error.{mean,median,sum_based,se,n} and the same for ``same_slot`` / ``other_slot``
-  (looks whose information time lies in their own OSSE slot, or in an earlier one) -
-  bringup/analysis/assumed_error.py.
+* value.assumed_error - mean, median, sum-based, same-slot / other-slot: bringup/analysis/assumed_error.py.
 * value.first_look_share - the share of value.cumulative that came from the first look at each GP.
 * coverage.gp_observed_fraction - distinct GPs observed / GPs of the scenario;
   coverage.looks_per_gp - observations / GPs of the scenario.
@@ -144,11 +142,10 @@ class RunMeta:
             if not any(_META_TYPES.get(t, lambda _v: True)(v) for t in str(f.type).split(" | ")):
                 raise ValueError(f"meta.{f.name} = {str(v)[:80]!r} is not {f.type.replace('float', 'a finite number')}")
             kw[f.name] = v
-        if kw["horizon_s"] <= 0 or kw["n_sats"] < 1 or kw["n_gp"] < 0 or kw["seed"] < 0 or kw.get("revisit_zero_s", 0) < 0:
+        if (kw["horizon_s"] <= 0 or kw["n_sats"] < 1 or kw["n_gp"] < 0 or kw["seed"] < 0 or kw.get("revisit_zero_s", 0) < 0
+                or kw.get("slot_s", 1.0) <= 0):
             raise ValueError(f"meta out of range: horizon_s {kw['horizon_s']}, n_sats {kw['n_sats']}, "
-                             f"n_gp {kw['n_gp']}, seed {kw['seed']}")
-        if kw.get("slot_s", 900.0) <= 0:
-            raise ValueError(f"meta.slot_s = {kw['slot_s']} is not > 0")
+                             f"n_gp {kw['n_gp']}, seed {kw['seed']}, slot_s {kw.get('slot_s')}")
         return cls(**kw)
 
 
