@@ -30,9 +30,10 @@ named strategy (:data:`MODELS`, scenario key ``value.knowledge``):
   information about the region (an own look, a delivered bundle's observation, a downlinked
   observation's collection time; before any, the epoch), through its own inference noise
   (:class:`sat_node.value.Belief`) (:class:`RegionPersistenceView`). One look at one GP unlocks the
-  truth of all the region's GPs at that time, so it reads ground points nobody observed: it is
-  the reading of Nag et al. (ICAPS SPARK 2019, sections 4-5) that a bundle's region insight lets a
-  receiver know the region, taken literally.
+  truth of all the region's GPs at that time, so it reads ground points nobody observed (the
+  ground-point twin test catches it). It takes the region insight of Nag et al. (ICAPS SPARK 2019,
+  sections 4-5: each observation's bundle carries the observer's model parameters of the region) as
+  if it made the receiver know the whole region exactly.
 * ``oracle`` - the behaviour before knowledge models (kept for comparison, never a default): the true
   field as of planning time, for every GP, through the belief noise
   (:class:`~sat_node.scheduler.planner.PersistenceView`). It reads the truth; it is not a planner
