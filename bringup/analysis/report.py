@@ -108,6 +108,9 @@ class RunMeta:
     # count 0, whatever the planners do (the run warns when it starts, the report says so)
     regions_never_in_view: list | None = None
     slot_s: float = 900.0  # the OSSE's time resolution (slot) [s]
+    # what the run was made from: resolved scenario TOML, version, commit, command, dependencies
+    # (bringup/scenario/provenance.py); report.json's ``provenance``, carried by the bag's /run/meta
+    provenance: dict | None = None
 
     @classmethod
     def for_world(cls, world, mode: str, engine: str) -> RunMeta:
@@ -265,6 +268,8 @@ class ReportBuilder:
             rep.setdefault("warnings", []).append(
                 f"no satellite has region(s) {', '.join(meta.regions_never_in_view)} in its field of regard "
                 "during the horizon: their ground points can only count 0")
+        if meta.provenance is not None:
+            rep["provenance"] = meta.provenance
         rep["schedules"] = {"count": self.n_schedules}
         rep["dtn"] = _dtn_figures(events)
         n_obs = len({(src, gp, obs) for src, gp, obs, _dst in self.created.values()})

@@ -14,6 +14,7 @@ from pathlib import Path
 from bringup.engine.keys import ENV_BPSEC_KEY, ENV_BPSEC_KEY_FILE, RunKeys
 from bringup.errors import UserError
 from bringup.scenario.config import KNOWLEDGE_MODELS, RENAMED_KNOWLEDGE, Scenario, load_scenario
+from bringup.scenario.overrides import OPTION_KEYS, apply_sets, check_conflicts
 from bringup.scenario.regions_geojson import regions_arg
 from msgs_json.names import MAX_PLANES, MAX_SATS
 
@@ -60,8 +61,11 @@ def max_partners_arg(text: str) -> int:
     return v
 
 
-def add_scenario_args(p: argparse.ArgumentParser, *, overrides: bool = True, knowledge: bool = False) -> None:
+def add_scenario_args(p: argparse.ArgumentParser, *, overrides: bool = True, knowledge: bool = False,
+                      sets: bool = True) -> None:
     p.add_argument("--scenario", default="paper", help="scenario name or TOML path (default: paper)")
+    if sets:
+        add_set_arg(p)
     if overrides:
         p.add_argument("--sats", type=int, default=None,
                        help=f"number of satellites, 1..{MAX_SATS}; named sat_PS up to 9 planes x 9, "
@@ -81,6 +85,14 @@ def add_regions_arg(p: argparse.ArgumentParser) -> None:
                    help="regions instead of the scenario's: the Polygon / MultiPolygon features of a GeoJSON file "
                         "(named by their 'name' property), or one bounding box in degrees (write --regions=W,S,E,N "
                         "when W is negative) (docs/guide/regions-and-fields.md)")
+
+
+def add_set_arg(p: argparse.ArgumentParser) -> None:
+    """``--set KEY=VALUE`` (repeatable): any scenario key, validated like the file
+    (bringup/scenario/overrides.py); applied after the named options, in the order given."""
+    p.add_argument("--set", dest="set", action="append", default=[], metavar="KEY=VALUE",
+                   help="set any scenario key, as a TOML value: e.g. --set isl.rate_bps=250 --set "
+                        "value.knowledge=observed (repeatable; validated like the scenario file)")
 
 
 def add_knowledge_args(p: argparse.ArgumentParser) -> None:
@@ -129,8 +141,16 @@ def scenario_from_args(args: argparse.Namespace) -> Scenario:
         raise UserError(f"--gp-spacing-km {kw['gp_spacing_km']}: must be > 0")
     if any(v is not None for v in kw.values()):
         sc = sc.with_overrides(**kw)
+    sets = getattr(args, "set", None) or []
+    check_conflicts(sets, explicit_options(args))
+    sc = apply_sets(sc, sets)
     check_run_size(sc)
     return sc
+
+
+def explicit_options(args: argparse.Namespace) -> list[str]:
+    """The named scenario options given on the command line (argparse dests of OPTION_KEYS)."""
+    return [k for k in OPTION_KEYS if getattr(args, k, None) is not None]
 
 
 def add_key_args(p: argparse.ArgumentParser) -> None:

@@ -12,6 +12,8 @@ With K seeds each mode's entry holds the means over the seeds, report-shaped, pl
 figure's mean, sample standard deviation, Student-t 95 % interval, n and per-seed list under
 ``"seeds"`` (bringup/analysis/compare.py combine); ``"table2"`` sets the study's Table 2 beside ours
 (the coverage ratio against its 11.3x; the value ratio is not in the study).
+``compare.json`` also holds ``provenance`` (bringup/scenario/provenance.py; ``--set KEY=VALUE`` goes
+to every run).
 
 Checked by tests/system/test_compare_modes.py (a reduced real compare) and
 tests/unit/test_compare.py.
@@ -27,16 +29,18 @@ from pathlib import Path
 from bringup.analysis import compare as C
 from bringup.analysis.figure5 import bundle_rows_from_bag, figure5_data, figure5_summary, plot_figure5
 from bringup.analysis.report import true_values
-from bringup.cli.common import add_knowledge_args, add_regions_arg, scenario_from_args
+from bringup.cli.common import add_knowledge_args, add_regions_arg, add_set_arg, scenario_from_args
 from bringup.cli.run_folder import RunFolder, json_text, write_text_atomic
 from bringup.errors import UserError
 from bringup.recording.bag import BagReader
+from bringup.scenario.provenance import provenance
 from bringup.scenario.world import World
 from msgs_json import codec
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--scenario", default="paper", help="scenario name or TOML path (default: paper)")
+    add_set_arg(p)
     p.add_argument("--engine", choices=("local", "ros"), default="local",
                    help="local: every run in one process (fast); ros: every run as real rclpy processes (default: local)")
     p.add_argument("--seeds", type=int, default=1, help="number of seeds K: the scenario seed, +1, ... (default 1)")
@@ -88,11 +92,17 @@ def _compare(args, sc, seeds: list[int], out: Path) -> None:
     if getattr(args, "regions", None) is not None:
         box = args.regions.split(",")
         extra += [f"--regions={args.regions if len(box) == 4 else Path(args.regions).resolve()}"]
+    for item in args.set:  # (each run applies them after its named options, as here; its seed is
+        # given by --seed, the first of them from a --set scenario.seed)
+        if item.partition("=")[0].strip() != "scenario.seed":
+            extra += ["--set", item]
     say(f"compare: knowledge {sc.value.knowledge}, transiency {sc.value.transiency_min:g} min "
         f"(0: slow), {sc.gp_spacing_km:g} km GPs, planning {_planning(sc)}")
     by_mode = C.run_matrix(scenario=args.scenario, seeds=seeds, out=out, engine=args.engine, sats=args.sats,
                            hours=args.hours, jobs=args.jobs, say=say, extra=extra)
     res = C.compare_result(by_mode, seeds)
+    # what the comparison was made from (each run's own report.json holds its run's)
+    res["provenance"] = provenance(sc, getattr(args, "_argv", None))
     extra_plots = []
     if not args.no_plots:
         extra_plots = _plots(out, seeds[0], res, sc, args)

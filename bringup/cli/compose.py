@@ -17,10 +17,11 @@ from bringup.cli.common import add_key_args, add_scenario_args, keys_from_args
 from bringup.cli.run import parse_cut
 from bringup.deploy.compose import IMAGE, compose_project, repo_root, write_project
 from bringup.errors import UserError
+from bringup.scenario.provenance import provenance
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    add_scenario_args(p)
+    add_scenario_args(p, sets=False)
     p.add_argument("--mode", default="distributed", choices=["distributed", "centralized", "nonagile"],
                    help="scheduling mode (default: distributed)")
     p.add_argument("--out", type=Path, default=Path("docker-compose.yml"),
@@ -57,8 +58,10 @@ def run(args: argparse.Namespace) -> int:
     router_kw = {"extra_delay_s": args.isl_delay_s, "cuts": cuts} if (args.isl_delay_s or cuts) else None
     out = args.out.resolve()
 
-    def meta(world, mode: str) -> dict:  # the one path `run` takes too: the same report keys
-        return RunMeta.for_world(world, mode, "ros").__dict__
+    def meta(world, mode: str) -> dict:  # the one path `run` takes too: the same report keys and provenance
+        m = RunMeta.for_world(world, mode, "ros")
+        m.provenance = provenance(world.scenario, getattr(args, "_argv", None))
+        return m.__dict__
 
     project = compose_project(scenario=args.scenario, sats=args.sats, hours=args.hours, seed=args.seed,
                               mode=args.mode, domain_id=args.domain_id, subnet=args.subnet,

@@ -8,7 +8,8 @@ Each subcommand lives in its own module ``bringup/cli/<name>.py`` exposing::
 The registry below names every subcommand of the contract with its help line. One whose module is missing still shows
 in the help and fails loudly when called. Errors the user can fix (bad scenario, missing bag, bad
 file) are raised as :class:`bringup.errors.UserError` (or ScenarioError) and printed as one line
-``constellation <cmd>: error: ...`` with exit code 2, no traceback; so are a number option that is
+``constellation <cmd>: error: ...`` with exit code 2; ``constellation --version`` prints the project's
+version (bringup/scenario/provenance.py), no traceback; so are a number option that is
 not finite (``--hours inf``: checked here for every command), an OSError (a full disk, an unwritable
 folder: :func:`bringup.errors.os_error_line` names it and the file) and running out of memory.
 
@@ -29,6 +30,7 @@ from collections.abc import Iterable
 
 from bringup.errors import UserError, os_error_line
 from bringup.scenario.config import ScenarioError
+from bringup.scenario.provenance import version
 
 # subcommand name -> (module under bringup.cli, one line for `constellation --help`). Only the
 # chosen command's module is imported: each imports what it needs at its top, and `--help` or one
@@ -54,7 +56,8 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "compare": ("compare",
                 "run distributed, centralized and non-agile on the same scenario and seeds; Table 2 with ratios"),
     "sweep": ("sweep",
-              "value vs replan period, ISL rate, satellites per plane, ground-station count (one table)"),
+              "the figures over a grid of any scenario keys x seeds (--grid; resumable; CSV, JSON with 95 % CIs, "
+              "plots), or the named presets"),
     "node": ("node",
              "run one process of a ROS-engine run (the clock or one participant group) from a run spec"),
     "compose": ("compose",
@@ -80,6 +83,8 @@ def build_parser(load: Iterable[str] | None = None) -> argparse.ArgumentParser:
         prog="constellation",
         description="Agile Earth-observing constellation with onboard scheduling over DTN (ROS 2 Jazzy).",
     )
+    parser.add_argument("--version", action="version", version=f"constellation {version()}",
+                        help="print the version and exit")
     wanted = set(COMMANDS) if load is None else set(load)
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     for name, (module, help_line) in COMMANDS.items():
@@ -130,6 +135,7 @@ def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else list(argv)
     parser = build_parser(argv[:1] if argv[:1] and argv[0] in COMMANDS else ())
     args = parser.parse_args(argv)
+    args._argv = list(argv)  # the command line as typed: each output's provenance (command)
     if not getattr(args, "command", None):
         parser.print_help()
         return 2

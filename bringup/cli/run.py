@@ -5,7 +5,8 @@
 every topic into ``OUT/bag``. ``--engine local``: the same
 node logic in this process (bringup/engine/local.py), recording the same topics. Either way the run
 ends with ``OUT/report.json`` (rebuilt from the bag, bringup/analysis/report.py), ``OUT/report.md`` and
-``OUT/plots/*.png``, and a non-zero exit with a one-line message if anything failed.
+``OUT/plots/*.png``, ``OUT/scenario.toml`` (the resolved scenario; report.json's ``provenance``:
+bringup/scenario/provenance.py), and a non-zero exit with a one-line message if anything failed.
 
 Checked by tests/unit/test_cli_exit.py (a local run's outputs complete, one-line errors) and
 tests/system/test_engines_equal.py (both engines, same traces and report).
@@ -52,6 +53,7 @@ from bringup.scenario.participants import (
     roles_for,
     sats_per_process_auto,
 )
+from bringup.scenario.provenance import provenance
 from bringup.scenario.world import World
 from dtn_router.router import ROUTER_NAME
 from msgs_json.envelope import Envelope
@@ -210,6 +212,10 @@ def _run(sc, cuts, out: Path, bag_dir: Path, args, folder: RunFolder, per_proces
     if meta.regions_never_in_view:
         print(f"run: warning: no satellite has region(s) {', '.join(meta.regions_never_in_view)} in its field of "
               "regard during the horizon: their ground points can only count 0", file=sys.stderr)
+    # what the run is made from (report.json and the bag's /run/meta: provenance), and the resolved
+    # scenario beside the report, loadable on its own (`constellation run --scenario OUT/scenario.toml`)
+    meta.provenance = provenance(sc, getattr(args, "_argv", None))
+    write_text_atomic(out / "scenario.toml", meta.provenance["scenario_toml"])
     router_kw = {"extra_delay_s": args.isl_delay_s, "cuts": cuts} if (args.isl_delay_s or cuts) else None
     rep = None
     if args.engine == "local":
@@ -386,7 +392,8 @@ def _run_ros(world, world_path: Path, args, meta, bag_dir: Path, out: Path, rout
                    # a process steps its K satellites one after the other: K times the one-satellite deadline
                    ack_timeout_s=ACK_TIMEOUT_S * per_process,
                    scenario=str(Path(sc.source_path).resolve()),
-                   overrides={**overrides_of(args), "viz_period_s": args.viz_period_s}, mode=args.mode,
+                   overrides={**overrides_of(args), "viz_period_s": args.viz_period_s,
+                              "set": list(args.set)}, mode=args.mode,
                    namespace=args.namespace, ros_args=[a for a in args.ros_args if a != "--"],
                    real_time_factor=args.real_time_factor, bag_dir=str(bag_dir.resolve()),
                    max_restarts=args.restart, restart_wait_s=120.0 if args.restart else 0.0,

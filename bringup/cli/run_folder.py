@@ -46,7 +46,7 @@ LOCK_NAME = ".run.lock"
 STATUS_NAME = "run_status.json"
 # what a run writes into its folder (bringup/cli/run.py, bringup/engine/ros/launcher.py)
 OUTPUTS = ("bag", "report.json", "report.md", "plots", "logs", "store", "state", "run_spec.json", "run.keys",
-           STATUS_NAME)
+           "scenario.toml", STATUS_NAME)
 
 
 def _finite(obj):

@@ -52,7 +52,8 @@ def cmp(tmp_path_factory):
 def test_json_is_one_object_with_design_keys(cmp):
     out, stdout = cmp
     res = json.loads(stdout)  # exactly one JSON document (json.loads rejects trailing data)
-    assert set(res) == {"distributed", "centralized", "nonagile", "ratios", "table2"}
+    assert set(res) == {"distributed", "centralized", "nonagile", "ratios", "table2", "provenance"}
+    assert res["provenance"]["command"].startswith("constellation compare --scenario paper")
     for mode in ("distributed", "centralized", "nonagile"):
         rep = res[mode]
         missing = [k for k in DESIGN_KEYS if _get(rep, k) is _MISSING]

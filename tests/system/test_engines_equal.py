@@ -70,6 +70,8 @@ def test_satellites_grouped_in_processes_equal_one_per_process(runs):
                                                                                  "sats_3.log"]
     rep, rep1 = (json.loads((runs[k] / "report.json").read_text()) for k in ("ros4", "ros"))
     rep.pop("runtime"), rep1.pop("runtime")
+    prov, prov1 = rep.pop("provenance"), rep1.pop("provenance")  # (the command lines differ)
+    assert prov["scenario_toml"] == prov1["scenario_toml"] and "--sats-per-process 4" in prov["command"]
     assert rep == rep1
 
 

@@ -221,14 +221,25 @@ def test_compose_run_meta_is_the_runs(tmp_path):
     """A container run's /run/meta (so its report.json) has what `run` gives: the knowledge model and
     the OSSE figures included (compose built it by hand before and lost them)."""
     from bringup.analysis.report import RunMeta
-    from bringup.scenario.world import World
+    from bringup.scenario.config import load_scenario
+    from bringup.scenario.world import World, scenario_key
 
     _, out = _write(tmp_path, 3)
     spec = RunSpec.from_file(out.parent / "run_spec.json")
     world = World.load(out.parent / "world.pkl", spec.extra["world_key"])
     want = RunMeta.for_world(world, "distributed", "ros").__dict__
-    assert spec.extra["meta"] == json.loads(json.dumps(want))
+    got = dict(spec.extra["meta"])
+    prov = got.pop("provenance")  # and the same provenance as a run's (bringup/scenario/provenance.py)
+    assert got == json.loads(json.dumps({k: v for k, v in want.items() if k != "provenance"}))
     assert spec.extra["meta"]["knowledge"] and spec.extra["meta"]["osse"]
+    assert prov["command"].startswith("constellation compose --sats 3") and prov["seed"] == world.scenario.scenario.seed
+    back = load_scenario(_text_file(tmp_path / "back.toml", prov["scenario_toml"]))
+    assert scenario_key(back) == scenario_key(world.scenario)
+
+
+def _text_file(path: Path, text: str) -> Path:
+    path.write_text(text)
+    return path
 
 
 @pytest.mark.parametrize("n_sats", [3, 24])

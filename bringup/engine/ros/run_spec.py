@@ -1,7 +1,7 @@
 """Run spec: the JSON file every process of a ROS-engine run is started with.
 
 ``constellation node --run-spec FILE --role ROLE`` reads it (bringup/cli/node.py); the launcher
-(bringup/engine/ros/launcher.py) writes it. It names the scenario (path or name, with overrides), mode, seed,
+(bringup/engine/ros/launcher.py) writes it. It names the scenario (path or name, with overrides: the named options and the ``--set`` texts under ``"set"``), mode, seed,
 the roles (one OS process each, besides the ``clock`` role; ``groups`` may give a process several
 participant roles) and a participant factory as a dotted path ``"module:function"``;
 ``function(spec, role) -> list[Participant]`` returns the participants one process role hosts, so
@@ -31,6 +31,7 @@ from bringup.engine.keys import RunKeys
 from bringup.engine.ros.naming import check_namespace
 from bringup.errors import UserError
 from bringup.scenario.config import load_scenario
+from bringup.scenario.overrides import apply_sets
 
 __all__ = ["MAX_DOMAIN_ID", "CLOCK_ROLE", "RunSpec", "load_factory"]
 
@@ -153,7 +154,9 @@ class RunSpec(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
             ov["seed"] = self.seed
         if any(v is not None for v in ov.values()):
             sc = sc.with_overrides(**ov)
-        return sc
+        # ``--set KEY=VALUE`` texts, after the named overrides as on the command line
+        # (bringup/cli/common.py scenario_from_args)
+        return apply_sets(sc, self.overrides.get("set") or [])
 
     def epoch_ns(self) -> int:
         """The scenario epoch in Unix ns: the clock of the run's bag and /clock (bringup/recording/bag.py);
