@@ -361,6 +361,12 @@ def _run_local(world, args, meta, bag_dir: Path, out: Path, router_kw, keys, *, 
     return runtime, rep
 
 
+def spec_overrides(args: argparse.Namespace) -> dict:
+    """What the ROS engine's processes apply to the scenario file to get the run's scenario
+    (RunSpec.load_scenario): the named options, ``--viz-period-s`` and the ``--set`` texts."""
+    return {**overrides_of(args), "viz_period_s": args.viz_period_s, "set": list(args.set)}
+
+
 def _fresh_store_dir(store_dir: Path, sats: list[str]):
     """An empty ``store_dir``, its satellites' new stores started (participants.create_stores: the
     returned ``wait()``)."""
@@ -392,8 +398,7 @@ def _run_ros(world, world_path: Path, args, meta, bag_dir: Path, out: Path, rout
                    # a process steps its K satellites one after the other: K times the one-satellite deadline
                    ack_timeout_s=ACK_TIMEOUT_S * per_process,
                    scenario=str(Path(sc.source_path).resolve()),
-                   overrides={**overrides_of(args), "viz_period_s": args.viz_period_s,
-                              "set": list(args.set)}, mode=args.mode,
+                   overrides=spec_overrides(args), mode=args.mode,
                    namespace=args.namespace, ros_args=[a for a in args.ros_args if a != "--"],
                    real_time_factor=args.real_time_factor, bag_dir=str(bag_dir.resolve()),
                    max_restarts=args.restart, restart_wait_s=120.0 if args.restart else 0.0,

@@ -109,3 +109,27 @@ def test_commands_refuse_a_bad_set_in_one_line(tmp_path, capsys, argv, named):
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and named in err[0] and "error:" in err[0], err
     assert not (tmp_path / "out").exists()
+
+
+def test_the_ros_processes_load_the_runs_scenario(tmp_path):
+    """The ROS engine's processes rebuild the scenario from the run spec (scenario file + overrides):
+    with --set and the named options it is the scenario the command line made."""
+    import argparse
+
+    from bringup.cli import run as run_cmd
+    from bringup.cli.common import scenario_from_args
+
+    p = argparse.ArgumentParser()
+    run_cmd.add_arguments(p)
+    args = p.parse_args(["--sats", "6", "--hours", "0.5", "--knowledge", "observed", "--viz-period-s", "30",
+                         "--set", "isl.rate_bps=250", "--set", "regions.list[0].size_km=40"])
+    sc = scenario_from_args(args).with_overrides(viz_period_s=args.viz_period_s)
+    spec = RunSpec(factory="m:f", roles=["a"], scenario=sc.source_path, overrides=run_cmd.spec_overrides(args))
+    back = RunSpec.from_file(_spec_file(tmp_path, spec)).load_scenario()
+    assert raw_scenario(back) == raw_scenario(sc) and back.isl.rate_bps == 250.0 and back.viz.period_s == 30.0
+
+
+def _spec_file(tmp_path, spec):
+    path = tmp_path / "run_spec.json"
+    spec.to_file(path)
+    return path
