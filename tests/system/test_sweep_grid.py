@@ -2,7 +2,8 @@
 engine), killed (SIGKILL) after its first stored runs and started again: the stored runs are not
 rerun (their files untouched), the missing ones are made; its tidy CSV, grouped by cell and metric
 with the csv module, statistics.stdev and scipy's t interval (not the project's code), gives
-sweep.json's means, sample standard deviations and 95 % intervals; the plots are written."""
+sweep.json's means, sample standard deviations and 95 % intervals; the plots are written. A named
+preset sweep (the ISL rate) honours --seeds."""
 
 from __future__ import annotations
 
@@ -81,3 +82,23 @@ def test_killed_sweep_resumes_and_its_csv_gives_the_json(tmp_path):
     assert n_checked >= 2, "some figure must vary over the seeds"
     assert len(groups) == sum(1 for c in res["cells"] for m in res["metrics"] if c["n"][m])
     assert (out / "plots" / "value_cumulative.png").stat().st_size > 1000
+
+
+def test_a_named_sweep_honours_seeds(tmp_path):
+    """The ISL-rate preset with --seeds 2: each row a mean over two seeds, its CSV rows per seed."""
+    out = tmp_path / "preset"
+    r = subprocess.run([sys.executable, "-m", "bringup.cli", "sweep", "--only", "isl_rate_bps", "--isl-rate-bps",
+                        "250,1000", "--seeds", "2", "--sats", "6", "--hours", "0.5", "--no-plots", "--out", str(out)],
+                       capture_output=True, text=True, timeout=600, check=False)
+    assert r.returncode == 0, r.stderr[-3000:]
+    res = json.loads((out / "sweep.json").read_text())
+    assert [(row["value"], row["baseline"], row["n_seeds"]) for row in res["rows"]] == [(250.0, False, 2),
+                                                                                      (1000.0, True, 2)]
+    with open(out / "sweep.csv", newline="") as fh:
+        rows = [x for x in csv.DictReader(fh) if x["metric"] == "value.cumulative"]
+    assert sorted((x["isl_rate_bps"], x["seed"]) for x in rows) == [("1000.0", "1"), ("1000.0", "2"),
+                                                                    ("250.0", "1"), ("250.0", "2")]
+    for row in res["rows"]:
+        vals = [float(x["value"]) for x in rows if float(x["isl_rate_bps"]) == row["value"]]
+        assert row["value_cumulative"] == pytest.approx(statistics.mean(vals))
+    assert "seeds [1, 2], mean over them" in r.stdout and "| isl_rate_bps | 1000 * |" in r.stdout
