@@ -92,7 +92,8 @@ def run_all(runs: list[GridRun], write_text, to_json, say=lambda *a: None) -> di
             todo.append(r)
         else:
             reports[(r.cell.id, r.seed)] = rep
-    say(f"sweep: {len(runs)} runs, {len(reports)} already done (reused), {len(todo)} to run")
+    say(f"sweep: {len(runs)} run{'s' if len(runs) != 1 else ''}, {len(reports)} already done (reused), "
+        f"{len(todo)} to run")
     for i, r in enumerate(todo, 1):
         t0 = time.perf_counter()
         rep = r.run(write_text, to_json)

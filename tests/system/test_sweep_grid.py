@@ -102,3 +102,24 @@ def test_a_named_sweep_honours_seeds(tmp_path):
         vals = [float(x["value"]) for x in rows if float(x["isl_rate_bps"]) == row["value"]]
         assert row["value_cumulative"] == pytest.approx(statistics.mean(vals))
     assert "seeds [1, 2], mean over them" in r.stdout and "| isl_rate_bps | 1000 * |" in r.stdout
+
+
+@pytest.mark.ros
+@pytest.mark.slow
+def test_a_ros_engine_sweep_stores_run_folders_and_resumes(tmp_path):
+    """--engine ros: each cell x seed a whole `constellation run --engine ros` folder (bag, report.json
+    with its provenance) on the cell's resolved scenario; a second call reuses it."""
+    out = tmp_path / "ros"
+    cmd = [sys.executable, "-m", "bringup.cli", "sweep", "--grid", "isl.rate_bps=250", "--seeds", "1", "--sats",
+           "3", "--hours", "0.05", "--engine", "ros", "--no-plots", "--set", "value.knowledge=observed",
+           "--out", str(out)]
+    r = subprocess.run(cmd, capture_output=True, text=True, timeout=900, check=False)
+    assert r.returncode == 0, r.stderr[-3000:]
+    (folder,) = [p for p in (out / "runs" / "ros").iterdir() if p.is_dir()]
+    rep = json.loads((folder / "report.json").read_text())
+    assert rep["engine"] == "ros" and (folder / "bag").is_dir()
+    toml = rep["provenance"]["scenario_toml"]
+    assert "rate_bps = 250.0" in toml and 'knowledge = "observed"' in toml
+    again = subprocess.run(cmd, capture_output=True, text=True, timeout=300, check=False)
+    assert again.returncode == 0 and "1 run, 1 already done (reused), 0 to run" in again.stderr
+    assert json.loads((out / "sweep.json").read_text())["cells"][0]["n"]["value.cumulative"] == 1
