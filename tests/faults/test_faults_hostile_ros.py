@@ -11,8 +11,8 @@ topics, and a genuine envelope of the run replayed, tampered with and moved to a
 
 Oracles:
 * the run completes (exit 0: no node crashed, no host stopped, the run did not fail);
-* its report equals the clean local-engine run's, key for key (runtime, engine and the security
-  counters aside), and so do its observations and bundle deliveries: nothing forged was recorded or
+* its report equals the clean local-engine run's, key for key (runtime, engine, the security
+  counters and the provenance's command line aside), and so do its observations and bundle deliveries: nothing forged was recorded or
   acted on;
 * report.json ``security.rejected_by_process`` holds, topic by topic, exactly one rejection per
   forged message per subscription it reached (the forger counts what it published and how many
@@ -67,7 +67,10 @@ def _trace(bag):
 def _comparable(rep: dict) -> dict:
     from bringup.analysis.report import flatten
 
-    return {k: v for k, v in flatten(rep).items() if not k.startswith(("runtime.", "security.")) and k != "engine"}
+    # (provenance: the same scenario; the command lines name another engine and folder)
+    return {k: v for k, v in flatten(rep).items()
+            if (not k.startswith(("runtime.", "security.", "provenance.")) and k != "engine")
+            or k == "provenance.scenario_toml"}
 
 
 def test_forged_messages_are_rejected_counted_and_change_nothing(tmp_path):
