@@ -31,7 +31,7 @@ from dataclasses import dataclass, field
 
 from bringup.analysis.stats import CI_LEVEL, summarize
 from bringup.errors import UserError
-from bringup.scenario.overrides import _KEY, parse_value
+from bringup.scenario.overrides import KEY_RE, parse_value
 
 __all__ = ["METRICS", "STATISTICS", "Axis", "Cell", "cells_of", "csv_text", "get_path", "parse_grid",
            "split_values", "summary"]
@@ -139,7 +139,7 @@ def parse_grid(texts: list[str]) -> list[Axis]:
             key = key.strip()
             if not eq or not key:
                 raise UserError(f"--grid {part!r}: expected KEY=V1,V2,... (e.g. isl.rate_bps=250,1000)")
-            if not _KEY.match(key):
+            if not KEY_RE.match(key):
                 raise UserError(f"--grid {part!r}: {key!r} is not a dotted scenario key")
             if key == "scenario.seed":
                 raise UserError(f"--grid {part!r}: the seeds are given by --seeds K (the scenario seed and the "

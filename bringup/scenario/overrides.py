@@ -28,9 +28,9 @@ import msgspec
 
 from bringup.scenario.config import Scenario, ScenarioError, _validate
 
-__all__ = ["OPTION_KEYS", "apply_sets", "check_conflicts", "parse_set", "parse_value", "set_raw"]
+__all__ = ["KEY_RE", "OPTION_KEYS", "apply_sets", "check_conflicts", "parse_set", "parse_value", "set_raw"]
 
-_KEY = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*(\[\d+\])?(\.[A-Za-z_][A-Za-z0-9_]*(\[\d+\])?)*$")
+KEY_RE = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*(\[\d+\])?(\.[A-Za-z_][A-Za-z0-9_]*(\[\d+\])?)*$")
 _BARE = re.compile(r"^[A-Za-z_][A-Za-z0-9_.:/+-]*$")
 
 #: the named command-line options and the scenario keys they set (argparse dest -> keys)
@@ -69,7 +69,7 @@ def parse_set(text: str) -> tuple[str, object]:
     key = key.strip()
     if not eq or not key or not val.strip():
         raise ScenarioError(f"--set {text!r}: expected KEY=VALUE, e.g. isl.rate_bps=250")
-    if not _KEY.match(key):
+    if not KEY_RE.match(key):
         raise ScenarioError(f"--set {text!r}: {key!r} is not a dotted scenario key (e.g. scheduler.replan_period_s)")
     try:
         return key, parse_value(val.strip())
