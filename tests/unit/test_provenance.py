@@ -101,3 +101,21 @@ def test_a_runs_report_and_bag_hold_the_provenance(tmp_path):
                        text=True, timeout=120, check=False)
     assert b.returncode == 0, b.stderr
     assert json.loads(b.stdout)["provenance"] == p
+
+
+def test_drawn_regions_round_trip(paper_scenario, tmp_path):
+    """Regions given as a bounding box and as GeoJSON polygons (bringup/scenario/regions_geojson.py)
+    are written into the scenario TOML and load back the same."""
+    from bringup.scenario.regions_geojson import regions_arg
+
+    gj = tmp_path / "basin.geojson"
+    gj.write_text(json.dumps({"type": "FeatureCollection", "features": [
+        {"type": "Feature", "properties": {"name": "basin"},
+         "geometry": {"type": "Polygon", "coordinates": [[[10.0, 20.0], [10.6, 20.1], [10.3, 20.7], [10.0, 20.0]]]}},
+        {"type": "Feature", "properties": {"name": "two"},
+         "geometry": {"type": "MultiPolygon", "coordinates": [[[[0.0, 0.0], [0.4, 0.0], [0.4, 0.4], [0.0, 0.0]]],
+                                                              [[[1.0, 1.0], [1.3, 1.0], [1.3, 1.2], [1.0, 1.0]]]]}}]}))
+    for regions in (regions_arg("10,20,11,21"), regions_arg(str(gj))):
+        sc = paper_scenario.with_overrides(regions=regions)
+        back = load_scenario(_write(tmp_path / "back.toml", scenario_toml(sc)))
+        assert raw_scenario(back) == raw_scenario(sc)
