@@ -104,13 +104,9 @@ class RunMeta:
     revisit_zero_s: float = 900.0
     knowledge: str = ""
     osse: dict | None = None  # the truth field's rank figures (ground_station/osse_stats.py)
-    # regions no satellite has in its field of regard at any time of the horizon: their GPs can only
-    # count 0, whatever the planners do (the run warns when it starts, the report says so)
-    regions_never_in_view: list | None = None
+    regions_never_in_view: list | None = None  # in no satellite's field of regard over the horizon
     slot_s: float = 900.0  # the OSSE's time resolution (slot) [s]
-    # what the run was made from: resolved scenario TOML, version, commit, command, dependencies
-    # (bringup/scenario/provenance.py); report.json's ``provenance``, carried by the bag's /run/meta
-    provenance: dict | None = None
+    provenance: dict | None = None  # what the run was made from (bringup/scenario/provenance.py)
 
     @classmethod
     def for_world(cls, world, mode: str, engine: str) -> RunMeta:

@@ -17,7 +17,7 @@ from bringup.scenario.overrides import apply_sets, parse_set, parse_value
 GOOD = [
     ("isl.rate_bps=250", "isl.rate_bps", 250),
     ("isl.rate_bps=2.5e2", "isl.rate_bps", 250.0),
-    ("value.knowledge=observed", "value.knowledge", "observed"),
+    ("value.knowledge=region-truth", "value.knowledge", "region-truth"),
     ('value.knowledge="oracle"', "value.knowledge", "oracle"),
     ("scheduler.joint_planning=false", "scheduler.joint_planning", False),
     ("acs.slew_coeffs_s=[1.0, 0.5]", "acs.slew_coeffs_s", [1.0, 0.5]),
