@@ -75,7 +75,7 @@ SCHEMA_VERSION = 1
 
 # --- field types (constraints are checked by msgspec on decode) ------------------------------------
 NsTime = Annotated[int, Meta(ge=0, le=2**63 - 1, description="integer ns since the scenario epoch")]
-SatName = Annotated[str, Meta(pattern=SAT_NAME_PATTERN, description="sat_PS or sat_PPPP_SSSS (msgs_json/names.py)")]
+SatName = Annotated[str, Meta(pattern=SAT_NAME_PATTERN, description="sat_PS, sat_PPPP_SSSS or sat_n<NORAD> (msgs_json/names.py)")]
 StationName = Annotated[str, Meta(pattern=r"^gs_[A-Za-z0-9_]{1,32}$")]
 NodeName = Annotated[str, Meta(pattern=rf"(?:{SAT_NAME_PATTERN})|(?:^gs_[A-Za-z0-9_]{{1,32}}$)")]
 ParticipantName = Annotated[str, Meta(pattern=r"^[A-Za-z0-9_]{1,64}$")]

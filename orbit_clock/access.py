@@ -21,6 +21,9 @@ Search, coarse then refine (``access_windows``):
    visible samples are windows; each edge is placed by linear interpolation of (limit - eta)
    between the bracketing samples (eta is smooth: the error is milliseconds, far below 1 s).
    min_off_nadir_deg is the smallest eta on the fine samples of the window.
+The field of regard may differ by satellite (a mixed fleet, bringup/scenario/fleet.py):
+``max_off_nadir_deg`` is then one angle per satellite of the constellation, the coarse bound is
+taken with the largest and each satellite's runs with its own.
 Windows shorter than one fine step can be missed (a grazing pass that dips below the limit between
 two samples); windows are clipped to [t0_s, t1_s].
 
@@ -34,6 +37,9 @@ edges are ill-conditioned); the brute-force 1 s grid over every GP (``access_win
 finds the same windows; invariants (ordered, non-overlapping per (sat, gp), inside the horizon,
 eta <= limit inside). Every observation a whole run executes is within the field of regard, by an
 off-nadir angle recomputed with sgp4 and WGS-84 written out in tests/system/test_observation_physics.py.
+One angle per satellite (tests/unit/test_fleet.py): the windows equal each satellite's alone with its
+own angle and the brute-force grid's; for catalogue satellites skyfield's own TLE reader and frames
+give the same windows within 2 s (tests/system/test_catalogue_runs.py).
 """
 
 from __future__ import annotations
@@ -220,7 +226,7 @@ class AccessWindows:
     start_s: np.ndarray
     end_s: np.ndarray
     min_off_nadir_deg: np.ndarray
-    max_off_nadir_deg: float = 55.0
+    max_off_nadir_deg: float | list[float] = 55.0  # one field of regard, or one per satellite
     t0_s: float = 0.0
     t1_s: float = 0.0
     meta: dict = field(default_factory=dict)
@@ -319,7 +325,7 @@ class RegionPrefilter:
         self.constellation = constellation
         self.gps = gps
         self.horizon_s = float(horizon_s)
-        self.max_off_nadir_deg = float(max_off_nadir_deg)
+        self.max_off_nadir_deg = float(np.max(max_off_nadir_deg))  # per satellite: the widest bounds them all
         self.step_s = float(step_s)
         self._coarse: dict | None = None
 
@@ -364,19 +370,35 @@ class RegionPrefilter:
         return self._coarse
 
 
+def _per_sat(max_off_nadir_deg, n: int) -> np.ndarray:
+    """The field of regard [deg] of each of ``n`` satellites from one angle or one per satellite."""
+    lim = np.asarray(max_off_nadir_deg, dtype=float)
+    if lim.ndim == 0:
+        return np.full(n, float(lim))
+    if lim.shape != (n,):
+        raise ValueError(f"max_off_nadir_deg: one angle or one per satellite ({n}), got {lim.shape}")
+    return lim
+
+
+def _as_reported(lim: np.ndarray) -> float | list[float]:
+    return float(lim[0]) if lim.size and (lim == lim[0]).all() else [float(x) for x in lim]
+
+
 def access_windows(constellation: Constellation, gps: GroundPoints, t0_s: float, t1_s: float,
-                   max_off_nadir_deg: float, *, coarse_step_s: float = 20.0, fine_step_s: float = 1.0,
+                   max_off_nadir_deg, *, coarse_step_s: float = 20.0, fine_step_s: float = 1.0,
                    sats=None) -> AccessWindows:
-    """All access windows in [t0_s, t1_s] of the satellites (all, or indices ``sats``) to the GPs."""
+    """All access windows in [t0_s, t1_s] of the satellites (all, or indices ``sats``) to the GPs;
+    ``max_off_nadir_deg``: one field of regard [deg], or one per satellite of the constellation."""
     if not t1_s > t0_s:
         raise ValueError(f"access_windows: empty horizon [{t0_s}, {t1_s}] s")
     if not (0 < fine_step_s <= coarse_step_s):
         raise ValueError(f"access_windows: need 0 < fine_step_s ({fine_step_s}) <= coarse_step_s ({coarse_step_s})")
+    lims = _per_sat(max_off_nadir_deg, len(constellation))
     sat_list = np.arange(len(constellation)) if sats is None else np.asarray(sats, dtype=int)
     tc = time_grid(t0_s, t1_s, coarse_step_s)
     r = constellation.positions_ecef_km(tc)[sat_list]  # (n_s, n_c, 3)
     rn = np.linalg.norm(r, axis=-1)
-    lam = for_central_angle_rad(float(rn.max()) * 1.001, WGS84_B_KM, max_off_nadir_deg)
+    lam = for_central_angle_rad(float(rn.max()) * 1.001, WGS84_B_KM, float(lims[sat_list].max()))
     rate_rad_s = 1.1 * (float(np.sqrt(MU_WGS84_KM3_S2 / rn.min() ** 3)) + 7.3e-5)
     centers = geodetic_to_ecef_km(gps.region_center_lat_deg, gps.region_center_lon_deg, 0.0)
     cu = centers / np.linalg.norm(centers, axis=-1, keepdims=True)
@@ -395,13 +417,14 @@ def access_windows(constellation: Constellation, gps: GroundPoints, t0_s: float,
             rr = constellation.track_ecef_km(sat, t)
             gids = gps.in_region(int(ri))
             eta, near = _eta_grid(rr, gps.ecef_km[gids])
-            col, st, en, mn = _runs(t, eta, near & (eta <= max_off_nadir_deg), max_off_nadir_deg)
+            lim = float(lims[sat])
+            col, st, en, mn = _runs(t, eta, near & (eta <= lim), lim)
             out["sat"].append(np.full(col.size, sat))
             out["gp"].append(gids[col])
             out["start"].append(st), out["end"].append(en), out["min"].append(mn)
     cat = (lambda k, dt: np.concatenate(out[k]).astype(dt) if out[k] else np.empty(0, dt))
     return AccessWindows(list(constellation.names), cat("sat", np.int64), cat("gp", np.int64), cat("start", float),
-                         cat("end", float), cat("min", float), max_off_nadir_deg, float(t0_s), float(t1_s),
+                         cat("end", float), cat("min", float), _as_reported(lims), float(t0_s), float(t1_s),
                          {"coarse_step_s": coarse_step_s, "fine_step_s": fine_step_s,
                           "fine_samples": n_fine, "coarse_samples": int(tc.size * sat_list.size)},
                          gps.region_index, list(gps.region_names))
@@ -410,6 +433,7 @@ def access_windows(constellation: Constellation, gps: GroundPoints, t0_s: float,
 def access_windows_bruteforce(constellation: Constellation, gps: GroundPoints, t0_s: float, t1_s: float,
                               max_off_nadir_deg: float, *, step_s: float = 1.0, sats=None) -> AccessWindows:
     """Reference: every GP of every satellite on a uniform grid (no prefilter). Slow; the oracle of the tests and benchmarks."""
+    lims = _per_sat(max_off_nadir_deg, len(constellation))
     sat_list = np.arange(len(constellation)) if sats is None else np.asarray(sats, dtype=int)
     t = time_grid(t0_s, t1_s, step_s)
     out = {k: [] for k in ("sat", "gp", "start", "end", "min")}
@@ -420,13 +444,13 @@ def access_windows_bruteforce(constellation: Constellation, gps: GroundPoints, t
         vis = np.empty((t.size, len(gps)), dtype=bool)
         for c0 in range(0, t.size, chunk):
             e, near = _eta_grid(r_all[c0:c0 + chunk], gps.ecef_km)
-            eta[c0:c0 + chunk], vis[c0:c0 + chunk] = e, near & (e <= max_off_nadir_deg)
-        col, st, en, mn = _runs(t, eta, vis, max_off_nadir_deg)
+            eta[c0:c0 + chunk], vis[c0:c0 + chunk] = e, near & (e <= lims[sat])
+        col, st, en, mn = _runs(t, eta, vis, float(lims[sat]))
         out["sat"].append(np.full(col.size, sat)), out["gp"].append(col)
         out["start"].append(st), out["end"].append(en), out["min"].append(mn)
     cat = (lambda k, dt: np.concatenate(out[k]).astype(dt) if out[k] else np.empty(0, dt))
     return AccessWindows(list(constellation.names), cat("sat", np.int64), cat("gp", np.int64), cat("start", float),
-                         cat("end", float), cat("min", float), max_off_nadir_deg, float(t0_s), float(t1_s),
+                         cat("end", float), cat("min", float), _as_reported(lims), float(t0_s), float(t1_s),
                          {"step_s": step_s}, gps.region_index, list(gps.region_names))
 
 

@@ -20,12 +20,19 @@ evenly spaced, ends included) divided by c. CGR takes range constant over a cont
 used; in-plane neighbours of the paper's constellation keep a near-constant 5.43e3 km, cross-plane
 ranges sweep from the 6000 km limit down to a few hundred km and back.
 
+A mixed fleet (bringup/scenario/fleet.py) may give each satellite its own radio: the scenario's
+``sat_params`` (isl_rate_bps, isl_max_range_km, in constellation order). A link then closes at the
+shorter maximum range of its two ends and runs at the lower rate (both ends must hear each other:
+the weaker radio sets the link). The k-d tree pruning bounds with the longest range.
+
 How we know it is right (tests/unit/test_orbit_isl.py): ``los_clear`` against an independent
 segment-sphere intersection (quadratic roots) on random geometry (hypothesis); windows against a 1 s
 brute-force grid; symmetry (A->B and B->A identical); hand cases (antipodal satellites blocked,
 in-plane neighbours of the paper constellation in contact the whole horizon).
 tests/unit/test_scale_plans.py: the plans of 96 and 240 satellites against a brute-force line of
-sight at random instants; tests/unit/test_speed_paths.py: the pruned search equals the full one.
+sight at random instants; tests/unit/test_speed_paths.py: the pruned search equals the full one;
+tests/unit/test_fleet.py: with one range per satellite each pair's windows equal those of the pair's
+shorter range alone, and every contact runs at the lower rate of its two ends.
 """
 
 from __future__ import annotations
@@ -67,10 +74,11 @@ def los_clear(p1_km, p2_km, grazing_height_km: float = 80.0) -> np.ndarray:
 
 
 def isl_windows(constellation: Constellation, t0_s: float, t1_s: float, *, grazing_height_km: float = 80.0,
-                max_range_km: float = 6000.0, step_s: float = 10.0, tol_s: float = 1e-3, refine: bool = True,
+                max_range_km=6000.0, step_s: float = 10.0, tol_s: float = 1e-3, refine: bool = True,
                 prune: bool = True):
     """Undirected ISL windows: (i, j, start_s, end_s) arrays with i < j satellite indices, ordered by
-    pair (i, then j), then time.
+    pair (i, then j), then time. ``max_range_km``: one range [km] or one per satellite (a pair's is
+    the shorter of its two).
 
     ``refine=False`` gives the bare grid (edges at the samples): the brute-force reference.
     ``prune`` (with ``refine``): sample only the pairs and times that can be within ``max_range_km``
@@ -81,23 +89,35 @@ def isl_windows(constellation: Constellation, t0_s: float, t1_s: float, *, grazi
     I, J = np.triu_indices(n, k=1)
     t = time_grid(t0_s, t1_s, step_s)
     r = constellation.positions_ecef_km(t)
+    rng = np.asarray(max_range_km, dtype=float)
+    if rng.ndim:
+        if rng.shape != (n,):
+            raise ValueError(f"isl_windows: max_range_km must be one range or one per satellite ({n}), got {rng.shape}")
+        pair_rng = np.minimum(rng[I], rng[J])
+        longest = float(rng.max()) if n else 0.0
+    else:
+        pair_rng = longest = float(rng)
+
+    def pair_range(idx):
+        return pair_rng if np.ndim(pair_rng) == 0 else pair_rng[idx]
 
     def margin_at(idx, tt):
         a = constellation.positions_ecef_km_at(I[idx], tt)
         b = constellation.positions_ecef_km_at(J[idx], tt)
-        return np.minimum(los_clearance_km(a, b, grazing_height_km), max_range_km - np.linalg.norm(a - b, axis=-1))
+        return np.minimum(los_clearance_km(a, b, grazing_height_km), pair_range(idx) - np.linalg.norm(a - b, axis=-1))
 
     if refine and prune and I.size:
-        segs = _candidate_segments(constellation, t, r, max_range_km)
+        segs = _candidate_segments(constellation, t, r, longest)
         if segs is not None:
-            si, ks, ke = _runs_in_segments(r, I, J, *segs, grazing_height_km, max_range_km)
+            si, ks, ke = _runs_in_segments(r, I, J, *segs, grazing_height_km, pair_rng)
             st, en = refine_runs(t, si, ks, ke, margin_at, tol_s)
             return I[si], J[si], st, en
     margin = np.empty((I.size, t.size))
     chunk = max(1, 4_000_000 // max(1, I.size))
     for c0 in range(0, t.size, chunk):
         a, b = r[I, c0:c0 + chunk], r[J, c0:c0 + chunk]
-        margin[:, c0:c0 + chunk] = _margin(a, b, grazing_height_km, max_range_km)
+        margin[:, c0:c0 + chunk] = _margin(a, b, grazing_height_km,
+                                           pair_rng if np.ndim(pair_rng) == 0 else pair_rng[:, None])
     if refine:
         k, st, en = windows_from_margin(t, margin, margin_at, tol_s)
     else:
@@ -159,10 +179,10 @@ def _candidate_segments(constellation: Constellation, t: np.ndarray, r: np.ndarr
 
 
 def _runs_in_segments(r: np.ndarray, I: np.ndarray, J: np.ndarray, pair: np.ndarray, first: np.ndarray,
-                      last: np.ndarray, grazing_height_km: float, max_range_km: float, chunk: int = 1_000_000):
+                      last: np.ndarray, grazing_height_km: float, max_range_km, chunk: int = 1_000_000):
     """Runs of positive margin (pair, first inside sample, sample after) of the spans of
     :func:`_candidate_segments`, as :func:`orbit_clock.windows.true_runs` gives them on the full
-    grid (ordered by pair, then time)."""
+    grid (ordered by pair, then time); ``max_range_km`` one range or one per pair."""
     length = last - first + 1
     m = int(length.sum())
     seg_of = np.repeat(np.arange(pair.size), length)
@@ -172,7 +192,8 @@ def _runs_in_segments(r: np.ndarray, I: np.ndarray, J: np.ndarray, pair: np.ndar
     for c0 in range(0, m, chunk):
         sl = slice(c0, c0 + chunk)
         p = pair[seg_of[sl]]
-        inside[sl] = _margin(r[I[p], k[sl]], r[J[p], k[sl]], grazing_height_km, max_range_km) > 0
+        lim = max_range_km if np.ndim(max_range_km) == 0 else max_range_km[p]
+        inside[sl] = _margin(r[I[p], k[sl]], r[J[p], k[sl]], grazing_height_km, lim) > 0
     seg_start = np.zeros(m, dtype=bool)
     seg_start[np.cumsum(length) - length] = True
     prev = np.concatenate([[False], inside[:-1]]) & ~seg_start
@@ -191,8 +212,12 @@ def isl_contact_plan(scenario, constellation: Constellation | None = None, *, st
     """Directed ISL contacts (both ways) over the scenario horizon; see the module docstring."""
     c = constellation or build_constellation(scenario)
     isl = scenario.isl
+    per = getattr(scenario, "sat_params", None)  # one radio per satellite (module docstring)
+    rates = np.array([p.isl_rate_bps for p in per]) if per else np.full(len(c), float(isl.rate_bps))
+    ranges = np.array([p.isl_max_range_km for p in per]) if per else np.full(len(c), float(isl.max_range_km))
+    uniform = bool(len(c)) and (ranges == ranges[0]).all()
     i, j, st, en = isl_windows(c, 0.0, float(scenario.scenario.horizon_s), grazing_height_km=isl.grazing_height_km,
-                               max_range_km=isl.max_range_km, step_s=step_s, tol_s=tol_s)
+                               max_range_km=float(ranges[0]) if uniform else ranges, step_s=step_s, tol_s=tol_s)
     keep = en > st
     i, j, st, en = i[keep], j[keep], st[keep], en[keep]
     n = 21  # range samples per window, ends included
@@ -202,6 +227,7 @@ def isl_contact_plan(scenario, constellation: Constellation | None = None, *, st
     for a, b, s0, s1, lt in zip(i, j, st, en, light_s):
         na, nb = c.names[a], c.names[b]
         s0, s1 = round(float(s0), 3), round(float(s1), 3)
-        contacts.append(Contact(s0, s1, na, nb, float(isl.rate_bps), float(lt)))
-        contacts.append(Contact(s0, s1, nb, na, float(isl.rate_bps), float(lt)))
+        rate = float(min(rates[a], rates[b]))
+        contacts.append(Contact(s0, s1, na, nb, rate, float(lt)))
+        contacts.append(Contact(s0, s1, nb, na, rate, float(lt)))
     return ContactPlan(contacts)

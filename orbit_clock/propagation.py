@@ -4,7 +4,10 @@ Implements SGP4 as in Vallado, Crawford, Hujsak, Kelso, "Revisiting Spacetrack R
 AIAA 2006-6753, through the ``sgp4`` package (the authors' C++ core). Each satellite is built with
 ``sgp4init`` (WGS-84 constants, improved mode, no drag) from its Walker elements at the scenario
 epoch; the Kozai mean motion given to SGP4 is solved (fixed point, 1e-9 relative) so that SGP4's
-Brouwer mean semi-major axis equals ``sma_km`` exactly. Positions come out in TEME and, rotated by
+Brouwer mean semi-major axis equals ``sma_km`` exactly. A catalogue satellite (a TLE or OMM element
+set, orbit_clock/elements.py) is built from its own elements at their own epoch with the WGS-72
+constants they were fitted with; SGP4 propagates it from there to the scenario's times (one
+``SatrecArray`` holds both kinds: every record carries its own constants and epoch). Positions come out in TEME and, rotated by
 GMST-82 (orbit_clock.frames), in the Earth-fixed frame.
 
 Times: ``t_s`` float seconds since the scenario epoch (the wire uses integer t_ns; convert with
@@ -24,6 +27,7 @@ import math
 import numpy as np
 from sgp4.api import WGS84, Satrec, SatrecArray, jday
 
+from orbit_clock.elements import ElementSet
 from orbit_clock.frames import gmst_rad, teme_to_ecef
 from orbit_clock.walker import WalkerElements, walker_elements
 
@@ -42,7 +46,9 @@ def _jd_fr(epoch: _dt.datetime) -> tuple[float, float]:
     return jday(e.year, e.month, e.day, e.hour, e.minute, e.second + e.microsecond * 1e-6)
 
 
-def _satrec_from(el: WalkerElements, satnum: int) -> Satrec:
+def _satrec_from(el: WalkerElements | ElementSet, satnum: int) -> Satrec:
+    if isinstance(el, ElementSet):
+        return el.satrec()
     jd, fr = _jd_fr(el.epoch)
     epoch_days = (jd - _SGP4_EPOCH0_JD) + fr
     n_rad_min = math.sqrt(MU_WGS84_KM3_S2 / el.sma_km**3) * 60.0
@@ -60,11 +66,12 @@ def _satrec_from(el: WalkerElements, satnum: int) -> Satrec:
 class Constellation:
     """Satellites propagated together with SGP4.
 
-    names: sat_PS names (scenario.sat_names order); elements: WalkerElements per satellite;
-    epoch: scenario epoch (UTC datetime). Methods take ``t_s`` [s since epoch], 1-D.
+    names: satellite names (scenario.sat_names order); elements: WalkerElements or ElementSet per
+    satellite; epoch: scenario epoch (UTC datetime). Methods take ``t_s`` [s since epoch], 1-D.
+    Pickles as its elements and epoch (the SGP4 records are rebuilt on load).
     """
 
-    def __init__(self, elements: list[WalkerElements], epoch: _dt.datetime):
+    def __init__(self, elements: list[WalkerElements | ElementSet], epoch: _dt.datetime):
         self.elements = list(elements)
         self.names = [e.name for e in self.elements]
         self.epoch = epoch
@@ -74,6 +81,9 @@ class Constellation:
 
     def __len__(self) -> int:
         return len(self.names)
+
+    def __reduce__(self):
+        return (Constellation, (self.elements, self.epoch))
 
     def index(self, name: str) -> int:
         try:
@@ -149,7 +159,12 @@ class Constellation:
 
 
 def build_constellation(scenario) -> Constellation:
-    """The scenario's Walker constellation at its epoch (names in scenario.sat_names order)."""
+    """The scenario's constellation at its epoch (names in scenario.sat_names order): its
+    ``orbit_elements`` (bringup/scenario/fleet.py: Walker and catalogue satellites), or for a plain
+    Walker description its ``constellation`` keys."""
+    els = getattr(scenario, "orbit_elements", None)
+    if els is not None:
+        return Constellation(els, scenario.epoch)
     c = scenario.constellation
     els = walker_elements(pattern=c.pattern, total_sats=c.total_sats, planes=c.planes, phasing_f=c.phasing_f,
                           altitude_km=c.altitude_km, inclination_deg=c.inclination_deg, raan0_deg=c.raan0_deg,

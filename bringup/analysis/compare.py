@@ -349,6 +349,10 @@ def scenario_variant(sc, *, replan_period_s: float | None = None, isl_rate_bps: 
     if isl_rate_bps is not None:
         raw["isl"]["rate_bps"] = float(isl_rate_bps)
     if sats_per_plane is not None:
+        if not isinstance(raw["constellation"], dict) or raw["constellation"].get("tle_file") \
+                or raw["constellation"].get("omm_file"):
+            raise UserError("satellites per plane: varies a single Walker shell, and this constellation is "
+                            "another (catalogue or mixed)")
         raw["constellation"]["total_sats"] = int(sats_per_plane) * raw["constellation"]["planes"]
     if n_stations is not None:
         st = raw["ground"]["stations"]

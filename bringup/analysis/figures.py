@@ -38,7 +38,7 @@ from matplotlib.collections import PolyCollection
 from matplotlib.figure import Figure
 from matplotlib.patches import Patch, Rectangle
 
-from msgs_json.names import is_sat_name, sat_plane_slot
+from msgs_json.names import is_catalogue_name, is_sat_name, sat_plane_slot
 
 __all__ = [
     "PlotError",
@@ -110,7 +110,8 @@ def _get(obj: Any, key: str, default: Any = None) -> Any:
 
 
 def _plane_of(name: str) -> str:
-    return str(sat_plane_slot(name)[0]) if is_sat_name(name) else name
+    """A Walker satellite's plane number; a catalogue satellite (sat_n<NORAD>) is its own group."""
+    return str(sat_plane_slot(name)[0]) if is_sat_name(name) and not is_catalogue_name(name) else name
 
 
 def _colors(n: int) -> list:

@@ -9,6 +9,7 @@ import csv
 import json
 
 from bringup.cli.common import add_out_arg, add_scenario_args, output_stream, scenario_from_args
+from bringup.scenario.world import for_deg_per_sat
 from orbit_clock.access import access_windows
 from orbit_clock.ground_points import ground_points
 from orbit_clock.propagation import build_constellation
@@ -26,7 +27,7 @@ def run(args) -> int:
     sc = scenario_from_args(args)
     cons = build_constellation(sc)
     gps = ground_points(sc)
-    win = access_windows(cons, gps, 0.0, float(sc.scenario.horizon_s), sc.instrument.for_off_nadir_deg)
+    win = access_windows(cons, gps, 0.0, float(sc.scenario.horizon_s), for_deg_per_sat(sc))
     rows = list(win.rows(gps))
     with output_stream(args.out) as out:
         if args.format == "csv":
@@ -36,7 +37,7 @@ def run(args) -> int:
                 w.writerow([r["sat"], r["region"], r["gp"], f"{r['lat_deg']:.6f}", f"{r['lon_deg']:.6f}",
                             f"{r['start_s']:.3f}", f"{r['end_s']:.3f}", f"{r['min_off_nadir_deg']:.4f}"])
         else:
-            json.dump({"scenario": sc.name, "epoch_utc": sc.scenario.epoch_utc,
-                       "max_off_nadir_deg": sc.instrument.for_off_nadir_deg, "windows": rows}, out, indent=1)
+            json.dump({"scenario": sc.name, "epoch_utc": sc.epoch_iso,
+                       "max_off_nadir_deg": win.max_off_nadir_deg, "windows": rows}, out, indent=1)
             out.write("\n")
     return 0

@@ -66,6 +66,11 @@ def add_scenario_args(p: argparse.ArgumentParser, *, overrides: bool = True, kno
     p.add_argument("--scenario", default="paper", help="scenario name or TOML path (default: paper)")
     if sets:
         add_set_arg(p)
+    p.add_argument("--tle", action="append", default=None, metavar="FILE",
+                   help="fly the satellites of this TLE / 3LE file instead of the scenario's constellation "
+                        "(repeatable; named sat_n<NORAD>; the epoch is the elements')")
+    p.add_argument("--omm", action="append", default=None, metavar="FILE",
+                   help="fly the satellites of this CCSDS OMM file (XML, KVN or JSON; repeatable), as --tle")
     if overrides:
         p.add_argument("--sats", type=int, default=None,
                        help=f"number of satellites, 1..{MAX_SATS}; named sat_PS up to 9 planes x 9, "
@@ -123,20 +128,24 @@ def add_knowledge_args(p: argparse.ArgumentParser) -> None:
 
 def overrides_of(args: argparse.Namespace) -> dict:
     """The scenario overrides given on the command line, as ``Scenario.with_overrides`` keywords
-    (None: not given)."""
+    (None: not given), and ``tle`` / ``omm``: the element files of ``--tle`` / ``--omm`` (absolute
+    paths, ``Scenario.with_catalogue``)."""
     kw = {k: getattr(args, k, None) for k in _OVERRIDES if k != "joint_planning"}
     planning = getattr(args, "planning", None)
     kw["joint_planning"] = None if planning is None else planning == "joint"
     regions = getattr(args, "regions", None)
     kw["regions"] = None if regions is None else regions_arg(regions)
+    for k in ("tle", "omm"):
+        files = getattr(args, k, None)
+        kw[k] = [str(Path(f).expanduser().resolve()) for f in files] if files else None
     return kw
 
 
 def scenario_from_args(args: argparse.Namespace) -> Scenario:
     """The scenario with the command line's overrides, refused when it would not fit in memory
     (bringup/scenario/limits.py: the estimate is named)."""
-    sc = load_scenario(args.scenario)
     kw = overrides_of(args)
+    sc = load_scenario(args.scenario).with_catalogue(kw.pop("tle") or (), kw.pop("omm") or ())
     if kw["gp_spacing_km"] is not None and not kw["gp_spacing_km"] > 0:
         raise UserError(f"--gp-spacing-km {kw['gp_spacing_km']}: must be > 0")
     if any(v is not None for v in kw.values()):

@@ -74,7 +74,7 @@ def _compare(args, sc, seeds: list[int], out: Path) -> None:
     def say(*a) -> None:
         print(*a, file=sys.stderr)
 
-    say(f"compare: {sc.name}, {sc.constellation.total_sats} satellites, {sc.scenario.horizon_s / 3600:g} h, "
+    say(f"compare: {sc.name}, {sc.n_sats} satellites, {sc.scenario.horizon_s / 3600:g} h, "
         f"seeds {seeds}, engine {args.engine} -> {out}")
     extra = []
     if args.knowledge is not None:
@@ -107,7 +107,7 @@ def _compare(args, sc, seeds: list[int], out: Path) -> None:
     if not args.no_plots:
         extra_plots = _plots(out, seeds[0], res, sc, args)
     write_text_atomic(out / "compare.json", json_text(res, indent=2, sort_keys=True) + "\n")
-    title = (f"# Compare: {sc.name}, {sc.constellation.total_sats} satellites, {sc.scenario.horizon_s / 3600:g} h, "
+    title = (f"# Compare: {sc.name}, {sc.n_sats} satellites, {sc.scenario.horizon_s / 3600:g} h, "
              f"seeds {seeds}, engine {args.engine}, knowledge {sc.value.knowledge}, transiency "
              f"{sc.value.transiency_min:g} min (0: slow)")
     md = [title, "",

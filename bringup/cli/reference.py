@@ -53,6 +53,8 @@ def _type_name(t) -> str:
 
 
 def _limits(t) -> str:
+    if isinstance(t, msgspec.inspect.UnionType):  # an optional key: the limits of its value
+        return ", ".join(x for x in (_limits(u) for u in t.types) if x)
     parts = []
     for attr, sym in _LIMITS:
         v = getattr(t, attr, None)
@@ -69,6 +71,8 @@ def _default(f) -> str:
     d = f.default if f.default is not msgspec.NODEFAULT else f.default_factory()
     if isinstance(d, msgspec.Struct):
         return "(table)"
+    if d is None:  # a key that may be left out (e.g. a constellation group's override: the scenario's)
+        return "optional"
     if isinstance(d, str):
         return f'`"{d}"`'
     if isinstance(d, bool):

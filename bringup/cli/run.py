@@ -194,7 +194,7 @@ def _space_note(out: Path) -> str:
 def _run(sc, cuts, out: Path, bag_dir: Path, args, folder: RunFolder, per_process: int, keys) -> int:
     def say(*a) -> None:
         print(*a, file=sys.stderr)
-    say(f"run: {sc.name}, {sc.constellation.total_sats} satellites, {sc.scenario.horizon_s / 3600:g} h, "
+    say(f"run: {sc.name}, {sc.n_sats} satellites, {sc.scenario.horizon_s / 3600:g} h, "
         f"mode {args.mode}, engine {args.engine}"
         + (f" ({per_process} satellites per process)" if per_process > 1 else "") + f" -> {out}")
     say(f"run: BPSec key {keys.bpsec_from}")

@@ -144,7 +144,7 @@ def _base_scenario(args):
 def _rows_plan(sc, args) -> list[tuple[str, float, str, dict, bool]]:
     """The named sweeps' rows: (parameter, value, mode, compare.scenario_variant keywords, is the
     scenario's own value)."""
-    s, i, c = sc.scheduler, sc.isl, sc.constellation
+    s, i, c = sc.scheduler, sc.isl, sc.walker
 
     def opt(dest: str) -> str:
         v = getattr(args, dest, None)
@@ -163,7 +163,7 @@ def _rows_plan(sc, args) -> list[tuple[str, float, str, dict, bool]]:
                 plan.append(("sats_per_plane", int(v), m, {"sats_per_plane": int(v)}))
     if "n_stations" in only:
         plan += [("n_stations", int(v), "centralized", {"n_stations": int(v)}) for v in _floats(opt("stations"), "stations")]
-    base = {"replan_period_s": s.replan_period_s, "isl_rate_bps": i.rate_bps, "sats_per_plane": c.sats_per_plane,
+    base = {"replan_period_s": s.replan_period_s, "isl_rate_bps": i.rate_bps, "sats_per_plane": c.sats_per_plane if c else None,
             "n_stations": len(sc.ground.stations)}
     return [(p, v, m, ch, base[p] == v) for p, v, m, ch in plan]
 
@@ -177,7 +177,10 @@ def preset_sets(sc, param: str, v) -> tuple:
     if param == "isl_rate_bps":
         return (("isl.rate_bps", float(v)),)
     if param == "sats_per_plane":
-        return (("constellation.total_sats", int(v) * sc.constellation.planes),)
+        if sc.walker is None:
+            raise UserError("the satellites-per-plane sweep needs a Walker shell (the scenario flies catalogue "
+                            "satellites only)")
+        return (("constellation.total_sats", int(v) * sc.walker.planes),)
     if param == "n_stations":
         st = msgspec.to_builtins(sc.ground.stations)
         if not 0 <= v <= len(st):
@@ -213,15 +216,15 @@ def run(args: argparse.Namespace) -> int:
         print(*a, file=sys.stderr)
 
     with RunFolder(out, outputs=("sweep.json", "sweep.md", "sweep.csv", "plots")) as folder:
-        say(f"sweep: {sc.name}, {sc.constellation.total_sats} satellites, {sc.scenario.horizon_s / 3600:g} h, "
+        say(f"sweep: {sc.name}, {sc.n_sats} satellites, {sc.scenario.horizon_s / 3600:g} h, "
             f"{len(cells)} cells x {len(seeds)} seeds {seeds}, engine {args.engine} -> {folder.path}")
         reports = run_all(runs, write_text_atomic, json_text, say=say)
-        res = {"scenario": sc.name, "sats": sc.constellation.total_sats, "hours": sc.scenario.horizon_s / 3600,
+        res = {"scenario": sc.name, "sats": sc.n_sats, "hours": sc.scenario.horizon_s / 3600,
                "seed": sc.scenario.seed, "engine": args.engine, "modes": list(dict.fromkeys(c.mode for c in cells)),
                "axes": axis_names, "csv": "sweep.csv",
                **summary(cells, reports, seeds, metrics)}
         if plan is not None:
-            n_sats = {r.cell.id: r.scenario.constellation.total_sats for r in runs}
+            n_sats = {r.cell.id: r.scenario.n_sats for r in runs}
             res["rows"] = _preset_rows(plan, cells, res["cells"], n_sats)
             md = table_markdown(res)
         else:
@@ -236,7 +239,7 @@ def run(args: argparse.Namespace) -> int:
             from bringup.analysis.grid_figures import plot_sweep
 
             plots = plot_sweep(folder.path / "plots", res, axis_names,
-                               title=f"{sc.name}: {sc.constellation.total_sats} satellites, "
+                               title=f"{sc.name}: {sc.n_sats} satellites, "
                                      f"{sc.scenario.horizon_s / 3600:g} h, {len(seeds)} seeds, {args.engine} engine")
         md += "".join(f"\n\n![{p.stem}](plots/{p.name})" for p in plots)
         write_text_atomic(folder.path / "sweep.md", md + "\n")
@@ -351,7 +354,7 @@ def _run_transiency(sc, args) -> int:
         raise UserError(f"--seeds {args.seeds}: must be >= 1")
     seeds = [sc.scenario.seed + k for k in range(args.seeds)]
     rows = transiency_rows(sc, minutes, seeds, say=lambda *a: print(*a, file=sys.stderr))
-    res = {"scenario": sc.name, "sats": sc.constellation.total_sats, "hours": sc.scenario.horizon_s / 3600,
+    res = {"scenario": sc.name, "sats": sc.n_sats, "hours": sc.scenario.horizon_s / 3600,
            "seeds": seeds, "knowledge": sc.value.knowledge, "rows": rows,
            "statistics": {"mean": "mean of the per-seed ratios",
                           "sd": "sample standard deviation of the per-seed ratios (n - 1); null for one seed",
@@ -368,7 +371,7 @@ def _run_transiency(sc, args) -> int:
         from bringup.analysis.figures import plot_transiency_sweep
 
         plot_transiency_sweep(args.out / "transiency.png", rows,
-                              title=f"{sc.name}: {sc.constellation.total_sats} satellites, "
+                              title=f"{sc.name}: {sc.n_sats} satellites, "
                                     f"{sc.scenario.horizon_s / 3600:g} h, {len(seeds)} seeds, {sc.value.knowledge} knowledge")
     print(json.dumps(res) if args.json else md)
     return 0

@@ -18,7 +18,9 @@ from typing import Annotated, List, Literal
 
 import msgspec
 
-from msgs_json.names import MAX_PLANES, MAX_SATS, MAX_STATIONS, constellation_limits_error
+from bringup.scenario import fleet
+from bringup.scenario.groups import ConstellationCfg, group_errors
+from msgs_json.names import MAX_SATS, MAX_STATIONS
 from msgs_json.names import sat_names as _sat_names
 from msgs_json.text_input import TextInputError, read_text
 
@@ -52,24 +54,12 @@ class _S(msgspec.Struct, forbid_unknown_fields=True, frozen=True, kw_only=True):
 
 class ScenarioMeta(_S, kw_only=True):
     name: Name
-    epoch_utc: str
+    # "" (or absent): the newest catalogue element set's epoch, or with a Walker shell alone the
+    # study's 2000-01-01T11:59:28Z (bringup/scenario/fleet.py)
+    epoch_utc: str = ""
     horizon_s: Pos
     seed: Annotated[int, msgspec.Meta(ge=0)] = 1
     lockstep_max_step_s: Pos = 10.0
-
-
-class ConstellationCfg(_S, kw_only=True):
-    pattern: Literal["star", "delta"] = "star"
-    total_sats: Annotated[int, msgspec.Meta(ge=1, le=MAX_SATS)]
-    planes: Annotated[int, msgspec.Meta(ge=1, le=MAX_PLANES)]
-    phasing_f: Annotated[int, msgspec.Meta(ge=0)] = 1
-    altitude_km: Annotated[float, msgspec.Meta(gt=150, lt=40000)]
-    inclination_deg: Annotated[float, msgspec.Meta(ge=0, le=180)]
-    raan0_deg: Annotated[float, msgspec.Meta(ge=0, lt=360)] = 0.0
-
-    @property
-    def sats_per_plane(self) -> int:
-        return self.total_sats // self.planes
 
 
 class InstrumentCfg(_S, kw_only=True):
@@ -230,7 +220,8 @@ class GroundCfg(_S, kw_only=True):
 
 class Scenario(_S, kw_only=True):
     scenario: ScenarioMeta
-    constellation: ConstellationCfg
+    # one group (a table) or several ([[constellation]]): bringup/scenario/fleet.py
+    constellation: ConstellationCfg | Annotated[list[ConstellationCfg], msgspec.Meta(min_length=1, max_length=64)]
     instrument: InstrumentCfg = InstrumentCfg()
     acs: AcsCfg
     regions: RegionsCfg
@@ -248,8 +239,43 @@ class Scenario(_S, kw_only=True):
         return self.scenario.name
 
     @property
+    def groups(self) -> list[ConstellationCfg]:
+        """The constellation's groups (one for a single [constellation] table)."""
+        c = self.constellation
+        return list(c) if isinstance(c, list) else [c]
+
+    @property
+    def walker(self) -> ConstellationCfg | None:
+        """The Walker shell of the constellation (at most one), or None."""
+        return next((g for g in self.groups if g.is_walker), None)
+
+    @property
     def epoch(self) -> _dt.datetime:
-        return _parse_epoch(self.scenario.epoch_utc)
+        """scenario.epoch_utc, or (none given) the newest catalogue element set's epoch, or with a
+        Walker shell alone the study's (fleet.WALKER_EPOCH)."""
+        if self.scenario.epoch_utc:
+            return _parse_epoch(self.scenario.epoch_utc)
+        return fleet.default_epoch(self)
+
+    @property
+    def epoch_iso(self) -> str:
+        """The run's epoch as UTC ISO 8601 text ending in Z (scenario.epoch_utc, or the elements')."""
+        e = self.epoch
+        return e.strftime("%Y-%m-%dT%H:%M:%S") + (f".{e.microsecond:06d}".rstrip("0") if e.microsecond else "") + "Z"
+
+    @property
+    def n_sats(self) -> int:
+        return len(self.sat_names)
+
+    @property
+    def orbit_elements(self) -> list:
+        """Every satellite's elements, in sat_names order (orbit_clock WalkerElements / ElementSet)."""
+        return fleet.resolve(self).elements
+
+    @property
+    def sat_params(self) -> list:
+        """Every satellite's payload and bus (fleet.SatParams), in sat_names order."""
+        return fleet.resolve(self).params
 
     @property
     def epoch_ns(self) -> int:
@@ -268,7 +294,11 @@ class Scenario(_S, kw_only=True):
 
     @property
     def sat_names(self) -> list[str]:
-        return sat_names(self.constellation.planes, self.constellation.sats_per_plane)
+        """Walker shell first (plane-major), then each catalogue group's satellites in file order."""
+        c = self.constellation
+        if not isinstance(c, list) and c.is_walker:
+            return sat_names(c.planes, c.sats_per_plane)
+        return fleet.resolve(self).names
 
     def with_overrides(self, *, sats: int | None = None, hours: float | None = None,
                        seed: int | None = None, planes: int | None = None, knowledge: str | None = None,
@@ -294,10 +324,14 @@ class Scenario(_S, kw_only=True):
                               ("isl", "forwarding", forwarding)):
             if v is not None:
                 raw[table][key] = float(v) if isinstance(v, int) and not isinstance(v, bool) else v
-        c = raw["constellation"]
+        groups = raw["constellation"] if isinstance(raw["constellation"], list) else [raw["constellation"]]
+        c = next((g for g in groups if not (g.get("tle_file") or g.get("omm_file"))), None)
+        if c is None and (planes is not None or sats is not None):
+            raise ScenarioError(f"{self.source_path or '<overrides>'}: --sats / --planes size a Walker shell, and "
+                                "this constellation has none (its satellites come from element files)")
         if planes is not None:
             c["planes"] = planes
-            if planes >= 1 and not 0 <= c["phasing_f"] < max(planes, 2):
+            if planes >= 1 and not 0 <= c.get("phasing_f", 1) < max(planes, 2):
                 c["phasing_f"] = 1 % planes
         if sats is not None:
             c["total_sats"] = sats
@@ -317,6 +351,20 @@ class Scenario(_S, kw_only=True):
             raw["regions"]["list"] = [dict(r) for r in regions]
         return _validate(raw, self.source_path or "<overrides>")
 
+
+    def with_catalogue(self, tle: list[str] | tuple = (), omm: list[str] | tuple = ()) -> Scenario:
+        """A copy whose constellation is the satellites of the given TLE and OMM files (the CLI's
+        ``--tle FILE`` / ``--omm FILE``, each repeatable), one group per file in that order, with the
+        scenario's payload and bus; the epoch is then the elements' (scenario.epoch_utc dropped)."""
+        if not tle and not omm:
+            return self
+        raw = msgspec.to_builtins(self)
+        raw.pop("source_path", None)
+        groups = [{"tle_file": str(Path(p).expanduser().resolve())} for p in tle]
+        groups += [{"omm_file": str(Path(p).expanduser().resolve())} for p in omm]
+        raw["constellation"] = groups
+        raw["scenario"].pop("epoch_utc", None)
+        return _validate(raw, self.source_path or "<overrides>")
 
 def sat_names(planes: int, per_plane: int) -> list[str]:
     """Satellite names in plane-major order: ``sat_PS`` (plane P 1.., slot S 1..), as the study's
@@ -446,7 +494,12 @@ def _validate(raw: dict, where: str) -> Scenario:
             raise ScenarioError(f"{where}: {msg}") from None
         raise ScenarioError(f"{where}: {msg}") from None
     _cross_checks(sc, where)
-    return msgspec.structs.replace(sc, source_path=where)
+    sc = msgspec.structs.replace(sc, source_path=where)
+    try:
+        fleet.check(sc)
+    except fleet.FleetError as exc:
+        raise ScenarioError(f"{where}: key '{exc.key}': {exc}") from None
+    return sc
 
 
 def _cross_checks(sc: Scenario, where: str) -> None:
@@ -454,15 +507,12 @@ def _cross_checks(sc: Scenario, where: str) -> None:
         raise ScenarioError(f"{where}: key '{key}': {why}")
 
     try:
-        _parse_epoch(sc.scenario.epoch_utc)
+        if sc.scenario.epoch_utc:
+            _parse_epoch(sc.scenario.epoch_utc)
     except ValueError as exc:
         bad("scenario.epoch_utc", f"{exc} (got {sc.scenario.epoch_utc!r})")
-    c = sc.constellation
-    why = constellation_limits_error(c.total_sats, c.planes)
-    if why is not None:
-        bad("constellation.total_sats", why)
-    if c.phasing_f >= c.planes and c.planes > 1:
-        bad("constellation.phasing_f", f"must be in 0..P-1 = 0..{c.planes - 1}, got {c.phasing_f}")
+    for key, why in group_errors(sc):
+        bad(key, why)
     v = sc.value
     if v.belief_sigma_min > v.belief_sigma_max:
         bad("value.belief_sigma_min", f"{v.belief_sigma_min} is above belief_sigma_max {v.belief_sigma_max}")

@@ -90,7 +90,7 @@ def estimate_bytes(sc: Scenario) -> dict[str, tuple[float, str]]:
     n_gp = sum(per_region)
     horizon = sc.scenario.horizon_s
     n_slots = max(1, math.ceil(horizon / sc.value.slot_s - 1e-9))  # (ground_station/osse.py)
-    n_sats = sc.constellation.total_sats
+    n_sats = sc.n_sats
     n_orbit = horizon / _ORBIT_STEP_S + 1
     n_access = horizon / _ACCESS_STEP_S + 1
     dp_steps = sc.scheduler.plan_lookahead_s / sc.scheduler.dp_step_s + 1

@@ -1,6 +1,8 @@
 """Everything a run derives from its scenario before the first step, computed once and cached.
 
-The world of a run is a pure function of the scenario (and its seed): the constellation (SGP4),
+The world of a run is a pure function of the scenario (its seed and its element files, whose
+contents enter the cache key): the constellation (SGP4; Walker and catalogue satellites,
+bringup/scenario/fleet.py, each with its own field of regard, slew model and ISL radio),
 the ground points, the OSSE value field, GP access windows over the horizon (bundle priority
 order), the ISL contact plan and the ground-station contact plan, and the planner every
 satellite and the ground segment plan with (sat_node.scheduler.planner). The ROS engine starts one
@@ -21,6 +23,7 @@ from pathlib import Path
 import msgspec
 import numpy as np
 
+from bringup.scenario import fleet
 from bringup.scenario.config import Scenario
 from bringup.scenario.limits import check_run_size
 from ground_station.osse_sources import osse_from_scenario
@@ -34,11 +37,12 @@ from orbit_clock import (
 )
 from orbit_clock.access import RegionPrefilter
 from orbit_clock.contact_plan import ContactPlan
+from orbit_clock.propagation import Constellation
 from sat_node.acs import SlewModel
 from sat_node.dtn.cgr import ContactGraph
-from sat_node.scheduler.planner import Planner, PlannerSettings
+from sat_node.scheduler.planner import Planner, PlannerSettings, SatPayload
 
-__all__ = ["OrbitContext", "World", "scenario_key"]
+__all__ = ["OrbitContext", "World", "for_deg_per_sat", "own_payloads", "scenario_key"]
 
 _FORMAT = 1
 
@@ -47,7 +51,10 @@ def scenario_key(sc: Scenario) -> str:
     """Stable hash of every scenario field (not where it was loaded from)."""
     raw = msgspec.to_builtins(sc)
     raw.pop("source_path", None)
-    blob = msgspec.json.encode({"format": _FORMAT, "scenario": raw})
+    doc = {"format": _FORMAT, "scenario": raw}
+    if fleet.element_files(sc):
+        doc["element_files"] = fleet.files_digest(sc)
+    blob = msgspec.json.encode(doc)
     return hashlib.sha256(blob).hexdigest()[:16]
 
 
@@ -74,10 +81,26 @@ class OrbitContext:
         """The scenario's planner: its orbits, GPs, slew model and settings, with the region
         pre-filter over the horizon (orbit_clock.access.RegionPrefilter) as its GP pre-filter."""
         sc = self.scenario
-        prefilter = RegionPrefilter(self.constellation, self.gps, sc.scenario.horizon_s,
-                                    sc.instrument.for_off_nadir_deg)
+        prefilter = RegionPrefilter(self.constellation, self.gps, sc.scenario.horizon_s, for_deg_per_sat(sc))
         return Planner(self.constellation, self.gps.ecef_km, self.slew, PlannerSettings.from_scenario(sc),
-                       candidates=prefilter.candidate_gp_ids)
+                       candidates=prefilter.candidate_gp_ids, own=own_payloads(sc))
+
+
+def for_deg_per_sat(sc: Scenario) -> np.ndarray:
+    """Every satellite's field of regard [deg], in sat_names order."""
+    return np.array([p.for_off_nadir_deg for p in sc.sat_params], dtype=float)
+
+
+def own_payloads(sc: Scenario) -> dict[str, SatPayload]:
+    """The satellites whose payload or slew model differ from the scenario's [instrument] / [acs]."""
+    base = (float(sc.instrument.for_off_nadir_deg), float(sc.instrument.footprint_km),
+            tuple(float(c) for c in sc.acs.slew_coeffs_s), float(sc.acs.slew_margin_s))
+    out = {}
+    for name, p in zip(sc.sat_names, sc.sat_params):
+        mine = (p.for_off_nadir_deg, p.footprint_km, p.slew_coeffs_s, p.slew_margin_s)
+        if mine != base:
+            out[name] = SatPayload(p.for_off_nadir_deg, p.footprint_km, SlewModel(p.slew_coeffs_s, p.slew_margin_s))
+    return out
 
 
 @dataclass
@@ -120,26 +143,27 @@ class World:
     def build(cls, sc: Scenario) -> "World":
         ctx = OrbitContext.from_scenario(sc)
         horizon_s = sc.scenario.horizon_s
-        acc = access_windows(ctx.constellation, ctx.gps, 0.0, horizon_s, sc.instrument.for_off_nadir_deg)
+        acc = access_windows(ctx.constellation, ctx.gps, 0.0, horizon_s, for_deg_per_sat(sc))
         isl = isl_contact_plan(sc, ctx.constellation)
         gnd = ground_contact_plan(sc, ctx.constellation) if sc.ground.stations else None
         if gnd is None:
             gnd = ContactPlan([])
         return cls(scenario=sc, ctx=ctx, access=acc, isl_plan=isl, ground_plan=gnd, key=scenario_key(sc))
 
-    # The SGP4 satellite records do not pickle: drop the constellation, rebuild it on load
-    # (a pure function of the scenario, milliseconds).
+    # The SGP4 satellite records do not pickle: keep the constellation's elements, rebuild it on
+    # load (milliseconds; the element files are not read again).
     def __getstate__(self):
         st = dict(self.__dict__)
         st.pop("_planner", None)
         st.pop("_graphs", None)
         ctx = self.ctx
-        st["ctx"] = {"gps": ctx.gps, "osse": ctx.osse, "slew": ctx.slew}
+        st["ctx"] = {"gps": ctx.gps, "osse": ctx.osse, "slew": ctx.slew,
+                     "elements": ctx.constellation.elements, "epoch": ctx.constellation.epoch}
         return st
 
     def __setstate__(self, st):
         c = st["ctx"]
-        st["ctx"] = OrbitContext(scenario=st["scenario"], constellation=build_constellation(st["scenario"]),
+        st["ctx"] = OrbitContext(scenario=st["scenario"], constellation=Constellation(c["elements"], c["epoch"]),
                                  gps=c["gps"], osse=c["osse"], slew=c["slew"])
         self.__dict__.update(st)
 

@@ -31,6 +31,11 @@ all plan here, with the same steps:
    satellite) keeps the K partners that may first see one of the planned satellite's GPs
    earliest (:meth:`Planner.group`); 0 keeps them all.
 
+A mixed fleet (bringup/scenario/fleet.py) gives satellites their own field of regard, footprint
+and slew model: ``Planner(own=...)`` maps a satellite's name to its :class:`SatPayload`; the
+instance of each satellite (its own or a partner's) is built with that satellite's, the others
+with the settings' and ``slew``.
+
 A planner holds only the scenario's fixed inputs (orbits, GPs, slew model, settings, pre-filter):
 everything that changes between calls - the satellite, the time, the window, the knowledge, the
 attitude - is an argument, so one planner serves every satellite and the ground in one process.
@@ -42,12 +47,14 @@ view reads every later time at the cut-off; the paper run's report and traces ar
 satellite and ground plan as before (tests/system/test_engines_equal.py for both engines).
 tests/unit/test_joint_bound.py: a bounded group is never larger than K, keeps the partners the rule
 names on a hand-drawn case, and with K at least the unbounded group's size plans exactly as unbounded.
+tests/unit/test_fleet.py: in a mixed fleet each satellite's instance has the FOR mask of its own angle
+and its own slew model, and the non-agile baseline its own footprint.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Protocol
 
 import numpy as np
@@ -60,7 +67,7 @@ from sat_node.scheduler.nonagile import solve_nonagile
 from sat_node.scheduler.problem import SchedulingProblem, build_problem
 from sat_node.value import Belief, KnownObservation, prior_state
 
-__all__ = ["SOLVERS", "Knowledge", "PersistenceView", "Planner", "PlannerSettings", "ValueSource"]
+__all__ = ["SOLVERS", "Knowledge", "PersistenceView", "Planner", "PlannerSettings", "SatPayload", "ValueSource"]
 
 
 class ValueSource(Protocol):
@@ -132,7 +139,16 @@ class PlannerSettings:
                    joint_max_partners=int(sc.scheduler.joint_max_partners))
 
 
-#: name -> solver(instance, settings) -> Plan
+@dataclass(frozen=True)
+class SatPayload:
+    """One satellite's own payload and bus when it differs from the settings' (a mixed fleet)."""
+
+    for_off_nadir_deg: float
+    footprint_km: float
+    slew: SlewModel
+
+
+#: name -> solver(instance, settings) -> Plan (settings: the planned satellite's footprint)
 SOLVERS: dict[str, Callable[[SchedulingProblem, PlannerSettings], Plan]] = {
     "dp": lambda p, st: solve_dp(p, check=True),
     "nonagile": lambda p, st: solve_nonagile(p, st.footprint_km),
@@ -145,12 +161,25 @@ class Planner:
     pre-filter (None: the exact FOR mask over every GP picks the columns)."""
 
     def __init__(self, constellation, gp_ecef_km: np.ndarray, slew: SlewModel, settings: PlannerSettings,
-                 candidates: Callable[[str, float, float], np.ndarray] | None = None):
+                 candidates: Callable[[str, float, float], np.ndarray] | None = None,
+                 own: dict[str, SatPayload] | None = None):
         self.constellation = constellation
         self.gp_ecef_km = gp_ecef_km
         self.slew = slew
         self.settings = settings
         self.candidates = candidates
+        self.own = dict(own or {})
+
+    def for_deg(self, sat: str) -> float:
+        """Satellite ``sat``'s field of regard [deg]."""
+        o = self.own.get(sat)
+        return self.settings.for_off_nadir_deg if o is None else o.for_off_nadir_deg
+
+    def _settings_of(self, sat: str) -> PlannerSettings:
+        o = self.own.get(sat)
+        if o is None:
+            return self.settings
+        return replace(self.settings, for_off_nadir_deg=o.for_off_nadir_deg, footprint_km=o.footprint_km)
 
     def plan(self, sat: str, t0_s: float, window_s: float, knowledge: Knowledge, *,
              init_target_km: np.ndarray | None = None, solver: str = "dp",
@@ -171,7 +200,7 @@ class Planner:
             group = self.group(sat, t0_s, window_s, knowledge, p, partners)
             if group:
                 return solve_joint([p] + group, budget_solves=self.settings.joint_budget_solves).plans[0]
-        return SOLVERS[solver](p, self.settings)
+        return SOLVERS[solver](p, self._settings_of(sat))
 
     def group(self, sat: str, t0_s: float, window_s: float, knowledge: Knowledge, mine: SchedulingProblem,
               partners: Sequence[tuple[str, float]] | None = None) -> list[SchedulingProblem]:
@@ -217,7 +246,7 @@ class Planner:
                 continue
             # a coarse look first (every 10 s, the FOR over my GPs): most candidates pass far off
             coarse = np.append(np.arange(start, end, 10.0), end - st.dp_step_s)
-            seen = for_mask(self.constellation.track_ecef_km(name, coarse), mine_km, st.for_off_nadir_deg).any(axis=1)
+            seen = for_mask(self.constellation.track_ecef_km(name, coarse), mine_km, self.for_deg(name)).any(axis=1)
             if not seen.any():
                 continue
             first_s = self._first_in_for_s(name, coarse, int(np.argmax(seen)), mine_km) if k else 0.0
@@ -244,7 +273,7 @@ class Planner:
         t0 = float(coarse_s[0])
         lo = t0 + step * (np.floor((coarse_s[j - 1] - t0) / step + 1e-9) + 1)
         fine = np.arange(lo, coarse_s[j] + 0.5 * step, step)
-        hit = for_mask(self.constellation.track_ecef_km(name, fine), gp_km, self.settings.for_off_nadir_deg).any(axis=1)
+        hit = for_mask(self.constellation.track_ecef_km(name, fine), gp_km, self.for_deg(name)).any(axis=1)
         return float(fine[np.argmax(hit)]) if hit.any() else float(coarse_s[j])
 
     def instance(self, sat: str, t0_s: float, knowledge: Knowledge, *, window_s: float | None = None,
@@ -264,7 +293,7 @@ class Planner:
         times = t0_s + step * np.arange(n)
         sat_pos = self.constellation.track_ecef_km(sat, times)
         all_gp = self.gp_ecef_km if gp_ids is None else self.gp_ecef_km[np.asarray(gp_ids)]
-        vis = for_mask(sat_pos, all_gp, st.for_off_nadir_deg)
+        vis = for_mask(sat_pos, all_gp, self.for_deg(sat))
         if gp_ids is None:
             ids = np.flatnonzero(vis.any(axis=0))
             vis = vis[:, ids]
@@ -287,7 +316,8 @@ class Planner:
         if init_target_km is not None and init_t_s is not None:
             init_pos = self.constellation.track_ecef_km(sat, np.array([float(init_t_s)]))[0]
         return build_problem(t0_s=t0_s, step_s=step, sat_pos_km=sat_pos, gp_ecef_km=self.gp_ecef_km[ids],
-                             in_for=vis, absval=absval, slew=self.slew, revisit_zero_s=st.revisit_zero_s,
+                             in_for=vis, absval=absval, slew=self.own[sat].slew if sat in self.own else self.slew,
+                             revisit_zero_s=st.revisit_zero_s,
                              gp_ids=ids, prior_count=count, prior_recent=recent,
                              init_target_km=init_target_km, init_sat_pos_km=init_pos,
                              ready_t_s=init_t_s if init_pos is not None else None, sat_name=sat)
@@ -296,6 +326,6 @@ class Planner:
         """Times [s] (on a step_s grid) when some GP enters the satellite's FOR after none was in it."""
         times = np.arange(t0_s, t1_s, step_s)
         pos = self.constellation.track_ecef_km(sat, times)
-        vis = for_mask(pos, self.gp_ecef_km, self.settings.for_off_nadir_deg).any(axis=1)
+        vis = for_mask(pos, self.gp_ecef_km, self.for_deg(sat)).any(axis=1)
         rise = np.flatnonzero(vis & ~np.concatenate([[False], vis[:-1]]))
         return times[rise]

@@ -173,3 +173,47 @@ def test_a_whole_run_with_long_names(tmp_path):
             elif env.topic.endswith("/observations"):
                 assert codec.decode(env.topic, env.data).sat == topics.sat_of_topic(env.topic)
     assert seen_src and seen_src <= names and seen_dst and seen_dst <= names
+
+
+def test_catalogue_names_never_meet_walker_or_station_numbers():
+    """sat_n<NORAD> (a TLE / OMM satellite): valid ROS name, node number 10^8 + NORAD, above every
+    Walker number (sat_9999_9999 = 99999999) and the stations'; round trips through every reader."""
+    from msgs_json.names import (
+        CATALOGUE_NODE_BASE,
+        MAX_NORAD,
+        catalogue_sat_name,
+        is_catalogue_name,
+        sat_norad,
+    )
+
+    for norad in (1, 5, 40697, 99999, 339999, MAX_NORAD):
+        name = catalogue_sat_name(norad)
+        assert name == f"sat_n{norad}" and is_sat_name(name) and is_catalogue_name(name)
+        assert sat_number(name) == CATALOGUE_NODE_BASE + norad and sat_from_number(sat_number(name)) == name
+        assert sat_norad(name) == norad
+        assert topics.dtn_in_topic(name) == f"/{name}/dtn/in"
+        assert msgspec.convert(name, S.SatName) == name
+        with pytest.raises(ValueError):
+            sat_plane_slot(name)
+    assert sat_number("sat_9999_9999") < CATALOGUE_NODE_BASE + 1
+    assert STATION_NODE_BASE + MAX_STATIONS < 10001
+    assert sat_from_number(CATALOGUE_NODE_BASE) is None  # NORAD 0 is no satellite
+    for bad in ("sat_n0", "sat_n012", "sat_n1234567890", "sat_nx", "sat_N5"):
+        assert not is_sat_name(bad), bad
+    for bad in (0, -3, MAX_NORAD + 1, "5", 5.0):
+        with pytest.raises(ValueError):
+            catalogue_sat_name(bad)
+    # contact plan files carry them as ipn numbers and names
+    plan = ContactPlan([Contact(0.0, 10.0, "sat_n40697", "sat_11", 1000.0, 0.01),
+                        Contact(0.0, 10.0, "sat_11", "sat_n40697", 1000.0, 0.01)])
+    assert node_number("sat_n40697") == 100040697 and node_name(100040697) == "sat_n40697"
+    for fmt in ("csv", "ion", "hdtn-json"):
+        buf = io.StringIO()
+        write_contact_plan(plan, fmt, buf, epoch_utc=EPOCH)
+        back = parse_contact_plan(buf.getvalue(), fmt, epoch_utc=EPOCH)
+        assert sorted((c.src, c.dst) for c in back.contacts) == sorted((c.src, c.dst) for c in plan.contacts), fmt
+    # a bundle to and from one round-trips its EIDs
+    b = Bundle(src=ipn(sat_number("sat_n40697"), 1), dest=ipn(sat_number("sat_11"), 1),
+               creation_ms=1, seq=0, lifetime_ms=1000, payload=b"x")
+    back = decode_bundle(encode_bundle(b))
+    assert sat_from_number(back.src[0]) == "sat_n40697" and sat_from_number(back.dest[0]) == "sat_11"

@@ -146,7 +146,7 @@ class RunSpec(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
         if self.scenario is None:
             return None
 
-        sc = load_scenario(self.scenario)
+        sc = load_scenario(self.scenario).with_catalogue(self.overrides.get("tle") or (), self.overrides.get("omm") or ())
         keys = ("sats", "planes", "hours", "seed", "knowledge", "transiency_min", "gp_spacing_km",
                 "joint_planning", "joint_max_partners", "forwarding", "viz_period_s", "regions")
         ov = {k: self.overrides.get(k) for k in keys}
@@ -185,7 +185,7 @@ class RunSpec(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
         if sc is not None:
             out["run.scenario"] = sc.name
             out["run.seed"] = int(sc.scenario.seed)
-            out["run.epoch_utc"] = sc.scenario.epoch_utc
+            out["run.epoch_utc"] = sc.epoch_iso
             for section, table in msgspec.to_builtins(sc).items():
                 if isinstance(table, dict):
                     for k, v in table.items():
