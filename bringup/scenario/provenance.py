@@ -51,7 +51,7 @@ DIST_NAME = "agile-dtn-constellation"
 NOT_GIT = "not a git checkout"
 #: scenario keys holding a path to a data file, resolved against the scenario file's folder
 #: (ground_station/osse_sources.py); made absolute in ``scenario_toml``
-FILE_KEYS = ("value.osse_file", "value.osse_forecast_file")
+FILE_KEYS = ("value.osse_file", "value.osse_forecast_file")  # and constellation groups' tle_file / omm_file
 
 _ROOT = Path(__file__).resolve().parents[2]  # the checkout (or site-packages) holding bringup/
 
@@ -134,6 +134,13 @@ def _resolved_raw(sc: Scenario) -> dict:
         v = raw.get(table, {}).get(name)
         if v and not Path(v).is_absolute() and src and not src.startswith("<"):
             raw[table][name] = str((Path(src).parent / v).resolve())
+    # the constellation's element files (bringup/scenario/groups.py): one group or a list of them
+    groups = raw.get("constellation")
+    for g in groups if isinstance(groups, list) else [groups] if isinstance(groups, dict) else []:
+        for name in ("tle_file", "omm_file"):
+            v = g.get(name)
+            if v and not Path(v).is_absolute() and src and not src.startswith("<"):
+                g[name] = str((Path(src).parent / v).resolve())
     return raw
 
 

@@ -120,6 +120,8 @@ def _trace(out: Path):
 
     rep = json.loads((out / "report.json").read_text())
     rep.pop("runtime"), rep.pop("engine")
+    prov = rep.pop("provenance")  # the command line and the element file's name differ by construction
+    assert prov["scenario_toml"] and prov["command"].startswith("constellation run")
     return rep, observations_from_bag(out / "bag"), deliveries_from_bag(out / "bag")
 
 
