@@ -62,6 +62,8 @@ COMMANDS: dict[str, tuple[str, str]] = {
              "run one process of a ROS-engine run (the clock or one participant group) from a run spec"),
     "compose": ("compose",
                 "write docker-compose.yml (+ run_spec.json, world.pkl beside it): one container per process of a run"),
+    "bundles": ("bundles",
+                "exchange BPv7 bundle files with another DTN node: send FILES / listen --out DIR over TCPCLv4, TCPCLv3 or UDP"),
     "containers": ("containers",
                    "container images and runs with podman: build, up COMPOSE (run to the end), down, ls"),
 }
