@@ -28,7 +28,8 @@ bundle is handed to the caller before its final ACK_SEGMENT leaves).
 How we know it is right: the encodings written out by hand from the RFC's figures, the SDNV
 examples of RFC 6256 section 2.1, both roles against each other (segmentation, refusal, shutdown,
 malformed input from a raw socket) in tests/unit/test_cl_tcpcl3.py, and pyd3tn's TCPCLv3 client
-(the uD3TN project's, an independent implementation) sending to this listener there.
+(the uD3TN project's, an independent implementation) sending to this listener there; ION 4.1.3's
+tcpcli/tcpclo both ways in tests/interop/test_ion.py (marker ``interop``).
 """
 
 from __future__ import annotations

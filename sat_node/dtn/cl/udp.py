@@ -10,7 +10,9 @@ drops: an empty datagram (``empty``) - a datagram is otherwise handed over as it
 whether it is a bundle is the bundle agent's business.
 
 How we know it is right: datagrams sent by :func:`send` arrive byte-identical at :func:`serve` and
-at a plain socket, and plain-socket datagrams arrive at :func:`serve` (tests/unit/test_cl_udp.py).
+at a plain socket, and plain-socket datagrams arrive at :func:`serve` (tests/unit/test_cl_udp.py);
+ION 4.1.3's udpcli delivers what :func:`send` sent and its udpclo's datagrams arrive here
+(tests/interop/test_ion.py, marker ``interop``).
 """
 
 from __future__ import annotations

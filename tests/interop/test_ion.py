@@ -1,0 +1,96 @@
+"""Bundles exchanged with ION-DTN (built from its source by scripts/build_ion.sh) over TCPCLv3 and UDP,
+both ways, through ``constellation bundles send|listen`` (bringup/cli/bundles.py,
+sat_node/dtn/cl/tcpcl3.py, sat_node/dtn/cl/udp.py).
+
+The oracle is ION itself: its bprecvfile writes the payload of each bundle it accepted and delivered
+(an expired or malformed bundle is never delivered), its bpsendfile makes bundles the project never
+wrote. Marker ``interop`` (deselected by default): ``pytest -m interop tests/interop``.
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+from ion_node import IonNode, free_port
+
+from bringup.cli.main import main
+from sat_node.dtn.bpv7 import Bundle, decode_bundle, encode_bundle, ipn
+
+pytestmark = pytest.mark.interop
+REPO = Path(__file__).resolve().parents[2]
+N = 8
+
+
+def _now_dtn_ms() -> int:
+    return int((time.time() - 946_684_800) * 1000)  # RFC 9171 4.2.6: ms since 2000-01-01T00:00:00Z
+
+
+def _our_bundles(tmp: Path, dest: tuple[int, int], tag: str) -> list[tuple[Path, bytes]]:
+    out, t = [], _now_dtn_ms()
+    tmp.mkdir(parents=True, exist_ok=True)
+    for i in range(N):
+        payload = f"{tag} {i} ".encode() * (1 + 900 * i)  # up to ~60 kB: one UDP datagram
+        f = tmp / f"{tag}{i}.bpv7"
+        f.write_bytes(encode_bundle(Bundle(dest=dest, src=ipn(1, 1), creation_ms=t, seq=i, lifetime_ms=3_600_000,
+                                           payload=payload)))
+        out.append((f, payload))
+    return out
+
+
+def _listen(cl: str, port: int, out: Path, count: int):
+    env = dict(os.environ, PYTHONPATH=str(REPO))
+    p = subprocess.Popen([sys.executable, "-m", "bringup.cli", "bundles", "listen", "--cl", cl, "--at",
+                          f"127.0.0.1:{port}", "--out", str(out), "--count", str(count), "--duration", "90",
+                          "--node-id", "ipn:1.0"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                         env=env, cwd=REPO)
+    assert p.stdout.readline().startswith("listening on")
+    return p
+
+
+@pytest.fixture
+def ion(tmp_path):
+    tcp_us, udp_us = free_port(), free_port(__import__("socket").SOCK_DGRAM)
+    node = IonNode(tmp_path / "ion", 2, {1: f"tcp/127.0.0.1:{tcp_us}", 3: f"udp/127.0.0.1:{udp_us}"})
+    node.tcp_us, node.udp_us = tcp_us, udp_us  # started by the test, once its listener is up
+    try:
+        yield node
+    finally:
+        node.stop()
+
+
+@pytest.mark.parametrize("cl", ["tcpcl3", "udp"])
+def test_bundles_both_ways_with_ion(ion, cl, tmp_path, capsys):
+    # the listener first: ION's TCP outduct backs off between connection attempts
+    dest, lport = ("ipn:1.1", ion.tcp_us) if cl == "tcpcl3" else ("ipn:3.1", ion.udp_us)
+    out = tmp_path / "from_ion"
+    lst = _listen(cl, lport, out, N)
+    ion.start()
+    print(f"ION: {ion.version()}", file=sys.stderr)
+    # project -> ION: delivered at ipn:2.1, payloads byte-identical
+    ours = _our_bundles(tmp_path / "ours", ipn(2, 1), cl)
+    port = ion.tcp_port if cl == "tcpcl3" else ion.udp_port
+    # the sending tool is a node of its own (ipn:4.0): ION folds an incoming session from the node
+    # its outduct already serves (ipn:1.0, the listener) into that neighbor and stops the listener's
+    # sender thread when it ends (ION 4.1.3 tcpcli.c, receiveContactHeader: the TCPCL_CHANCE session)
+    assert main(["bundles", "send", "--cl", cl, "--to", f"127.0.0.1:{port}", "--node-id", "ipn:4.0",
+                 *(str(f) for f, _ in ours)]) == 0
+    delivered = ion.receive_files("ipn:2.1", N)
+    assert delivered == [p for _, p in ours]
+    # ION -> project: bpsendfile to the node behind this layer's plan
+    sent = []
+    for i in range(N):
+        f = tmp_path / f"ion{i}.bin"
+        f.write_bytes(os.urandom(100 + 7000 * i))
+        ion.send_file("ipn:2.1", dest, f)
+        sent.append(f.read_bytes())
+    rest, err = lst.communicate(timeout=120)
+    assert lst.returncode == 0, err
+    got = [decode_bundle(p.read_bytes()) for p in sorted(out.glob("*.bpv7"))]
+    assert sorted(b.payload for b in got) == sorted(sent), rest + err
+    assert all(b.src == ipn(2, 1) and b.dest == (ipn(1, 1) if cl == "tcpcl3" else ipn(3, 1)) for b in got)
+    print(f"{cl}: {N} bundles to ION delivered byte-identical, {len(got)} from ION received", file=sys.stderr)
