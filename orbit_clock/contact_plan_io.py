@@ -361,13 +361,19 @@ def whole_second_contacts(plan: ContactPlan, zero_s: int = 0) -> tuple[list[tupl
 
 
 def write_contact_plan(plan: ContactPlan, fmt: str, stream, *, ground_stations: list[str] | None = None,
-                       epoch_utc: datetime | None = None, unix_time: bool = False) -> Written:
+                       epoch_utc: datetime | None = None, unix_time: bool = False,
+                       ion_times: str = "relative") -> Written:
     """Write ``plan`` to a text stream in ``fmt`` (csv | ion | hdtn-json).
 
     ``epoch_utc``: the scenario epoch (the instant of t = 0; required for ION, whose file starts with
     it as the ``@`` reference time, and for HDTN with ``unix_time``, which writes Unix seconds for
-    HDTN's ``--use-unix-timestamp``; otherwise HDTN times are seconds since the epoch)."""
+    HDTN's ``--use-unix-timestamp``; otherwise HDTN times are seconds since the epoch).
+    ``ion_times``: ``relative`` (``+N`` after the ``@`` line) or ``absolute`` (every contact and
+    range start and end as ``yyyy/mm/dd-hh:mm:ss`` UTC, ionadmin's other form: the lines mean the same
+    instants whatever reference time the node holds, e.g. when loaded after another file's ``@``)."""
     out = Written()
+    if ion_times not in ("relative", "absolute"):
+        raise ContactPlanError(f"ion_times {ion_times!r}: 'relative' or 'absolute'")
     if fmt == "csv":
         w = csv.writer(stream, lineterminator="\n")
         w.writerow(["start_s", "end_s", "origin", "destination", "rate_bps", "range_light_s"])
@@ -393,18 +399,23 @@ def write_contact_plan(plan: ContactPlan, fmt: str, stream, *, ground_stations: 
     nn = {n: node_number(n, ground_stations) for n in plan.nodes}
     if fmt == "ion":
         stamp = datetime.fromtimestamp(ref, UTC).strftime(_ION_TS)
-        stream.write(f"# contact plan (ionadmin commands). Reference time: the scenario epoch {stamp} UTC; +N = N s "
-                     "after it\n# (windows rounded inward to whole seconds, rates in bytes/s rounded down, one-way "
+        how = "+N = N s after it" if ion_times == "relative" else "times are absolute (UTC)"
+        stream.write(f"# contact plan (ionadmin commands). Reference time: the scenario epoch {stamp} UTC; {how}"
+                     "\n# (windows rounded inward to whole seconds, rates in bytes/s rounded down, one-way "
                      "light times in s rounded up)\n")
         stream.write(f"@ {stamp}\n")
+
+        def when(t: int) -> str:
+            return f"+{t}" if ion_times == "relative" else datetime.fromtimestamp(ref + t, UTC).strftime(_ION_TS)
+
         for a, b, c in kept:
             rate = math.floor(c.rate_bps / 8.0)
             if rate < 1:
                 raise ContactPlanError(f"contact {c.src}->{c.dst} at {c.start_s} s: rate {c.rate_bps} bit/s is below "
                                        "ION's 1 byte/s")
-            stream.write(f"a contact +{a} +{b} {nn[c.src]} {nn[c.dst]} {rate}\n")
+            stream.write(f"a contact {when(a)} {when(b)} {nn[c.src]} {nn[c.dst]} {rate}\n")
         for a, b, c in kept:
-            stream.write(f"a range +{a} +{b} {nn[c.src]} {nn[c.dst]} {math.ceil(c.range_light_s)}\n")
+            stream.write(f"a range {when(a)} {when(b)} {nn[c.src]} {nn[c.dst]} {math.ceil(c.range_light_s)}\n")
     else:
         rows = []
         for i, (a, b, c) in enumerate(kept):

@@ -56,6 +56,7 @@ from msgs_json.envelope import Emit, Envelope, LiveState, StepResult
 from sat_node import persist
 from sat_node.acs import angle_between_deg, nadir_unit, unit_vectors
 from sat_node.dtn.agent import AgentConfig
+from sat_node.dtn.bpv7 import dtn_ms_of
 from sat_node.dtn.multicast import new_agent
 from sat_node.dtn.port import DtnPort, count_rejection
 from sat_node.dtn.store import BundleStore
@@ -120,7 +121,8 @@ class SatelliteLogic:
             # settle_delay_s=None: the port settles each transmission when no failure report can come
             cfg = AgentConfig.for_policy(
                 i.send_order, i.hop_tolerance_s, ttl_s_by_priority={1: i.ttl_p1_s, 3: i.ttl_p2_3_s, 15: i.ttl_p4_15_s},
-                bundle_bits=i.bundle_bits, settle_delay_s=None, forwarding=i.forwarding, key=bpsec_key)
+                bundle_bits=i.bundle_bits, settle_delay_s=None, forwarding=i.forwarding, key=bpsec_key,
+                epoch_dtn_ms=dtn_ms_of(sc.epoch))  # creation times: DTN time of the scenario clock
             store = BundleStore(store_path) if store_path else None
             # one contact graph per process, shared by its satellites (World.isl_graph)
             self.agent = new_agent(name, world.isl_graph(cfg.hop_limit), cfg, store=store)

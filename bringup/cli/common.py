@@ -9,6 +9,7 @@ from __future__ import annotations
 import argparse
 import sys
 from contextlib import contextmanager
+from datetime import UTC, datetime
 from pathlib import Path
 
 from bringup.engine.keys import ENV_BPSEC_KEY, ENV_BPSEC_KEY_FILE, RunKeys
@@ -19,7 +20,7 @@ from bringup.scenario.regions_geojson import regions_arg
 from msgs_json.names import MAX_PLANES, MAX_SATS
 
 _OVERRIDES = ("sats", "planes", "hours", "seed", "knowledge", "transiency_min", "gp_spacing_km", "joint_planning",
-              "joint_max_partners", "forwarding")
+              "joint_max_partners", "forwarding", "epoch_utc")
 from bringup.scenario.limits import check_run_size
 
 
@@ -81,6 +82,7 @@ def add_scenario_args(p: argparse.ArgumentParser, *, overrides: bool = True, kno
         p.add_argument("--hours", type=float, default=None, help="horizon [h] (default: scenario)")
         p.add_argument("--seed", type=int, default=None, help="seed (default: scenario)")
         add_regions_arg(p)
+        add_epoch_arg(p, "epoch_utc")
     if knowledge:
         add_knowledge_args(p)
 
@@ -98,6 +100,32 @@ def add_set_arg(p: argparse.ArgumentParser) -> None:
     p.add_argument("--set", dest="set", action="append", default=[], metavar="KEY=VALUE",
                    help="set any scenario key, as a TOML value: e.g. --set isl.rate_bps=250 --set "
                         "value.knowledge=observed (repeatable; validated like the scenario file)")
+
+
+def epoch_arg(text: str) -> str:
+    """``--epoch``: ``now`` (this second, UTC) or a UTC instant ``YYYY-MM-DDTHH:MM:SS[.fff]Z``; returned
+    in the scenario's ``epoch_utc`` form."""
+    t = text.strip()
+    if t.lower() == "now":
+        return datetime.now(UTC).replace(microsecond=0).strftime("%Y-%m-%dT%H:%M:%SZ")
+    if not t.endswith("Z"):
+        raise argparse.ArgumentTypeError(f"{text!r}: expected 'now' or a UTC instant like 2026-11-27T12:00:00Z")
+    try:
+        d = datetime.fromisoformat(t[:-1])
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r}: expected 'now' or a UTC instant like 2026-11-27T12:00:00Z") \
+            from None
+    if d.tzinfo is not None:
+        raise argparse.ArgumentTypeError(f"{text!r}: give the instant in UTC with a trailing Z, no offset")
+    if d.year < 2000:
+        raise argparse.ArgumentTypeError(f"{text!r}: before the DTN epoch 2000-01-01T00:00:00Z (RFC 9171 4.2.6)")
+    return t
+
+
+def add_epoch_arg(p: argparse.ArgumentParser, dest: str) -> None:
+    p.add_argument("--epoch", dest=dest, type=epoch_arg, default=None, metavar="now|UTC",
+                   help="the scenario's start instant: 'now' or e.g. 2026-11-27T12:00:00Z; bundle creation times are "
+                        "DTN time of this clock (default: the scenario's, the study's 2000-01-01T11:59:28Z)")
 
 
 def add_knowledge_args(p: argparse.ArgumentParser) -> None:

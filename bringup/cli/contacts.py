@@ -3,7 +3,9 @@
 ``--format ion`` starts with the scenario epoch as ionadmin's ``@`` reference time; ``ion`` and
 ``hdtn-json`` hold whole seconds, rounded as orbit_clock/contact_plan_io.py says (windows inward,
 rates down, light times up); contacts left with no whole second are counted on stderr.
-``--unix-time`` writes HDTN times as Unix seconds (HDTN's ``--use-unix-timestamp``).
+``--unix-time`` writes HDTN times as Unix seconds (HDTN's ``--use-unix-timestamp``);
+``--ion-times absolute`` writes ION times as ``yyyy/mm/dd-hh:mm:ss`` UTC on every line. With
+``--epoch now`` (or any UTC instant) the plan's instants are those of a live run started then.
 
 Checked by tests/unit/test_orbit_cli.py and tests/unit/test_contact_plan_io.py.
 """
@@ -29,10 +31,15 @@ def add_arguments(p) -> None:
     p.add_argument("--unix-time", action="store_true",
                    help="hdtn-json: times as Unix seconds (for HDTN's --use-unix-timestamp) instead of seconds "
                         "since the scenario epoch")
+    p.add_argument("--ion-times", choices=["relative", "absolute"], default="relative",
+                   help="ion: contact times as +N seconds after the '@' epoch line (default) or as absolute "
+                        "yyyy/mm/dd-hh:mm:ss UTC on every line")
     add_out_arg(p)
 
 
 def run(args) -> int:
+    if args.ion_times != "relative" and args.format != "ion":
+        raise UserError("--ion-times applies to --format ion only")
     if args.unix_time and args.format != "hdtn-json":
         raise UserError("--unix-time applies to --format hdtn-json only (ION plans carry the epoch in their '@' line)")
     sc = scenario_from_args(args)
@@ -45,7 +52,7 @@ def run(args) -> int:
     try:
         with output_stream(args.out) as out:
             w = write_contact_plan(ContactPlan(contacts), args.format, out, ground_stations=station_names(sc),
-                                   epoch_utc=sc.epoch, unix_time=args.unix_time)
+                                   epoch_utc=sc.epoch, unix_time=args.unix_time, ion_times=args.ion_times)
     except ContactPlanError as exc:
         raise UserError(str(exc)) from None
     if w.dropped:

@@ -4,7 +4,9 @@ figures with the latency bounds (bringup/analysis/dtn_bounds.py).
 
 Inputs are checked before the run (orbit_clock/contact_plan_io.py, sat_node/dtn/traffic.py): bounds,
 duplicates (merged with a ``warning:`` line), unknown nodes named; ``--json`` is strict JSON (a
-figure that is not a finite number is null).
+figure that is not a finite number is null). ``--epoch now|UTC`` sets t = 0 of the plan and the
+traffic: the bundles' creation times are DTN time of that clock (``--dump-bundles`` files are then
+bundles a real node accepts while they live); default the study's epoch.
 
 Checked by tests/unit/test_dtn_alone.py (the command's JSON on the study's inputs and drawn plans)
 and tests/faults/test_hostile_inputs.py (bad plans, traffic and flags; duplicated rows give the
@@ -16,17 +18,19 @@ from __future__ import annotations
 import argparse
 import sys
 import time
+from datetime import UTC, datetime
 from pathlib import Path
 
 from bringup.analysis.dtn_alone import run_dtn
 from bringup.analysis.dtn_bounds import floor_mean, latency_lower_bounds, store_forward_bound_mean
+from bringup.cli.common import add_epoch_arg, add_key_args
 from bringup.cli.run_folder import json_text
-from bringup.cli.common import add_key_args
 from bringup.engine.keys import resolve_bpsec_key, write_key_file
 from bringup.errors import UserError
 from orbit_clock.contact_plan import node_number
 from orbit_clock.contact_plan_io import ContactPlanError, read_contact_plan
 from sat_node.dtn.agent import AgentConfig
+from sat_node.dtn.bpv7 import PAPER_EPOCH_DTN_MS, dtn_ms_of
 from sat_node.dtn.traffic import TrafficError, read_traffic
 
 
@@ -56,6 +60,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--dump-bundles", type=Path, default=None, metavar="DIR",
                    help="write the encoded bytes of the first 100 bundles created, one <id>.bpv7 file each")
     p.add_argument("--no-lower-bound", action="store_true", help="skip the latency lower bounds")
+    add_epoch_arg(p, "epoch")
     add_key_args(p)
 
 
@@ -105,12 +110,17 @@ def _check_nodes(plan, traffic, args) -> None:
 def run(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
     _check_args(args)
+    # t = 0 of the plan and the traffic: --epoch, else the study's epoch (an ION plan's times are read
+    # from this instant; without --epoch, from the plan's own '@' reference time)
+    epoch = None if args.epoch is None else datetime.fromisoformat(args.epoch[:-1]).replace(tzinfo=UTC)
+    epoch_dtn_ms = PAPER_EPOCH_DTN_MS if epoch is None else dtn_ms_of(epoch)
 
     def warn(line: str) -> None:
         print(f"constellation dtn: warning: {line}", file=sys.stderr)
 
     try:
-        plan = read_contact_plan(args.contact_plan, args.plan_format, rate_bps=args.rate_bps, on_duplicate=warn)
+        plan = read_contact_plan(args.contact_plan, args.plan_format, rate_bps=args.rate_bps, on_duplicate=warn,
+                                 epoch_utc=epoch)
         traffic = read_traffic(args.traffic, on_duplicate=warn)
     except (ContactPlanError, TrafficError) as exc:
         raise UserError(str(exc)) from None
@@ -119,7 +129,8 @@ def run(args: argparse.Namespace) -> int:
     key, key_from = resolve_bpsec_key(args.bpsec_key_file)
     try:
         config = AgentConfig.for_policy(args.queue, args.hop_tolerance_s, ttl_s_by_priority=ttl,
-                                        bundle_bits=args.bundle_bits, forwarding=args.forwarding, key=key)
+                                        bundle_bits=args.bundle_bits, forwarding=args.forwarding, key=key,
+                                        epoch_dtn_ms=epoch_dtn_ms)
     except ValueError as exc:
         raise UserError(f"--hop-tolerance-s: {exc}") from None
     dump = None

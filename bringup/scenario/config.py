@@ -305,11 +305,11 @@ class Scenario(_S, kw_only=True):
                        transiency_min: float | None = None, gp_spacing_km: float | None = None,
                        joint_planning: bool | None = None, joint_max_partners: int | None = None,
                        viz_period_s: float | None = None, forwarding: str | None = None,
-                       regions: list[dict] | None = None) -> "Scenario":
+                       regions: list[dict] | None = None, epoch_utc: str | None = None) -> "Scenario":
         """A copy with the CLI overrides applied (``--sats``, ``--planes``, ``--hours``, ``--seed``,
         ``--knowledge``, ``--transiency-min``, ``--gp-spacing-km``, ``--planning``,
         ``--joint-max-partners``, ``--viz-period-s``, ``--forwarding``, ``--regions``: region tables that
-        replace the scenario's, bringup/scenario/regions_geojson.py).
+        replace the scenario's, bringup/scenario/regions_geojson.py; ``--epoch``: scenario.epoch_utc).
 
         ``sats`` without ``planes`` keeps the number of planes when it divides evenly, else takes
         the largest number of planes below it that does; ``planes`` sets it (``phasing_f`` is kept
@@ -345,6 +345,8 @@ class Scenario(_S, kw_only=True):
             raw["scenario"]["horizon_s"] = float(hours) * 3600.0
         if seed is not None:
             raw["scenario"]["seed"] = int(seed)
+        if epoch_utc is not None:
+            raw["scenario"]["epoch_utc"] = epoch_utc
         if joint_max_partners is not None:  # an integer key: not made a float like the others
             raw["scheduler"]["joint_max_partners"] = joint_max_partners
         if regions is not None:

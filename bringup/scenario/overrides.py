@@ -47,6 +47,7 @@ OPTION_KEYS: dict[str, tuple[str, ...]] = {
     "forwarding": ("isl.forwarding",),
     "viz_period_s": ("viz.period_s",),
     "regions": ("regions.list",),
+    "epoch_utc": ("scenario.epoch_utc",),
 }
 
 

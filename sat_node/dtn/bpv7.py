@@ -41,7 +41,7 @@ import cbor2
 __all__ = [
     "Bundle", "CanonicalBlock", "encode_primary", "BundleError", "decode_bundle", "encode_bundle", "crc16_x25", "crc32c",
     "PAYLOAD_BLOCK", "PREVIOUS_NODE_BLOCK", "BUNDLE_AGE_BLOCK", "HOP_COUNT_BLOCK", "Imc", "IMC_SCHEME",
-    "BIB_BLOCK", "CRC_NONE", "CRC_16", "CRC_32C", "dtn_time_ms", "PAPER_EPOCH_DTN_MS", "ipn",
+    "BIB_BLOCK", "CRC_NONE", "CRC_16", "CRC_32C", "dtn_time_ms", "dtn_ms_of", "PAPER_EPOCH_DTN_MS", "ipn",
 ]
 
 PAYLOAD_BLOCK = 1
@@ -55,6 +55,17 @@ CRC_NONE, CRC_16, CRC_32C = 0, 1, 2
 _DTN_EPOCH = datetime(2000, 1, 1, tzinfo=timezone.utc)
 # The study's scenario epoch 2000-01-01T11:59:28Z in DTN time [ms].
 PAPER_EPOCH_DTN_MS = int((datetime(2000, 1, 1, 11, 59, 28, tzinfo=timezone.utc) - _DTN_EPOCH).total_seconds() * 1000)
+
+
+def dtn_ms_of(instant: datetime) -> int:
+    """DTN time [ms since 2000-01-01T00:00:00Z, RFC 9171 4.2.6] of a timezone-aware instant, exactly."""
+    if instant.tzinfo is None:
+        raise ValueError("dtn_ms_of: the instant must be timezone-aware (UTC)")
+    d = instant - _DTN_EPOCH
+    ms = (d.days * 86_400 + d.seconds) * 1000 + d.microseconds // 1000
+    if ms < 0:
+        raise ValueError(f"{instant.isoformat()}: before the DTN epoch 2000-01-01T00:00:00Z")
+    return ms
 
 
 def dtn_time_ms(t_ns: int, epoch_dtn_ms: int) -> int:

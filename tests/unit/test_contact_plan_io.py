@@ -177,6 +177,23 @@ def test_ion_text_exact():
                      "a range +382 +2340 11 21 2"]
 
 
+def test_ion_absolute_times_mean_the_same_instants():
+    lines = [x for x in _write(PLAN, "ion", ion_times="absolute").splitlines() if not x.startswith("#")]
+    assert lines == ["@ 2000/01/01-11:59:28",
+                     "a contact 2000/01/01-11:59:28 2000/01/01-17:59:28 11 12 125",
+                     "a contact 2000/01/01-12:05:50 2000/01/01-12:38:28 11 21 1000",  # +382, +2340
+                     "a range 2000/01/01-11:59:28 2000/01/01-17:59:28 11 12 1",
+                     "a range 2000/01/01-12:05:50 2000/01/01-12:38:28 11 21 2"]
+    # ionadmin (the mirror) reads both forms as the same instants, whatever '@' came before
+    rel, rel_ranges, p1 = ionadmin(_write(PLAN, "ion"))
+    other_ref = "@ 2026/11/27-12:00:00\n" + "\n".join(ln for ln in lines if not ln.startswith("@"))
+    ab, ab_ranges, p2 = ionadmin(other_ref)
+    assert p1 == p2 == [] and rel == ab and rel_ranges == ab_ranges
+    assert parse_contact_plan("\n".join(lines), "ion").contacts == parse_contact_plan(_write(PLAN, "ion"), "ion").contacts
+    with pytest.raises(ContactPlanError, match="ion_times"):
+        _write(PLAN, "ion", ion_times="sometimes")
+
+
 def test_ion_mirror_catches_what_ionadmin_reads_differently():
     # the plan as we wrote it before whole seconds: fractions cut by strtol, owlt 2e-05 read as 2 s
     old = "a contact +381.5 +2340.498 11 21 1000\na range +0 +21600 11 12 2e-05\n"

@@ -375,3 +375,28 @@ def test_report_does_not_depend_on_event_order():
         lat = [(e.t_ns - e.created_ns) / 1e9 for e in events if e.kind == "delivered"]
         orders_differ |= float(np.mean(lat)) != ref["dtn.latency_s.mean"]
     assert orders_differ
+
+
+def test_cli_epoch_sets_bundle_creation_times(tmp_path, capsys):
+    """`constellation dtn --epoch`: the bundles' creation times are DTN time (ms since
+    2000-01-01T00:00:00Z, RFC 9171 4.2.6) of the scenario clock; the default is the study's epoch."""
+    import json
+    from datetime import UTC, datetime
+
+    from bringup.cli.main import main
+    from orbit_clock.contact_plan_io import write_contact_plan
+    from sat_node.dtn.bpv7 import PAPER_EPOCH_DTN_MS, decode_bundle
+    with open(tmp_path / "plan.csv", "w") as fh:
+        write_contact_plan(PLAN, "csv", fh)
+    head = "source,time_s,packet_id,region,Sat11,Sat12,Sat13"
+    (tmp_path / "traffic.csv").write_text(f"{head}\nSat11,10,1,r,0,-1,1\nSat11,20.5,2,r,0,-1,1\n")
+    epoch_ms = int((datetime(2026, 11, 27, 12, tzinfo=UTC) - datetime(2000, 1, 1, tzinfo=UTC)).total_seconds()) * 1000
+    created = {}
+    for name, extra, zero in (("default", [], PAPER_EPOCH_DTN_MS), ("later", ["--epoch", "2026-11-27T12:00:00Z"],
+                                                                  epoch_ms)):
+        dump = tmp_path / name
+        assert main(["dtn", "--contact-plan", str(tmp_path / "plan.csv"), "--traffic", str(tmp_path / "traffic.csv"),
+                     "--json", "--dump-bundles", str(dump), *extra]) == 0
+        assert json.loads(capsys.readouterr().out)["dtn.delivery_ratio"] == 1.0
+        created[name] = sorted(decode_bundle(f.read_bytes()).creation_ms - zero for f in dump.glob("*.bpv7"))
+    assert created["default"] == created["later"] == [10_000, 20_500]

@@ -5,6 +5,8 @@ from __future__ import annotations
 import csv
 import json
 
+import pytest
+
 from bringup.cli.main import main
 from orbit_clock.contact_plan_io import read_contact_plan
 
@@ -52,3 +54,37 @@ def test_bad_scenario_is_one_line(capsys):
     assert main(["contacts", "--scenario", "no_such_scenario"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "no such file" in err[0]
+
+
+def test_contacts_at_any_epoch_and_now(tmp_path, capsys):
+    from datetime import UTC, datetime, timedelta
+
+    from orbit_clock.contact_plan_io import read_contact_plan as read
+
+    paper, later = tmp_path / "paper.rc", tmp_path / "later.rc"
+    assert main(["contacts", "--hours", "1", "--format", "ion", "--out", str(paper)]) == 0
+    assert main(["contacts", "--hours", "1", "--format", "ion", "--ion-times", "absolute",
+                 "--epoch", "2026-11-27T12:00:00Z", "--out", str(later)]) == 0
+    text = later.read_text()
+    body = [ln for ln in text.splitlines() if not ln.startswith("#")]
+    assert body[0] == "@ 2026/11/27-12:00:00" and body[1].startswith("a contact 2026/11/27-")
+    assert not any(" +" in ln for ln in body)
+    # the same orbits from a later start: the Walker pattern is defined at the epoch, so the ISL
+    # windows are the same seconds after it (ION's reading of both files, each from its own '@');
+    # the ground passes are not (the Earth turned differently under them)
+    gs = ["gs_svalbard", "gs_troll"]
+    a, b = ([(c.start_s, c.end_s, c.src, c.dst) for c in read(f, "ion", ground_stations=gs) if c.src[:3] == c.dst[:3]]
+            for f in (paper, later))
+    assert len(a) > 10 and a == b
+    before = datetime.now(UTC).replace(microsecond=0)
+    now = tmp_path / "now.rc"
+    assert main(["contacts", "--hours", "1", "--format", "ion", "--epoch", "now", "--out", str(now)]) == 0
+    stamp = next(ln for ln in now.read_text().splitlines() if ln.startswith("@ "))[2:]
+    t = datetime.strptime(stamp, "%Y/%m/%d-%H:%M:%S").replace(tzinfo=UTC)
+    assert before <= t <= datetime.now(UTC) + timedelta(seconds=1)
+    for bad in ("yesterday", "2026-11-27T12:00:00", "1999-12-31T23:59:59Z", "2026-11-27T12:00:00+01:00Z"):
+        with pytest.raises(SystemExit):
+            main(["contacts", "--epoch", bad])
+        assert "--epoch" in capsys.readouterr().err
+    assert main(["contacts", "--ion-times", "absolute"]) == 2
+    assert "--ion-times applies to --format ion only" in capsys.readouterr().err

@@ -71,3 +71,28 @@ def test_satellite_agents_take_the_scenario_forwarding(world):
     isl = msgspec.structs.replace(world.scenario.isl, forwarding="unicast")
     w2 = dataclasses.replace(world, scenario=msgspec.structs.replace(world.scenario, isl=isl))
     assert type(SatelliteLogic(w2, sat, "distributed", bpsec_key=TEST_BPSEC_KEY).agent) is BundleAgent
+
+
+def test_satellite_bundles_carry_dtn_time_of_the_scenario_clock(world):
+    """A satellite's bundles are created at DTN time (RFC 9171 4.2.6: ms since 2000-01-01T00:00:00Z)
+    of the scenario clock: the study's epoch by default, ``--epoch``'s instant (scenario.epoch_utc)
+    otherwise - what lets a real DTN node accept them while they live."""
+    import dataclasses
+    from datetime import UTC, datetime
+
+    import msgspec
+
+    from sat_node.dtn.bpv7 import PAPER_EPOCH_DTN_MS
+    from sat_node.satellite import SatelliteLogic
+
+    sat = world.sat_names[0]
+    assert SatelliteLogic(world, sat, "distributed", bpsec_key=TEST_BPSEC_KEY).agent.config.epoch_dtn_ms \
+        == PAPER_EPOCH_DTN_MS
+    sc = world.scenario
+    later = msgspec.structs.replace(sc, scenario=msgspec.structs.replace(sc.scenario, epoch_utc="2026-11-27T12:00:00Z"))
+    agent = SatelliteLogic(dataclasses.replace(world, scenario=later), sat, "distributed",
+                           bpsec_key=TEST_BPSEC_KEY).agent
+    want = int((datetime(2026, 11, 27, 12, tzinfo=UTC) - datetime(2000, 1, 1, tzinfo=UTC)).total_seconds()) * 1000
+    assert agent.config.epoch_dtn_ms == want
+    bid = agent.originate(b"obs", world.sat_names[1], 1, 90 * 10**9)
+    assert bid.split("-")[1] == str(want + 90_000)  # the bundle ID: source, creation time [ms], sequence

@@ -148,7 +148,7 @@ class RunSpec(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
 
         sc = load_scenario(self.scenario).with_catalogue(self.overrides.get("tle") or (), self.overrides.get("omm") or ())
         keys = ("sats", "planes", "hours", "seed", "knowledge", "transiency_min", "gp_spacing_km",
-                "joint_planning", "joint_max_partners", "forwarding", "viz_period_s", "regions")
+                "joint_planning", "joint_max_partners", "forwarding", "viz_period_s", "regions", "epoch_utc")
         ov = {k: self.overrides.get(k) for k in keys}
         if self.seed is not None:
             ov["seed"] = self.seed
