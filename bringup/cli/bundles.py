@@ -29,7 +29,7 @@ from datetime import UTC, datetime, timedelta
 from pathlib import Path
 
 from bringup.errors import UserError
-from sat_node.dtn.bpv7 import Bundle, BundleError, decode_bundle
+from sat_node.dtn.bpv7 import Bundle, BundleError, decode_bundle, eid_text
 from sat_node.dtn.cl import ClError, TransferRefused, tcpcl3, tcpcl4, udp
 
 LAYERS = ("tcpcl4", "tcpcl3", "udp")
@@ -71,13 +71,6 @@ def host_port(text: str, flag: str) -> tuple[str, int]:
     if not sep or not host or not port.isdigit() or not 0 <= int(port) <= 65535:
         raise UserError(f"{flag} {text!r}: expected HOST:PORT (port 0-65535)")
     return host.strip("[]"), int(port)
-
-
-def eid_text(eid) -> str:
-    if eid == (0, 0):
-        return "dtn:none"
-    scheme = "imc" if type(eid).__name__ == "Imc" else "ipn"
-    return f"{scheme}:{eid[0]}.{eid[1]}"
 
 
 def describe(b: Bundle) -> str:

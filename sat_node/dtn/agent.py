@@ -68,10 +68,11 @@ import numpy as np
 
 from orbit_clock.contact_plan import ContactPlan, node_name, node_number
 
-from .bpsec import IntegrityError, add_bib, verify_bib
+from .bpsec import IntegrityError, add_bib
+from .rx_policy import FOREIGN_POLICIES, admit
 from .bpv7 import PAPER_EPOCH_DTN_MS, Bundle, BundleError, decode_bundle, encode_bundle, ipn
 from .cgr import ContactGraph
-from .routing_blocks import peek_next_hops, recipients_of, set_routing
+from .routing_blocks import peek_next_hops, set_routing
 from .store import BundleStore, StoredBundle
 
 __all__ = ["BundleAgent", "AgentConfig", "Transmission", "BundleEvent", "ttl_s_for_priority",
@@ -137,8 +138,16 @@ class AgentConfig:
     # "unicast": one bundle per recipient (this module's BundleAgent, the study simulator's model);
     # "multicast": one bundle per observation to its recipient list (sat_node/dtn/multicast.py)
     forwarding: str = "unicast"
+    # bundles without the constellation's BIB and recipients block (sat_node/dtn/rx_policy.py):
+    # "refuse" (dropped as integrity) or "accept" (ordinary unicast bundles at foreign_priority)
+    foreign: str = "refuse"
+    foreign_priority: int = 15
 
     def __post_init__(self) -> None:
+        if self.foreign not in FOREIGN_POLICIES:
+            raise ValueError(f"foreign {self.foreign!r}: one of {', '.join(FOREIGN_POLICIES)}")
+        if not 1 <= self.foreign_priority <= 15:
+            raise ValueError(f"foreign priority {self.foreign_priority}: 1..15")
         if not isinstance(self.key, bytes) or len(self.key) < MIN_KEY_BYTES:
             n = len(self.key) if isinstance(self.key, bytes) else type(self.key).__name__
             raise ValueError(f"BPSec key: bytes of length >= {MIN_KEY_BYTES} needed, got {n}")
@@ -278,6 +287,7 @@ class BundleAgent:
         self.events: list[BundleEvent] = [] if keep_events else None
         self.counters: Counter = Counter()
         self.last_error = ""
+        self.rx_counts: Counter[str] = Counter()  # rx.* of sat_node/dtn/rx_policy.py
         self._held: dict[str, _Held] = {}
         self._groups: dict[tuple, _Group] = {}
         self._order = itertools.count()
@@ -403,9 +413,9 @@ class BundleAgent:
             self.last_error = str(exc)
             return "dropped.integrity"
         try:
-            if self.config.verify_integrity:
-                verify_bib(b, self.config.key)
-            (_node, priority, _life), = recipients_of(b)
+            c = self.config
+            (_node, priority, _life), = admit(b, c.key if c.verify_integrity else None, c.foreign,
+                                              c.foreign_priority, self.rx_counts)
             dest = node_name(b.dest[0])
         except (IntegrityError, BundleError, ValueError) as exc:
             self.last_error = str(exc)

@@ -11,8 +11,10 @@ What is here:
 * :func:`decode_bundle` rejects malformed bytes with a :class:`BundleError` naming the reason
   (never another exception type), so an agent can drop and count them.
 
-Not done: fragmentation (decoded and kept, never created), dtn: EIDs other than dtn:none,
-status reports, the ``dtn://`` scheme.
+* EIDs of the ``dtn`` scheme (4.2.5.1.1): dtn:none and ``dtn://node/demux`` (:class:`Dtn`), encoded
+  [1, 0] and [1, "//node/demux"], decoded with the node name and demux checked (RFC 3986 characters).
+
+Not done: fragmentation (decoded and kept, never created), status reports.
 
 Why one module: the codec is one grammar (RFC 9171 section 4 CDDL): the block encoders, the decoder
 with its fast path and the CRCs share the CBOR helpers and the encoding caches, and each half is
@@ -32,6 +34,7 @@ from __future__ import annotations
 
 import binascii
 import io
+import re
 from dataclasses import dataclass, field, replace
 from datetime import datetime, timezone
 from typing import NamedTuple
@@ -41,7 +44,7 @@ import cbor2
 __all__ = [
     "Bundle", "CanonicalBlock", "encode_primary", "BundleError", "decode_bundle", "encode_bundle", "crc16_x25", "crc32c",
     "PAYLOAD_BLOCK", "PREVIOUS_NODE_BLOCK", "BUNDLE_AGE_BLOCK", "HOP_COUNT_BLOCK", "Imc", "IMC_SCHEME",
-    "BIB_BLOCK", "CRC_NONE", "CRC_16", "CRC_32C", "dtn_time_ms", "dtn_ms_of", "PAPER_EPOCH_DTN_MS", "ipn",
+    "BIB_BLOCK", "Dtn", "dtn_eid", "eid_text", "CRC_NONE", "CRC_16", "CRC_32C", "dtn_time_ms", "dtn_ms_of", "PAPER_EPOCH_DTN_MS", "ipn",
 ]
 
 PAYLOAD_BLOCK = 1
@@ -174,11 +177,57 @@ class Imc(NamedTuple):
         return hash(("imc", self.group, self.service))
 
 
+class Dtn(NamedTuple):
+    """A ``dtn`` scheme EID other than dtn:none (RFC 9171 4.2.5.1.1): ``dtn://node/demux``, encoded
+    [1, "//node/demux"] (scheme code 1, the SSP as a text string). ``node`` is the node name (no
+    "/"), ``demux`` the rest (may be empty or hold "/"). Never equal to an ipn or imc EID."""
+
+    node: str
+    demux: str
+
+    def __eq__(self, other) -> bool:
+        return type(other) is Dtn and tuple.__eq__(self, other)
+
+    def __ne__(self, other) -> bool:
+        return not self.__eq__(other)
+
+    def __hash__(self) -> int:
+        return hash(("dtn", self.node, self.demux))
+
+    def __str__(self) -> str:
+        return f"dtn://{self.node}/{self.demux}"
+
+
+_DTN_NODE = re.compile(r"[A-Za-z0-9\-._~!$&'()*+,;=%]+")  # RFC 3986 reg-name characters
+_DTN_DEMUX = re.compile(r"[A-Za-z0-9\-._~!$&'()*+,;=%:@/]*")  # path characters
+
+
+def dtn_eid(text: str) -> Dtn:
+    """``dtn://node/demux`` (RFC 9171 4.2.5.1.1) as a :class:`Dtn`; ValueError naming the defect."""
+    if not text.startswith("dtn://"):
+        raise ValueError(f"{text!r}: a dtn EID is dtn://node/demux (or dtn:none)")
+    node, sep, demux = text[6:].partition("/")
+    if not sep or not _DTN_NODE.fullmatch(node) or not _DTN_DEMUX.fullmatch(demux):
+        raise ValueError(f"{text!r}: a dtn EID is dtn://node/demux with RFC 3986 characters")
+    return Dtn(node, demux)
+
+
+def eid_text(eid) -> str:
+    """An EID as a URI: ipn:N.S, imc:G.S, dtn://node/demux, dtn:none."""
+    if eid is None or eid == DTN_NONE:
+        return "dtn:none"
+    if type(eid) is Dtn:
+        return str(eid)
+    return f"{'imc' if type(eid) is Imc else 'ipn'}:{eid[0]}.{eid[1]}"
+
+
 def _eid_cbor(eid: tuple[int, int] | None) -> list:
     if eid is None or eid == DTN_NONE:
         return [1, 0]
     if type(eid) is Imc:
         return [IMC_SCHEME, [eid[0], eid[1]]]
+    if type(eid) is Dtn:
+        return [1, f"//{eid.node}/{eid.demux}"]
     return [2, [eid[0], eid[1]]]
 
 
@@ -186,10 +235,15 @@ def _eid_from(obj, what: str) -> tuple[int, int]:
     if isinstance(obj, list) and len(obj) == 2:
         if obj[0] == 1 and obj[1] == 0:
             return DTN_NONE
+        if obj[0] == 1 and type(obj[0]) is int and isinstance(obj[1], str):
+            try:
+                return dtn_eid("dtn:" + obj[1])
+            except ValueError as exc:
+                raise BundleError(f"{what}: {exc}") from None
         if obj[0] in (2, IMC_SCHEME) and type(obj[0]) is int and isinstance(obj[1], list) and len(obj[1]) == 2 \
                 and all(isinstance(x, int) and not isinstance(x, bool) and x >= 0 for x in obj[1]):
             return (obj[1][0], obj[1][1]) if obj[0] == 2 else Imc(obj[1][0], obj[1][1])
-    raise BundleError(f"{what}: not an ipn or imc EID or dtn:none: {obj!r}")
+    raise BundleError(f"{what}: not an ipn or imc EID, nor a dtn one: {obj!r}")
 
 
 # --- blocks ----------------------------------------------------------------------------------------
@@ -268,6 +322,8 @@ class Bundle:
     @property
     def bundle_id(self) -> str:
         """Source node, creation time and sequence number (RFC 9171 4.2.3 names a bundle by these)."""
+        if type(self.src) is Dtn:
+            return f"dtn//{self.src.node}/{self.src.demux}-{self.creation_ms}-{self.seq}"
         return f"ipn{self.src[0]}.{self.src[1]}-{self.creation_ms}-{self.seq}"
 
     @property

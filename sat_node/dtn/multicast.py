@@ -66,9 +66,10 @@ import numpy as np
 from orbit_clock.contact_plan import ContactPlan, node_name, node_number
 
 from .agent import AgentConfig, BundleAgent, BundleEvent, Transmission, buffered_routes, ttl_s_for_priority
-from .bpsec import IntegrityError, add_bib, verify_bib
+from .bpsec import IntegrityError, add_bib
 from .bpv7 import Bundle, BundleError, decode_bundle, encode_bundle, ipn
 from .cgr import ContactGraph
+from .rx_policy import admit
 from .routing_blocks import (IMC_BLOCK, NEXT_HOPS_BLOCK, OBSERVATION_GROUP, RECIPIENTS_BLOCK, next_hops_of,
                              overhead_bits_of, peek_next_hops, recipients_of, set_routing)
 from .store import BundleStore, StoredBundle
@@ -140,6 +141,7 @@ class MulticastAgent:
         self.events: list[BundleEvent] | None = [] if keep_events else None
         self.counters: Counter = Counter()
         self.last_error = ""
+        self.rx_counts: Counter[str] = Counter()  # rx.* of sat_node/dtn/rx_policy.py
         self.last_received: Bundle | None = None
         self._held: dict[str, _MHeld] = {}
         self._ready: list = []  # (rank, order, bid, ver): candidates for the next radio decision
@@ -282,9 +284,11 @@ class MulticastAgent:
         self._settle_by_time(now_ns)
         self.last_received = None
         key = self.config.key if self.config.verify_integrity else None
+        ck = (key, self.config.foreign, self.config.foreign_priority)  # what the check depended on
         hit = _VERIFIED.get(bundle_bytes) if type(bundle_bytes) is bytes else None
-        if hit is not None and hit[0] == key:  # the same bytes, checked the same way, by another node here
-            _key, b, rs, split = hit
+        if hit is not None and hit[0] == ck:  # the same bytes, checked the same way, by another node here
+            _key, b, rs, split, rx = hit
+            self.rx_counts.update(rx)  # what admit counted for these bytes, counted here too
             if split and self.number not in split:
                 self._emit(now_ns, "discarded", "?", reason="not_next_hop")
                 return "discarded.not_next_hop"
@@ -302,9 +306,11 @@ class MulticastAgent:
                 self.last_error = str(exc)
                 return "dropped.integrity"
             try:
-                if key is not None:
-                    verify_bib(b, key)
-                rcpts = recipients_of(b)
+                rx = Counter()
+                try:
+                    rcpts = admit(b, key, self.config.foreign, self.config.foreign_priority, rx)
+                finally:
+                    self.rx_counts.update(rx)
                 rs = {r[0]: r for r in rcpts}
                 split = next_hops_of(b, rcpts)
             except (IntegrityError, BundleError, ValueError) as exc:
@@ -314,7 +320,7 @@ class MulticastAgent:
             if type(bundle_bytes) is bytes:
                 if len(_VERIFIED) >= _VERIFIED_MAX:
                     _VERIFIED.clear()
-                _VERIFIED[bundle_bytes] = (key, b, rs, split)
+                _VERIFIED[bundle_bytes] = (ck, b, rs, split, rx)
         mine = split.get(self.number, tuple(rs)) if split else tuple(rs)
         bid = b.bundle_id
         created = self._created_ns(b)
