@@ -48,7 +48,10 @@ names; split, each half would import the other's constants and private state.
 How we know it is right: the byte encodings of each message written out by hand from the RFC's
 figures, both roles against each other on loopback (segmentation under a small segment MRU,
 refusal, termination, keepalive, TLS with a throw-away certificate), every malformed input of the
-list above sent by a raw socket with the reply bytes checked (tests/unit/test_cl_tcpcl4.py).
+list above sent by a raw socket with the reply bytes checked (tests/unit/test_cl_tcpcl4.py); the
+RFC author's own implementation (github BrianSipos/dtn-demo-agent) as the peer in both roles, bundles
+both ways on one session, each larger than the other side's segment MRU
+(tests/interop/test_tcpcl4_interop.py, marker ``interop``).
 """
 
 from __future__ import annotations
