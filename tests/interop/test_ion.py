@@ -144,3 +144,42 @@ def test_contact_plan_for_epoch_now_loads_into_ion(tmp_path):
         assert contacts == written and len(written) > 300, name
     print(f"ION held {len(held['now'][0])}/{len(held['now'][1])} contacts of the --epoch now plan, "
           f"0/{len(held['paper'][1])} of the study's", file=sys.stderr)
+
+
+def test_dumped_bundles_of_a_real_time_epoch_delivered_by_ion(tmp_path):
+    """Bundles the constellation's agents made (`constellation dtn --dump-bundles`: BIB, recipients
+    and next-hop blocks, ipn:13.1 = sat_13) go to an ION node numbered 13 over UDP. With --epoch a
+    minute ago, ION delivers every one, payload identical. (Measured, not asserted: ION 4.1.3 also
+    delivered the same bundles made at the study's epoch, 26 years expired - it did not check their
+    lifetime before delivery; the issue's "Lifetime Expired" deletions were another node's.)"""
+    from orbit_clock.contact_plan import Contact, ContactPlan
+    from orbit_clock.contact_plan_io import write_contact_plan
+    plan = ContactPlan([Contact(0.0, 1000.0, a, b, 1000.0, 0.5) for a, b in
+                        [("sat_11", "sat_12"), ("sat_12", "sat_11"), ("sat_12", "sat_13"), ("sat_13", "sat_12")]])
+    with open(tmp_path / "plan.csv", "w") as fh:
+        write_contact_plan(plan, "csv", fh)
+    rows = [f"Sat11,{10 + 5 * k},{k + 1},r,0,-1,1" for k in range(N)]
+    (tmp_path / "traffic.csv").write_text("\n".join(["source,time_s,packet_id,region,Sat11,Sat12,Sat13", *rows]) + "\n")
+    epoch = (datetime.now(UTC) - timedelta(minutes=1)).strftime("%Y-%m-%dT%H:%M:%SZ")
+    delivered = {}
+    for name, extra in (("live", ["--epoch", epoch]), ("paper", [])):
+        dump = tmp_path / name
+        assert main(["dtn", "--contact-plan", str(tmp_path / "plan.csv"), "--traffic", str(tmp_path / "traffic.csv"),
+                     "--json", "--dump-bundles", str(dump), *extra]) == 0
+        files = sorted(dump.glob("*.bpv7"))
+        assert len(files) == N
+        node = IonNode(tmp_path / f"ion_{name}", 13, {}, endpoints=(1,)).start()
+        try:
+            assert main(["bundles", "send", "--cl", "udp", "--to", f"127.0.0.1:{node.udp_port}",
+                         *map(str, files)]) == 0
+            try:
+                got = node.receive_files("ipn:13.1", N, timeout=15)
+            except subprocess.TimeoutExpired:
+                got = [f.read_bytes() for f in sorted(node.home.glob("testfile*"))]
+        finally:
+            node.stop()
+        delivered[name] = (got, sorted(decode_bundle(f.read_bytes()).payload for f in files))
+    got, want = delivered["live"]
+    assert sorted(got) == want and len(got) == N
+    print(f"ION delivered {len(got)}/{N} dumped bundles of the --epoch {epoch} run, {len(delivered['paper'][0])}/{N} "
+          "of the study's epoch", file=sys.stderr)
