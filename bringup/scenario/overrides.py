@@ -161,4 +161,5 @@ def check_conflicts(sets: Iterable, explicit: Iterable[str]) -> None:
     for opt in explicit:
         for k, _, text in pairs:
             if k in OPTION_KEYS.get(opt, ()):
-                raise ScenarioError(f"--set {text}: --{opt.replace('_', '-')} sets the same key; give one of them")
+                flag = {"epoch_utc": "epoch"}.get(opt, opt)  # (--epoch's dest is the scenario key's name)
+                raise ScenarioError(f"--set {text}: --{flag.replace('_', '-')} sets the same key; give one of them")

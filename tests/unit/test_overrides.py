@@ -101,6 +101,7 @@ def test_run_spec_applies_the_sets_as_the_command_line(paper_scenario):
     (["compare", "--set", "value.knowledge=nosuch"], "value.knowledge"),
     (["sweep", "--set", "isl.rate_bps=abc"], "isl.rate_bps"),
     (["access", "--set", "instrument.footprint_km=0"], "instrument.footprint_km"),
+    (["contacts", "--epoch", "now", "--set", "scenario.epoch_utc=2026-01-01T00:00:00Z"], "--epoch sets the same key"),
 ])
 def test_commands_refuse_a_bad_set_in_one_line(tmp_path, capsys, argv, named):
     from bringup.cli.main import main
@@ -122,11 +123,13 @@ def test_the_ros_processes_load_the_runs_scenario(tmp_path):
     p = argparse.ArgumentParser()
     run_cmd.add_arguments(p)
     args = p.parse_args(["--sats", "6", "--hours", "0.5", "--knowledge", "observed", "--viz-period-s", "30",
-                         "--set", "isl.rate_bps=250", "--set", "regions.list[0].size_km=40"])
+                         "--set", "isl.rate_bps=250", "--set", "regions.list[0].size_km=40",
+                         "--epoch", "2026-11-27T12:00:00Z"])
     sc = scenario_from_args(args).with_overrides(viz_period_s=args.viz_period_s)
     spec = RunSpec(factory="m:f", roles=["a"], scenario=sc.source_path, overrides=run_cmd.spec_overrides(args))
     back = RunSpec.from_file(_spec_file(tmp_path, spec)).load_scenario()
     assert raw_scenario(back) == raw_scenario(sc) and back.isl.rate_bps == 250.0 and back.viz.period_s == 30.0
+    assert back.scenario.epoch_utc == "2026-11-27T12:00:00Z"  # --epoch reaches the processes too
 
 
 def _spec_file(tmp_path, spec):
