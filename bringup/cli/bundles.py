@@ -37,7 +37,8 @@ _DTN_EPOCH = datetime(2000, 1, 1, tzinfo=UTC)
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    sub = p.add_subparsers(dest="action", metavar="ACTION", required=True)
+    sub = p.add_subparsers(dest="action", metavar="ACTION", required=True,
+                           help="send: bundle files to a peer in one session; listen: accept sessions, save bundles")
     s = sub.add_parser("send", help="send bundle files to a DTN node (one session, each file one bundle)")
     s.add_argument("--cl", choices=LAYERS, required=True, help="convergence layer")
     s.add_argument("--to", required=True, metavar="HOST:PORT", help="the peer's address")
