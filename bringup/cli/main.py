@@ -31,6 +31,7 @@ from collections.abc import Iterable
 from bringup.errors import UserError, os_error_line
 from bringup.scenario.config import ScenarioError
 from bringup.scenario.provenance import version
+from bringup.stop_signals import exit_code, signal_name
 
 # subcommand name -> (module under bringup.cli, one line for `constellation --help`). Only the
 # chosen command's module is imported: each imports what it needs at its top, and `--help` or one
@@ -159,9 +160,11 @@ def main(argv: list[str] | None = None) -> int:
         # PropagationError, ...): ValueErrors whose message names what is wrong and where
         print(f"constellation {args.command}: error: {' '.join(str(exc).split())}", file=sys.stderr)
         return 2
-    except KeyboardInterrupt:
-        print(f"constellation {args.command}: interrupted", file=sys.stderr)
-        return 130
+    except KeyboardInterrupt as exc:  # (Ctrl-C, or a stop signal a command turned into one: stop_signals.py)
+        sig = getattr(exc, "signum", None)
+        print(f"constellation {args.command}: interrupted" + (f" by {signal_name(sig)}" if sig else ""),
+              file=sys.stderr)
+        return exit_code(exc)
     except BrokenPipeError:
         return 0
     except OSError as exc:  # a full disk, an unwritable folder: named, with the file

@@ -55,6 +55,7 @@ from bringup.scenario.participants import (
 )
 from bringup.scenario.provenance import provenance
 from bringup.scenario.world import World
+from bringup.stop_signals import STOP_SIGNALS, Interrupted, stop_on_signals
 from dtn_router.router import ROUTER_NAME
 from msgs_json.envelope import Envelope
 
@@ -168,7 +169,9 @@ def run(args: argparse.Namespace) -> int:
     # made absolute here, against the folder the user ran the command in (the ROS engine's
     # processes run in the repository's folder)
     keys = keys_from_args(args)
-    with RunFolder(args.out or Path("runs") / f"{sc.name}-{args.mode}") as folder:
+    # SIGTERM, SIGHUP, SIGQUIT as Ctrl-C: the folder says "interrupted" with the signal, a partial
+    # report of what the bag holds, the keys removed (bringup/stop_signals.py)
+    with stop_on_signals(), RunFolder(args.out or Path("runs") / f"{sc.name}-{args.mode}") as folder:
         out = folder.path
         bag_dir = out / "bag"
         try:
@@ -246,7 +249,8 @@ def _leave_partial_report(folder: RunFolder, bag_dir: Path, exc: BaseException) 
     except OSError:
         return
     folder.mark_partial_report()
-    print(f"run: the run failed; {folder.path / 'report.json'} is a partial report of what the bag holds "
+    how = f"was {exc}" if isinstance(exc, Interrupted) else "failed"
+    print(f"run: the run {how}; {folder.path / 'report.json'} is a partial report of what the bag holds "
           f"(t = {rep['horizon_reached_s']:g} s of {rep['horizon_s']:g} s)", file=sys.stderr)
 
 
@@ -437,9 +441,9 @@ def _run_ros(world, world_path: Path, args, meta, bag_dir: Path, out: Path, rout
                 prog.stop()
     wall = time.perf_counter() - t0
     restarts = getattr(res, "restarts", {}) or {}
-    if res.returncode == 130:  # Ctrl-C / SIGTERM: the exit code says interrupted, as everywhere
+    if res.returncode - 128 in STOP_SIGNALS:  # stopped by a signal: the exit code says which, as everywhere
         say(f"run: {res.message} (logs in {out / 'logs'})")
-        raise KeyboardInterrupt
+        raise Interrupted(res.returncode - 128)
     if not res.ok:
         raise UserError(f"ROS run failed: {res.message} (logs in {out / 'logs'})")
     last = res.last

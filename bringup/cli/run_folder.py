@@ -3,6 +3,12 @@
 ``constellation run --out DIR`` writes a bag, a report and plots into DIR (``compare`` and
 ``sweep --out`` their tables, each run of ``compare`` a run folder of its own). :class:`RunFolder` makes that safe:
 
+* **only the run's user controls it**: DIR must be owned by the effective user and writable by no
+  one else (bringup/private_files.py ``check_private_dir``: a shared /tmp, a group folder or
+  another user's folder is refused in one line, exit 2), and every file the run keeps there (the
+  lock, the state, the keys) is opened without following a symlink and checked to be a regular
+  file of the user's own (``open_private``): another local user cannot make the run write through
+  a planted symlink or read their keys;
 * **where the user meant**: DIR is made absolute against the caller's working folder before
   anything starts (the ROS engine's processes run elsewhere and get absolute paths only);
   a DIR that is a file, or cannot be made or written, is one line naming it;
@@ -14,7 +20,8 @@
   bag, report, plots, logs, stores, state) are removed, so nothing left in DIR can be taken for this
   run's; the world cache (``cache/``) and files the run does not write stay;
 * **the run's state** in ``DIR/run_status.json``: ``running`` (with the pid) from the start, then
-  ``complete``, ``failed`` (with the one-line error) or ``interrupted``, and whether the report
+  ``complete``, ``failed`` (with the one-line error) or ``interrupted`` (with the signal:
+  SIGINT, SIGTERM, SIGHUP or SIGQUIT, bringup/stop_signals.py), and whether the report
   beside it is ``partial``;
 * **whole files**: :func:`write_text_atomic` writes a temporary file in the same folder, flushes it
   to disk and renames it over the target (rename(2) is atomic within a file system), so a reader
@@ -23,7 +30,8 @@
 How we know it is right: tests/faults/test_run_folder.py (two runs into one --out: the second
 refused in one line, the first's report its own; stale outputs removed; a failed run's status and
 partial report; an --out that is a file or unwritable; a relative --out from another folder) and
-tests/faults/test_hostile_inputs.py.
+tests/faults/test_hostile_inputs.py; tests/faults/test_trust_files.py (a symlinked lock, a foreign
+owned or world-writable --out) and tests/faults/test_run_signals.py (each stop signal).
 """
 
 from __future__ import annotations
@@ -39,6 +47,8 @@ import time
 from pathlib import Path
 
 from bringup.errors import UserError, os_error_line
+from bringup.private_files import check_private_dir, open_private, write_private_atomic
+from bringup.stop_signals import signal_name
 
 __all__ = ["LOCK_NAME", "OUTPUTS", "STATUS_NAME", "RunFolder", "json_text", "write_text_atomic"]
 
@@ -68,21 +78,8 @@ def json_text(obj, **kw) -> str:
 def write_text_atomic(path: str | Path, text: str) -> Path:
     """Write ``text`` to ``path`` whole or not at all (temporary file in the same folder, fsync,
     rename); an OSError names ``path``."""
-    path = Path(path)
-    tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
-    try:
-        with open(tmp, "w", encoding="utf-8", newline="") as fh:
-            fh.write(text)
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.replace(tmp, path)
-    except OSError as exc:
-        try:
-            tmp.unlink()
-        except OSError:
-            pass
-        raise OSError(exc.errno, exc.strerror, str(path)) from None
-    return path
+    # (the temporary file is new, never a symlink someone planted: bringup/private_files.py)
+    return write_private_atomic(path, text.encode("utf-8"), "output file", 0o644)
 
 
 def _now_utc() -> str:
@@ -115,13 +112,16 @@ class RunFolder:
         if p.exists() and not p.is_dir():
             raise UserError(f"{self.what} {p}: is a file, not a folder")
         try:
-            p.mkdir(parents=True, exist_ok=True)
+            for q in [*reversed(p.parents), p]:  # (each folder made here: writable by its owner only)
+                if not q.exists():
+                    q.mkdir(mode=0o755, exist_ok=True)
         except OSError as exc:
             raise UserError(f"{self.what} {p}: cannot make the folder: {os_error_line(exc, 'making')}") from None
+        check_private_dir(p, self.what)
         if not os.access(p, os.W_OK | os.X_OK):
             raise UserError(f"{self.what} {p}: not writable (permission denied)")
         try:
-            fd = os.open(p / LOCK_NAME, os.O_RDWR | os.O_CREAT, 0o644)
+            fd = open_private(p / LOCK_NAME, os.O_RDWR | os.O_CREAT, f"{self.what} lock file", 0o600)
         except OSError as exc:
             raise UserError(f"{self.what} {p}: cannot make its lock file: {os_error_line(exc)}") from None
         try:
@@ -170,6 +170,8 @@ class RunFolder:
         try:
             if exc_type is not None and self._status.get("status") == "running":
                 interrupted = issubclass(exc_type, KeyboardInterrupt)
+                if interrupted:
+                    self._status["signal"] = signal_name(getattr(exc, "signum", 2))
                 self._status.update(status="interrupted" if interrupted else "failed", ended_utc=_now_utc(),
                                     error=(os_error_line(exc) if isinstance(exc, OSError) else
                                            " ".join(str(exc).split())[:500] or exc_type.__name__),
@@ -177,7 +179,7 @@ class RunFolder:
                                     report=STATUS_REPORT if (self.path / "report.json").exists() else None)
                 try:
                     self._write_status()
-                except OSError:
+                except (OSError, UserError):
                     pass
         finally:
             self._release()
@@ -193,7 +195,8 @@ class RunFolder:
         except OSError:
             # a full disk has no room for a second file: rewrite the one there (its page is freed
             # by the truncation and taken again), so the status still says how the run ended
-            with open(self.path / STATUS_NAME, "w", encoding="utf-8") as fh:
+            fd = open_private(self.path / STATUS_NAME, os.O_WRONLY | os.O_TRUNC, "run status")
+            with os.fdopen(fd, "w", encoding="utf-8") as fh:
                 fh.write(text)
 
     def _release(self) -> None:

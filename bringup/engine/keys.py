@@ -23,12 +23,23 @@ descriptor does not cross into a container nor survive a process restart. A file
 is readable by its owner only (the same protection as ``/proc/PID/environ``), goes into containers
 by the same bind mount as the run spec, and is reread by a restarted process.
 
+The file is not trusted for being there: it is opened without following a symlink and must be a
+regular file owned by the reading process's user, with one link and mode 0600
+(bringup/private_files.py), and the launcher gives every process it starts the file's SHA-256 in
+``AGILE_DTN_RUN_KEYS_SHA256`` (the environment of a process is readable by its user only): a
+process refuses a keys file whose digest differs, so a file renamed over the launcher's after it was
+written (by a user who can write the run folder) is refused by every process, a restarted one too,
+instead of making the run trust another user's keys. (``constellation run`` refuses such a folder
+before it starts: bringup/cli/run_folder.py.)
+
 Checked by tests/unit/test_run_keys.py (key sources and their order, hex and length errors, file
-permissions refused when open to others, the written file's mode, round trip).
+permissions refused when open to others, the written file's mode, round trip) and
+tests/faults/test_trust_files.py (a symlinked, foreign or replaced keys file refused).
 """
 
 from __future__ import annotations
 
+import hashlib
 import json
 import os
 import secrets
@@ -37,14 +48,16 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from bringup.errors import UserError
+from bringup.private_files import open_private
 from sat_node.dtn.agent import MIN_KEY_BYTES
 
-__all__ = ["ENV_BPSEC_KEY", "ENV_BPSEC_KEY_FILE", "KEYS_FILE_NAME", "RunKeys", "read_key_file",
+__all__ = ["ENV_BPSEC_KEY", "ENV_BPSEC_KEY_FILE", "ENV_KEYS_DIGEST", "KEYS_FILE_NAME", "RunKeys", "read_key_file",
            "resolve_bpsec_key", "write_key_file"]
 
 ENV_BPSEC_KEY = "AGILE_DTN_BPSEC_KEY"
 ENV_BPSEC_KEY_FILE = "AGILE_DTN_BPSEC_KEY_FILE"
 KEYS_FILE_NAME = "run.keys"
+ENV_KEYS_DIGEST = "AGILE_DTN_RUN_KEYS_SHA256"
 _RUN_KEY_BYTES = 32
 
 
@@ -67,12 +80,16 @@ def _check_private(path: Path, st: os.stat_result) -> None:
                         f"readable by others than its owner (chmod 600 {path})")
 
 
-def _read_private(path: Path, what: str, missing: str) -> bytes:
+def _read_private(path: Path, what: str, missing: str, *, run_file: bool = False) -> bytes:
     """Up to 4097 bytes of an owner-only file (one more than any key file may hold, so the caller
     sees an oversized one); one-line UserError naming ``what`` when missing, unreadable or open to
-    others."""
+    others. ``run_file``: a file of the run folder (never a symlink, owned by this user, one link:
+    bringup/private_files.py ``open_private``)."""
     try:
-        fd = os.open(path, os.O_RDONLY)
+        if run_file:
+            fd = open_private(path, os.O_RDONLY, "run keys")
+        else:
+            fd = os.open(path, os.O_RDONLY)
     except FileNotFoundError:
         raise UserError(f"{what}: {missing}") from None
     except OSError as exc:
@@ -104,7 +121,7 @@ def write_key_file(path: Path, key: bytes) -> Path:
 
 def _write_private(path: Path, data: bytes) -> Path:
     path.unlink(missing_ok=True)  # never reuse a file someone else made, with its permissions
-    fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
+    fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW | os.O_CLOEXEC, 0o600)
     try:
         os.fchmod(fd, 0o600)  # whatever the umask
         os.write(fd, data)
@@ -141,18 +158,34 @@ class RunKeys:
         bpsec, where = resolve_bpsec_key(bpsec_key_file, env)
         return cls(secrets.token_bytes(_RUN_KEY_BYTES), bpsec, where)
 
+    def encoded(self) -> bytes:
+        """The file's content (:meth:`write`)."""
+        return json.dumps({"v": 1, "run": self.run.hex(), "bpsec": self.bpsec.hex(),
+                           "bpsec_from": self.bpsec_from}).encode()
+
+    def digest(self) -> str:
+        """SHA-256 (hex) of the file's content: what the launcher hands its processes
+        (``AGILE_DTN_RUN_KEYS_SHA256``) to check the file they read against."""
+        return hashlib.sha256(self.encoded()).hexdigest()
+
     def write(self, path: Path) -> Path:
         """Write to a new file ``path`` created with mode 0600 (an existing file is replaced: it is
         unlinked first, so a file someone else made is never reused with its permissions)."""
-        return _write_private(Path(path), json.dumps({"v": 1, "run": self.run.hex(), "bpsec": self.bpsec.hex(),
-                                                      "bpsec_from": self.bpsec_from}).encode())
+        return _write_private(Path(path), self.encoded())
 
     @classmethod
-    def read(cls, path: Path) -> RunKeys:
-        """Read a file written by :meth:`write`; one-line UserError when missing, open to others or
-        malformed."""
+    def read(cls, path: Path, env: dict[str, str] | None = None) -> RunKeys:
+        """Read a file written by :meth:`write`; one-line UserError when missing, a symlink, not the
+        user's own, open to others, malformed, or (with ``$AGILE_DTN_RUN_KEYS_SHA256`` in ``env``,
+        default the process's) not the file the launcher wrote."""
         path = Path(path)
-        raw = _read_private(path, f"run keys {path}", "no such file (the launcher writes it; is the run over?)")
+        env = os.environ if env is None else env
+        raw = _read_private(path, f"run keys {path}", "no such file (the launcher writes it; is the run over?)",
+                            run_file=True)
+        want = env.get(ENV_KEYS_DIGEST)
+        if want and hashlib.sha256(raw).hexdigest() != want.strip().lower():
+            raise UserError(f"run keys {path}: not the file the launcher wrote (its SHA-256 differs from "
+                            f"${ENV_KEYS_DIGEST}): replaced after it was written; refusing its keys")
         try:
             d = json.loads(raw)
             keys = cls(bytes.fromhex(d["run"]), bytes.fromhex(d["bpsec"]), str(d.get("bpsec_from", "")))

@@ -22,7 +22,8 @@ Failure handling:
 * the child is killed (SIGKILL, the OOM killer): the parent's next batch or ``finish`` raises
   ``RecorderError`` naming the signal; the bag holds every chunk closed before (bag.py, "Crash
   safety"; tests/faults/test_recorder_kill.py);
-* Ctrl-C: the child ignores SIGINT, the parent's ``close`` (also on an exception) tells it to close
+* Ctrl-C, SIGTERM, SIGHUP, SIGQUIT (a terminal or a supervisor signals the whole process group):
+  the child ignores them (bringup/stop_signals.py), the parent's ``close`` (also on an exception) tells it to close
   the bag, so the bag is complete and readable up to the last step handed over;
 * the parent dies: the child reads end-of-file, closes the bag and exits.
 
@@ -45,6 +46,7 @@ from bringup.errors import UserError, os_error_line
 from bringup.recording.bag import BagWriter
 from bringup.recording.metrics_feed import MetricsFeed
 from bringup.recording.viz_feed import VizFeed
+from bringup.stop_signals import STOP_SIGNALS
 from msgs_json.envelope import Envelope
 
 __all__ = ["Recorder", "RecorderError"]
@@ -73,7 +75,7 @@ class Recorder:
                                  args=(child_conn, self._conn, str(self.bag_dir), world if viz else None, report))
         # SIGINT blocked across the fork: the child ignores it from its first instruction on (a
         # Ctrl-C at that very moment reaches the parent once it is unblocked here)
-        old = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+        old = signal.pthread_sigmask(signal.SIG_BLOCK, set(STOP_SIGNALS))
         try:
             self._proc.start()
         finally:
@@ -202,8 +204,9 @@ class Recorder:
 
 def _child_main(conn, parent_conn, bag_dir: str, world, report) -> None:
     """The recorder process: replay the parent's bag calls, decode the report's envelopes."""
-    signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent decides when the bag closes
-    signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
+    for sig in STOP_SIGNALS:  # the parent decides when the bag closes
+        signal.signal(sig, signal.SIG_IGN)
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, set(STOP_SIGNALS))
     parent_conn.close()
     gc.freeze()  # the inherited heap is never garbage; only what this process makes is scanned
     gc.set_threshold(50_000, 50, 1000)

@@ -117,6 +117,7 @@ from bringup.recording.journal import BagJournal
 from bringup.recording.metrics_feed import MetricsFeed
 from bringup.recording.viz_feed import VizFeed
 from bringup.scenario.world import World
+from bringup.stop_signals import STOP_SIGNALS
 from msgs_json.envelope import Envelope
 from msgs_json.topics import design_topic
 from msgs_json.wire import decode_envelope, encode_envelope
@@ -225,8 +226,8 @@ class LockstepClock:
         if ack.participant not in self.roles:
             reject(ACK_TOPIC, "unknown_source", f"{ACK_TOPIC}: ack from unknown host {ack.participant!r}")
             return
-        if ack.rejected:
-            self.host_rejected[ack.participant] = ack.rejected
+        # a host's rejection counts are taken from an ack the run accepts, never before its checks: an
+        # old ack of the same host (valid MAC, replayed) must not roll its counts back
         if ack.hello:
             if self.running:
                 if not self.restart:  # only a restarted host says hello again, and none is restarted
@@ -234,6 +235,8 @@ class LockstepClock:
                            "during a run without restarts")
                     return
                 self.rejoins.append(ack)
+            elif ack.rejected:
+                self.host_rejected[ack.participant] = ack.rejected
             self.hellos[ack.participant] = ack
         else:
             if ack.k != self.cur_k:
@@ -242,6 +245,8 @@ class LockstepClock:
             if ack.participant in self.acks:  # the same ack again (re-announced step): recorded once
                 return
             self.acks[ack.participant] = ack
+            if ack.rejected:
+                self.host_rejected[ack.participant] = ack.rejected
             if self.bag is not None:  # recorded as the ack itself (the MAC is the transport's)
                 self.bag.write_raw(ACK_TOPIC, _STRING, string_cdr(text), ack.t_ns)
 
@@ -642,8 +647,10 @@ def run_clock(spec: RunSpec, on_closed=None) -> int:
     # SIGUSR1 writes every thread's Python stack into the log (bringup/engine/ros/launcher.py, before a SIGKILL)
     faulthandler.register(signal.SIGUSR1, all_threads=True)
     clock = LockstepClock(spec)
-    signal.signal(signal.SIGTERM, clock.request_stop)
-    signal.signal(signal.SIGINT, clock.request_stop)
+    # every way a run is stopped (a terminal's SIGHUP or Ctrl-\\ reach every process of its group too):
+    # the ordinary stop (bringup/stop_signals.py)
+    for sig in STOP_SIGNALS:
+        signal.signal(sig, clock.request_stop)
     try:
         rc = clock.run()
         clock.stop_hosts()

@@ -105,6 +105,7 @@ from bringup.engine.lockstep import (
 from bringup.engine.ros.live import HostLive, declare_run_parameters
 from bringup.engine.ros.naming import node_name_and_namespace, ros_topic_name
 from msgs_json.envelope import Envelope, Participant, StepResult
+from bringup.stop_signals import STOP_SIGNALS
 
 __all__ = ["QOS_DATA", "QOS_SYNC_PUB", "QOS_SYNC_SUB", "HostError", "ParticipantHost", "exit_now", "run_host"]
 
@@ -531,8 +532,10 @@ def run_host(role: str, participants: Sequence[Participant], **kw) -> int:
     # it kills a host that ignored SIGTERM.
     faulthandler.register(signal.SIGUSR1, all_threads=True)
     host = ParticipantHost(role, participants, **kw)
-    signal.signal(signal.SIGTERM, host.request_stop)
-    signal.signal(signal.SIGINT, host.request_stop)
+    # every way a run is stopped (a terminal's SIGHUP or Ctrl-\\ reach every process of its group too):
+    # the ordinary stop (bringup/stop_signals.py)
+    for sig in STOP_SIGNALS:
+        signal.signal(sig, host.request_stop)
     try:
         rc = host.run()
     except KeyboardInterrupt:

@@ -6,14 +6,19 @@ recorder into ``spec.bag_dir``) and one process per role (N satellites, router, 
 what a role hosts comes from the spec's participant factory). Every child gets
 ``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST`` (no packet leaves loopback), a run-unique
 ``ROS_DOMAIN_ID`` (1..101, held by an fcntl lock file for the whole run so parallel runs on one
-host never share one) and ``FASTRTPS_DEFAULT_PROFILES_FILE`` = bringup/engine/ros/dds/fastdds_profile.xml.
+host never share one; the lock files live in a per-user folder of mode 0700,
+bringup/private_files.py ``private_state_dir``, so no other user can pre-create and hold them) and ``FASTRTPS_DEFAULT_PROFILES_FILE`` = bringup/engine/ros/dds/fastdds_profile.xml.
 Progress (sim time, real-time factor, steps/s, bundles in flight in the router) goes to a
-callback. Ctrl-C / SIGTERM: the clock is asked to stop first (it tells the hosts and closes the
-bag, which stays readable), then the hosts; the result's code is 130. A child that fails is named in
+callback. Ctrl-C, SIGTERM, SIGHUP (the terminal closed) or SIGQUIT (bringup/stop_signals.py): the
+clock is asked to stop first (it tells the hosts and closes the bag, which stays readable), then the
+hosts; the result's code is 128 + the signal's number (130 for Ctrl-C) and its message names the
+signal; the keys file is removed whatever the signal. A child that fails is named in
 the result's message (a signal by its name: "process 'sat_11' killed by SIGKILL") with what the
 stop left in the bag, and the result is non-zero. The run's keys (bringup/engine/keys.py) go to
 ``out_dir/run.keys`` (mode 0600) unless the spec names a keys file, and are removed at the end; the
-run spec records the keys file and the ROS_DOMAIN_ID. Every child holds a lifeline to the launcher
+run spec records the keys file and the ROS_DOMAIN_ID, and every child gets the file's SHA-256 in
+its environment (``AGILE_DTN_RUN_KEYS_SHA256``) and refuses a file that differs (a file replaced
+after the launcher wrote it; bringup/engine/keys.py). Every child holds a lifeline to the launcher
 (``AGILE_DTN_LAUNCHER_PID``; bringup/engine/ros/lifeline.py): if the launcher dies, even by
 SIGKILL, its processes stop within seconds (the clock closing the bag). A child still running 5 s
 after SIGTERM gets SIGUSR1 (node processes then write their Python stacks into their log) and
@@ -65,6 +70,7 @@ often than allowed leaves a partial bag that equals the local engine's run up to
 from __future__ import annotations
 
 import fcntl
+import hashlib
 import json
 import os
 import pickle
@@ -72,7 +78,6 @@ import random
 import signal
 import subprocess
 import sys
-import tempfile
 import threading
 import time
 from collections.abc import Callable
@@ -81,11 +86,13 @@ from pathlib import Path
 
 import msgspec
 
-from bringup.engine.keys import KEYS_FILE_NAME, RunKeys
+from bringup.engine.keys import ENV_KEYS_DIGEST, KEYS_FILE_NAME, RunKeys
 from bringup.engine.ros.lifeline import ENV_LAUNCHER_PID
 from bringup.engine.ros.run_spec import CLOCK_ROLE, RunSpec
 from bringup.engine.ros.shm_cleanup import remove_unheld
 from bringup.errors import UserError
+from bringup.private_files import open_private, private_state_dir, read_private_bytes
+from bringup.stop_signals import signal_name, stop_on_signals
 from bringup.recording.journal import BagJournal
 
 __all__ = [
@@ -100,7 +107,15 @@ __all__ = [
 
 REPO = Path(__file__).resolve().parents[3]
 FASTDDS_PROFILE = Path(__file__).resolve().parent / "dds" / "fastdds_profile.xml"
-_LOCK_DIR = Path(tempfile.gettempdir()) / "agile_dtn_ros_domains"
+LEASE_DIR_NAME = "agile_dtn_ros_domains"
+ENV_LEASE_DIR = "AGILE_DTN_LEASE_DIR"
+
+
+def lease_dir() -> Path:
+    """The folder of the domain leases' lock files: ``$AGILE_DTN_LEASE_DIR``, else per user
+    (``$XDG_RUNTIME_DIR/agile_dtn_ros_domains`` or ``/tmp/agile_dtn_ros_domains-<uid>``), mode 0700,
+    owned by the user (another user could hold every id of a shared folder)."""
+    return private_state_dir(LEASE_DIR_NAME, ENV_LEASE_DIR)
 
 
 class DomainLease:
@@ -125,18 +140,18 @@ class DomainLease:
 
 def lease_domain_id(lo: int = 1, hi: int = 101) -> DomainLease:
     """Lock a free domain id in ``[lo, hi]`` (random start, so parallel runs spread)."""
-    _LOCK_DIR.mkdir(parents=True, exist_ok=True)
+    folder = lease_dir()
     ids = list(range(lo, hi + 1))
     start = random.randrange(len(ids))
     for d in ids[start:] + ids[:start]:
-        fd = os.open(_LOCK_DIR / f"domain_{d}.lock", os.O_CREAT | os.O_RDWR, 0o666)
+        fd = open_private(folder / f"domain_{d}.lock", os.O_CREAT | os.O_RDWR, "domain lease", 0o600)
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except OSError:
             os.close(fd)
             continue
         return DomainLease(d, fd)
-    raise UserError(f"no free ROS_DOMAIN_ID in {lo}..{hi} (all locked under {_LOCK_DIR})")
+    raise UserError(f"no free ROS_DOMAIN_ID in {lo}..{hi} (all locked under {folder})")
 
 
 def child_env(domain_id: int) -> dict[str, str]:
@@ -347,11 +362,16 @@ def launch(spec: RunSpec, out_dir: Path, *, progress: Callable[[LaunchProgress],
     dom = lease.domain_id if lease else int(domain_id)  # type: ignore[arg-type]
     own_keys = None
     if spec.keys_file is None:
-        own_keys = (keys or RunKeys.generate()).write(out_dir / KEYS_FILE_NAME)
+        run_keys = keys or RunKeys.generate()
+        own_keys = run_keys.write(out_dir / KEYS_FILE_NAME)
+        digest = run_keys.digest()
+    else:  # (a keys file of the caller's: the children check they read what the launcher saw)
+        digest = hashlib.sha256(read_private_bytes(spec.keys_file, "run keys", 4097)).hexdigest()
     spec = msgspec.structs.replace(spec, domain_id=dom,
                                    keys_file=str(own_keys.resolve()) if own_keys else spec.keys_file)
     spec.to_file(spec_path)
     env = child_env(dom)
+    env[ENV_KEYS_DIGEST] = digest
     last: list[LaunchProgress | None] = [None]
     children: list[_Child] = []
 
@@ -395,11 +415,8 @@ def launch(spec: RunSpec, out_dir: Path, *, progress: Callable[[LaunchProgress],
             if progress is not None:
                 progress(p)
 
-    old_term = None
-    if threading.current_thread() is threading.main_thread():
-        def _on_term(*_a):
-            raise KeyboardInterrupt
-        old_term = signal.signal(signal.SIGTERM, _on_term)
+    stops = stop_on_signals()
+    stops.__enter__()
     try:
         if spec.prepare is not None:
             failed_prep = _prepare(spec, spec_path, out_dir, env, python, progress)
@@ -489,16 +506,17 @@ def launch(spec: RunSpec, out_dir: Path, *, progress: Callable[[LaunchProgress],
                         message += "; " + _partial_bag(spec)
                     break
                 time.sleep(0.05)
-        except KeyboardInterrupt:
+        except KeyboardInterrupt as exc:
+            signum = getattr(exc, "signum", signal.SIGINT)
             _terminate([clock], 15.0)
             _terminate(hosts, 5.0)
-            rc, message, failed = 130, "interrupted: every process stopped; " + _bag_after_stop(clock, spec), []
+            rc, message, failed = (128 + signum, f"interrupted by {signal_name(signum)}: every process stopped; "
+                                   + _bag_after_stop(clock, spec), [])
         reader.join(timeout=2.0)
         return LaunchResult(rc, message, dom, out_dir, last[0], failed, restarts, lingered)
     finally:
         _terminate(children, 5.0)
-        if old_term is not None:
-            signal.signal(signal.SIGTERM, old_term)
+        stops.__exit__(None, None, None)
         if lease is not None:
             lease.release()
         if own_keys is not None:
