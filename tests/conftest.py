@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import tempfile
 from pathlib import Path
 
 import pytest
@@ -13,6 +14,10 @@ PAPER_INPUTS = Path(os.environ.get("PAPER_INPUTS", REPO / "tests" / "fixtures" /
 
 # Every ROS process a test starts stays on loopback (docs/design.md section 7: network safety).
 os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+# Bags the tests' runs write are sealed under a key of the tests' own (bringup/recording/bag_seal.py),
+# not under the user's ~/.config key
+os.environ.setdefault("AGILE_DTN_SEAL_KEY_FILE",
+                      os.path.join(tempfile.gettempdir(), f"agile_dtn_test_seal-{os.geteuid()}", "bag-seal.key"))
 
 
 def pytest_sessionstart(session) -> None:

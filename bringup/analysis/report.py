@@ -37,6 +37,10 @@ Definitions:
 * security.* - what the run's processes rejected before acting on it (no MAC under the run key,
   a MAC that does not verify, malformed, an ack from no host of the run), from the /run/meta
   record the ROS clock writes: :func:`security_figures`.
+* integrity.status, integrity.detail - whether the bag's content is what its run sealed
+  (bringup/recording/bag_seal.py): ``verified``, or ``unverified`` (no seal, another user's key,
+  or read past a failed check with ``--unverified``); a bag whose seal fails is refused unless
+  the caller reads it anyway.
 * consensus.* - ISL-delayed implicit consensus (Nag et al. section 4), see
   :func:`consensus_figures`: for each pair of successive passes of different satellites over a
   region, whether the earlier satellite's observations reached the later one (bundle delivered)
@@ -65,6 +69,7 @@ import numpy as np
 from bringup.analysis.assumed_error import assumed_error_figures
 from bringup.errors import UserError
 from bringup.recording.bag import BagReader
+from bringup.recording.bag_seal import check_bag
 from ground_station.osse import VALUE_MAX, VALUE_MIN
 from msgs_json import codec
 from msgs_json import schemas as S
@@ -536,11 +541,14 @@ def flatten(rep: dict, prefix: str = "") -> dict:
     return out
 
 
-def report_from_bag(bag_path, *, warn=None) -> dict:
+def report_from_bag(bag_path, *, warn=None, unverified_ok: bool = False) -> dict:
     """Rebuild report.json from a bag alone (metadata from its /run/meta records). A bag that ends
     before the run's closing /run/meta record, or whose file was cut, gives a ``partial`` report.
     ``warn(line)``: called with each thing the bag's reader read past (metadata.yaml disagreeing
-    with the .mcap, a cut file, payloads not counted)."""
+    with the .mcap, a cut file, payloads not counted, an unverified bag). The bag's seal is checked
+    first (bringup/recording/bag_seal.py): one that fails is an IntegrityError unless
+    ``unverified_ok``; the report's ``integrity`` says what the check found."""
+    integrity = check_bag(bag_path, unverified_ok=unverified_ok)
     with BagReader(bag_path) as bag:
         names = [t.topic for t in bag.topics()]
         if "/run/meta" not in names:
@@ -574,6 +582,8 @@ def report_from_bag(bag_path, *, warn=None) -> dict:
                 runtime, closed = rt, True
             if sec is not None:
                 security = sec
+        if meta is None:  # (a /run/meta channel whose records are gone or are not envelopes)
+            raise UserError(f"bag {bag.path}: /run/meta holds no run record: not enough left to rebuild a report")
         wanted = [t for t in names if t.endswith(REPORT_TOPIC_SUFFIXES)]
         envs: list[Envelope] = list(bag.envelopes(wanted))
         recording = None
@@ -591,6 +601,9 @@ def report_from_bag(bag_path, *, warn=None) -> dict:
     for line in rep.get("warnings", []):
         if warn is not None:
             warn(line)
+    rep["integrity"] = integrity.as_dict()
+    if integrity.status != "verified" and warn is not None:  # (said once a report is made of it)
+        warn(f"bag {bag_path}: unverified: {integrity.detail}")
     if partial and warn is not None:
         warn(f"partial report: the run reached t = {reached:g} s of its {meta.horizon_s:g} s horizon "
              f"({'no closing /run/meta record' if not closed else 'data lost from the bag'})")

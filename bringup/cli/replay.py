@@ -15,6 +15,11 @@ transient local, the envelope topics reliable, volatile, keep-all (bringup/recor
 with it; a bag without ``/clock`` gets one synthesised from the log times (like ``ros2 bag play
 --clock``), so nodes with ``use_sim_time`` follow the replay.
 
+The bag's seal is checked first (bringup/recording/bag_seal.py): a bag whose seal does not match is
+refused in one line naming integrity (exit 2) unless ``--unverified`` is given; an unverified bag
+(no seal, another user's key, or ``--unverified``) is replayed with a warning line saying so, and
+the summary line says "unverified" (tests/faults/test_bag_seal.py).
+
 Network safety (docs/design.md section 7): the process runs with ``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST``
 and the domain from ``--domain-id`` or ``ROS_DOMAIN_ID`` (default 0); the project's FastDDS profile
 (5 ms heartbeats) is used unless ``FASTRTPS_DEFAULT_PROFILES_FILE`` is already set.
@@ -44,6 +49,7 @@ from rclpy.executors import ExternalShutdownException
 
 from bringup.engine.ros.qos import qos_profile
 from bringup.errors import UserError
+from bringup.recording.bag_seal import check_bag
 from bringup.recording.bag import CLOCK_TYPE, BagReader, clock_cdr, make_qos, topic_qos
 
 
@@ -57,6 +63,8 @@ def add_arguments(p) -> None:
                    help="before starting, wait until every topic has N matched subscribers")
     p.add_argument("--wait-timeout", type=float, default=10.0, help="[s] for --wait-subscribers (default 10)")
     p.add_argument("--quiet", action="store_true", help="no summary line")
+    p.add_argument("--unverified", action="store_true",
+                   help="replay a bag whose seal does not match (the output says unverified)")
 
 
 _ROSBAG2_DEFAULT = make_qos(depth=10)  # rosbag2's default publisher offer: reliable, volatile, keep last 10
@@ -106,6 +114,10 @@ def run(args) -> int:
         if profile.exists():
             os.environ["FASTRTPS_DEFAULT_PROFILES_FILE"] = str(profile)
 
+    integrity = check_bag(args.bag, unverified_ok=args.unverified)
+    unverified = "" if integrity.status == "verified" else " (unverified bag)"
+    if unverified:
+        print(f"constellation replay: warning: bag {args.bag}: unverified: {integrity.detail}", file=sys.stderr)
     reader = BagReader(args.bag)
     stats = reader.topics()
     end_ns = reader.end_ns
@@ -168,5 +180,5 @@ def run(args) -> int:
     if not args.quiet:
         span = 0.0 if t_first is None else (end_ns - t_first) / 1e9
         print(f"replayed {n} messages on {len(types)} topics (domain {domain}): "
-              f"{span:.3f} s of sim time in {time.monotonic() - wall0:.3f} s")
+              f"{span:.3f} s of sim time in {time.monotonic() - wall0:.3f} s{unverified}")
     return 0

@@ -7,6 +7,8 @@ node logic in this process (bringup/engine/local.py), recording the same topics.
 ends with ``OUT/report.json`` (rebuilt from the bag, bringup/analysis/report.py), ``OUT/report.md`` and
 ``OUT/plots/*.png``, ``OUT/scenario.toml`` (the resolved scenario; report.json's ``provenance``:
 bringup/scenario/provenance.py), and a non-zero exit with a one-line message if anything failed.
+However the run ends (complete, failed, interrupted), the bag it leaves is sealed under the user's
+key (bringup/recording/bag_seal.py, ``OUT/bag/seal.json``) before its report is made from it.
 
 Checked by tests/unit/test_cli_exit.py (a local run's outputs complete, one-line errors) and
 tests/system/test_engines_equal.py (both engines, same traces and report).
@@ -44,6 +46,7 @@ from bringup.engine.ros.launcher import launch, lease_domain_id
 from bringup.engine.ros.run_spec import MAX_DOMAIN_ID, RunSpec
 from bringup.engine.store_batches import StoreBatches
 from bringup.errors import UserError
+from bringup.recording.bag_seal import check_bag, seal_bag
 from bringup.recording.recorder_process import Recorder
 from bringup.scenario.participants import (
     AUTO_SAT_PROCESSES,
@@ -227,6 +230,7 @@ def _run(sc, cuts, out: Path, bag_dir: Path, args, folder: RunFolder, per_proces
     else:
         runtime = _run_ros(world, world_path, args, meta, bag_dir, out, router_kw, keys, say,
                            show=not args.no_progress, per_process=per_process)
+    seal_bag(bag_dir)  # (the bag is closed: every process that wrote it has ended)
     code = _finish(out, bag_dir, runtime, world, args, say, rep=rep)
     folder.done()
     return code
@@ -239,6 +243,7 @@ def _leave_partial_report(folder: RunFolder, bag_dir: Path, exc: BaseException) 
         return
     notes: list[str] = []
     try:
+        seal_bag(bag_dir)  # what the run left, as it left it
         rep = report_from_bag(bag_dir, warn=notes.append)
     except (UserError, OSError, ValueError):
         return
@@ -457,6 +462,8 @@ def _finish(out: Path, bag_dir: Path, runtime: dict, world, args, say, *, rep: d
     written whole (a temporary name renamed)."""
     if rep is None:  # (the local engine's recorder built it from what it wrote, as report BAG does)
         rep = report_from_bag(bag_dir, warn=lambda line: say(f"run: warning: {line}"))
+    else:
+        rep["integrity"] = check_bag(bag_dir).as_dict()
     rep["runtime"].update({k: v for k, v in runtime.items() if k not in rep["runtime"]})
     rep["runtime"].update({"wall_s": runtime.get("wall_s"), "real_time_factor": runtime.get("real_time_factor")})
     plots = []
