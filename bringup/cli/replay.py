@@ -49,8 +49,8 @@ from rclpy.executors import ExternalShutdownException
 
 from bringup.engine.ros.qos import qos_profile
 from bringup.errors import UserError
-from bringup.recording.bag_seal import check_bag
 from bringup.recording.bag import CLOCK_TYPE, BagReader, clock_cdr, make_qos, topic_qos
+from bringup.recording.bag_seal import check_bag
 
 
 def add_arguments(p) -> None:

@@ -55,12 +55,11 @@ def _rewrite(bag: Path, edit) -> None:
     """Write the bag again with the bag writer (valid CRCs), each message through ``edit(topic, msgtype,
     cdr) -> cdr | None`` (None: dropped); the seal stays as it was."""
     new = bag.parent / "new" / "bag"  # (the .mcap is named after its folder)
-    with BagReader(bag) as r:
-        with BagWriter(new, epoch_ns=r.epoch_ns) as w:
-            for m in r.messages():
-                cdr = edit(m.topic, m.msgtype, m.cdr)
-                if cdr is not None:
-                    w.write_raw(m.topic, m.msgtype, cdr, m.log_time_ns)
+    with BagReader(bag) as r, BagWriter(new, epoch_ns=r.epoch_ns) as w:
+        for m in r.messages():
+            cdr = edit(m.topic, m.msgtype, m.cdr)
+            if cdr is not None:
+                w.write_raw(m.topic, m.msgtype, cdr, m.log_time_ns)
     for f in ("bag.mcap", "metadata.yaml"):
         (new / f).replace(bag / f)
     shutil.rmtree(new.parent)

@@ -18,11 +18,11 @@ import pytest
 
 rclpy = pytest.importorskip("rclpy")
 
-from rclpy.serialization import serialize_message  # noqa: E402
-from std_msgs.msg import String  # noqa: E402
+from rclpy.serialization import serialize_message
+from std_msgs.msg import String
 
-from bringup.engine.lockstep import ACK_TOPIC, AckMsg, Gate  # noqa: E402
-from bringup.engine.ros.clock_node import LockstepClock  # noqa: E402
+from bringup.engine.lockstep import ACK_TOPIC, AckMsg, Gate
+from bringup.engine.ros.clock_node import LockstepClock
 
 pytestmark = [pytest.mark.faults]
 
