@@ -57,6 +57,8 @@ from bringup.scenario.participants import (
     sats_per_process_auto,
 )
 from bringup.scenario.provenance import provenance
+from bringup.scenario.work import check_work
+from bringup.scenario.work import describe as describe_work
 from bringup.scenario.world import World
 from bringup.stop_signals import STOP_SIGNALS, Interrupted, stop_on_signals
 from dtn_router.router import ROUTER_NAME
@@ -109,6 +111,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--ros-args", nargs=argparse.REMAINDER, default=[], metavar="ARG",
                    help="ros engine: the rest of the command line is given to every node process as ROS "
                         "arguments, e.g. --ros-args -r sat_12:__ns:=/moved/sat_12 (must come last)")
+    p.add_argument("--force", action="store_true",
+                   help="run a scenario past the work estimate's limits (ISL links in view, DP cells; "
+                        "bringup/scenario/work.py): for a machine known to be fast enough")
     p.add_argument("--restart", type=int, default=0, metavar="N",
                    help="ros engine: restart a crashed process (satellite, router, ground or the clock) up to "
                         "N times; every process checkpoints each step and resumes from it (default 0: a crash "
@@ -164,6 +169,10 @@ def run(args: argparse.Namespace) -> int:
             raise UserError(f"--viz-period-s {args.viz_period_s:g}: expected 0 < S <= 86400")
         sc = sc.with_overrides(viz_period_s=args.viz_period_s)
     cuts = [parse_cut(c) for c in args.cut]
+    # CPU: refused here, before the folder or the world (a run that could not step in useful time)
+    work = check_work(sc, force=getattr(args, "force", False))
+    print(f"run: estimate: {describe_work(work)}" + (" (--force)" if getattr(args, "force", False) else ""),
+          file=sys.stderr)
     per_process = sats_per_process(args, len(sc.sat_names)) if args.engine == "ros" else 1
     for a, b, _, _ in cuts:
         for n in (a, b):
@@ -208,7 +217,7 @@ def _run(sc, cuts, out: Path, bag_dir: Path, args, folder: RunFolder, per_proces
     stores_ready = None
     if args.engine == "local":  # the ros engine's satellites make their own, in their processes
         stores_ready = _fresh_store_dir(out / "store", sc.sat_names if args.mode == "distributed" else [])
-    world = World.cached(sc, out / "cache")
+    world = World.cached(sc, out / "cache", progress=lambda stage: say(f"run: building the world: {stage}"))
     world_path = out / "cache" / f"world-{world.key}.pkl"
     if not world_path.exists():
         world.save(world_path)

@@ -35,7 +35,15 @@ The terms (bytes; each names the module whose arrays it counts):
 The budget is 80 % of the machine's physical memory (``os.sysconf``), or ``AGILE_DTN_MEMORY_GIB``
 when set (a container's limit, a shared machine).
 
-How we know it is right: tests/unit/test_limits.py measures the peak resident memory of building a
+Time too: ROS time (``builtin_interfaces/Time``, what /clock and the bag's clock carry) holds its
+seconds in an int32, and the bag's log times are unsigned ns since 1970, so a run's instants -
+the epoch and the epoch plus the horizon - must lie in 1970-01-01T00:00:00Z ..
+2038-01-19T03:14:07Z; :func:`check_time_range` (called by :func:`check_run_size` after the memory estimate) refuses
+others in one line naming ``scenario.epoch_utc`` and the horizon, before anything is built (an
+epoch in 2040 used to simulate the whole run, then fail in the recorder).
+
+How we know it is right: tests/faults/test_impossible_inputs.py (a 2040 epoch, a 1969 epoch, an
+epoch whose horizon crosses 2038, refused in one line before the world is built), tests/unit/test_limits.py measures the peak resident memory of building a
 world and a planner instance for several scenarios (``resource.getrusage``, in a fresh process) and
 checks the estimate lies within [0.5x, 4x] of it, and the estimate's terms against a direct count of
 the arrays; tests/faults/test_hostile_inputs.py refuses the issue's inputs (gp_spacing_km = 1e-3,
@@ -49,12 +57,31 @@ import os
 
 from bringup.scenario.config import Scenario, ScenarioError
 
-__all__ = ["check_run_size", "estimate_bytes", "gib", "memory_budget_bytes"]
+__all__ = ["ROS_TIME_MAX_S", "check_run_size", "check_time_range", "estimate_bytes", "gib",
+           "memory_budget_bytes"]
 
 _ORBIT_STEP_S = 10.0  # the ISL and ground-pass searches' grid (orbit_clock/isl.py, ground_passes.py)
 _ACCESS_STEP_S = 20.0  # the access search's coarse grid (orbit_clock/access.py)
 _BUDGET_FRACTION = 0.8
 ENV_BUDGET = "AGILE_DTN_MEMORY_GIB"
+ROS_TIME_MAX_S = 2**31 - 1  # builtin_interfaces/Time.sec is an int32: 2038-01-19T03:14:07Z
+
+
+def check_time_range(sc: Scenario) -> None:
+    """ScenarioError (one line) unless the epoch and the epoch plus the horizon lie in what ROS time
+    and the bag hold (module docstring)."""
+    where = sc.source_path or sc.name
+    epoch_s = sc.epoch_ns / 1e9
+    horizon = sc.scenario.horizon_s
+    if epoch_s < 0:
+        raise ScenarioError(f"{where}: key 'scenario.epoch_utc': {sc.epoch_iso} is before 1970-01-01T00:00:00Z; "
+                            "the bag's times are unsigned nanoseconds since 1970")
+    if epoch_s + horizon > ROS_TIME_MAX_S:
+        what = ("is" if epoch_s > ROS_TIME_MAX_S else
+                f"plus the horizon ({horizon:g} s, scenario.horizon_s / --hours) ends")
+        raise ScenarioError(f"{where}: key 'scenario.epoch_utc': {sc.epoch_iso} {what} after "
+                            "2038-01-19T03:14:07Z, the last instant ROS time holds (builtin_interfaces/Time.sec "
+                            "is an int32); choose an earlier epoch")
 
 
 def gib(n: float) -> str:
@@ -136,7 +163,7 @@ def memory_budget_bytes() -> float:
 
 def check_run_size(sc: Scenario, budget: float | None = None) -> float:
     """The estimate (bytes); ScenarioError naming it and its largest parts when over ``budget``
-    (default :func:`memory_budget_bytes`)."""
+    (default :func:`memory_budget_bytes`); then the time range (:func:`check_time_range`)."""
     terms = estimate_bytes(sc)
     total = sum(b for b, _ in terms.values())
     limit = memory_budget_bytes() if budget is None else budget
@@ -147,4 +174,5 @@ def check_run_size(sc: Scenario, budget: float | None = None) -> float:
         src = os.environ.get(ENV_BUDGET) and f"${ENV_BUDGET}" or f"{_BUDGET_FRACTION:.0%} of this machine's memory"
         raise ScenarioError(f"{sc.source_path or sc.name}: the run would need about {gib(total)} of memory, "
                             f"over the {gib(limit)} budget ({src}): {parts}")
+    check_time_range(sc)
     return total

@@ -140,11 +140,18 @@ class World:
         return int(self.ctx.gps.region_index[gp])
 
     @classmethod
-    def build(cls, sc: Scenario) -> "World":
+    def build(cls, sc: Scenario, progress=None) -> "World":
+        """``progress(stage)``: called with each stage's name as it starts (a long build says where it is)."""
+        say = progress or (lambda _stage: None)
+        n = sc.n_sats
+        say(f"ground points and the OSSE field ({sc.scenario.horizon_s:g} s)")
         ctx = OrbitContext.from_scenario(sc)
         horizon_s = sc.scenario.horizon_s
+        say(f"access windows ({n} satellites x {len(sc.regions.list)} regions)")
         acc = access_windows(ctx.constellation, ctx.gps, 0.0, horizon_s, for_deg_per_sat(sc))
+        say(f"ISL contact plan ({n * (n - 1) // 2} satellite pairs)")
         isl = isl_contact_plan(sc, ctx.constellation)
+        say(f"ground contact plan ({len(isl)} ISL contacts found)")
         gnd = ground_contact_plan(sc, ctx.constellation) if sc.ground.stations else None
         if gnd is None:
             gnd = ContactPlan([])
@@ -194,18 +201,18 @@ class World:
         return w
 
     @classmethod
-    def cached(cls, sc: Scenario, cache_dir: Path | None = None) -> "World":
-        """Load from ``cache_dir/world-<key>.pkl`` or build and save there."""
+    def cached(cls, sc: Scenario, cache_dir: Path | None = None, progress=None) -> "World":
+        """Load from ``cache_dir/world-<key>.pkl`` or build and save there (``progress``: :meth:`build`)."""
         key = scenario_key(sc)
         if cache_dir is None:
-            return cls.build(sc)
+            return cls.build(sc, progress)
         path = Path(cache_dir) / f"world-{key}.pkl"
         if path.exists():
             try:
                 return cls.load(path, key)
             except ValueError:
                 pass
-        w = cls.build(sc)
+        w = cls.build(sc, progress)
         w.save(path)
         return w
 
