@@ -67,18 +67,26 @@ def clean(tmp_path_factory):
     r = subprocess.run(_cmd("local", local), cwd=REPO, env=_env(), capture_output=True, text=True, timeout=900)
     assert r.returncode == 0, r.stderr[-3000:]
     out = base / "clean"
-    t0 = time.monotonic()
-    r = subprocess.run(_cmd("ros", out, "--restart", "1"), cwd=REPO, env=_env(), capture_output=True, text=True,
-                       timeout=1800)
-    assert r.returncode == 0, r.stderr[-3000:]
+    proc = subprocess.Popen(_cmd("ros", out, "--restart", "1"), cwd=REPO, env=_env(), stderr=subprocess.PIPE,
+                            text=True)
+    try:
+        _up(out, proc)
+        t0 = time.monotonic()  # (from the instant the campaign's runs draw their kill times from)
+        err = proc.communicate(timeout=1800)[1]
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    assert proc.returncode == 0, err[-3000:]
     obs, dl = _traces(out / "bag")
     assert (obs, dl) == _traces(local / "bag")
     assert len(dl) > 10, "the scenario must deliver bundles over the ISLs"
     return out, time.monotonic() - t0
 
 
-def _stepping(out: Path, proc: subprocess.Popen, timeout_s: float = 600.0) -> dict[str, int]:
-    """Wait until every process of the run is up and the clock steps; their pids."""
+def _up(out: Path, proc: subprocess.Popen, timeout_s: float = 600.0) -> dict[str, int]:
+    """Wait until every process of the run has started (its pid file) and the clock has its journal;
+    their pids."""
     deadline = time.monotonic() + timeout_s
     roles: list[str] = []
     while time.monotonic() < deadline:
@@ -101,16 +109,20 @@ def test_kill9_campaign_every_report_equals_the_clean_run(clean, tmp_path):
     ref_obs, ref_dl = _traces(ref_out / "bag")
     rng = random.Random(31)
     lines = []
-    for i in range(RUNS):
+    i = 0
+    while sum("killed=True" in ln for ln in lines) < RUNS:
+        # (a run that ends before its kill instant - the machine got faster - is drawn again, a few times)
+        assert i < RUNS + 5, "\n".join(lines)
+        i += 1
         out = tmp_path / f"run{i}"
         proc = subprocess.Popen(_cmd("ros", out, "--restart", "1"), cwd=REPO, env=_env(), stderr=subprocess.PIPE,
                                 text=True)
         try:
-            pids = _stepping(out, proc)
+            pids = _up(out, proc)
             t_start = time.monotonic()
             victim = rng.choice(sorted(pids))
-            # an instant in the stepping part of the run (the clean run's whole wall time bounds it)
-            delay = rng.uniform(0.5, max(1.0, 0.6 * ref_wall))
+            # an instant while the run goes on (the clean run took ref_wall from the same point to its end)
+            delay = rng.uniform(0.5, max(1.0, 0.85 * ref_wall))
             time.sleep(delay)
             if proc.poll() is None:
                 os.kill(int((out / "logs" / f"{victim}.pid").read_text()), signal.SIGKILL)
@@ -133,7 +145,8 @@ def test_kill9_campaign_every_report_equals_the_clean_run(clean, tmp_path):
                 f"report_equal={rep == ref_rep} integrity={rep['integrity']['status']} wall_s={wall:.0f}")
         print(line, flush=True)
         lines.append(line)
-        assert killed, f"run {i} ended before the kill at {delay:.1f} s"
+        if not killed:
+            continue
         assert restarts == 1, line
         assert rep["integrity"]["status"] == "verified", line
         assert same, (line, {k: (rep.get(k), ref_rep.get(k)) for k in set(rep) | set(ref_rep)
