@@ -48,7 +48,9 @@ reported by name on stderr and waited for (bounded by ``restart_wait_s``) while 
 restarts it; the recorder then always listens (bag or not) and keeps the envelopes of the last
 ``_RESEND_STEPS`` wire steps. A hello from a host during the run is a rejoin: the clock re-sends it
 (/_lockstep/resend) what it recorded on its topics; the host drops what it already holds. Acks for
-any step but the current one are ignored (a restarted host repeats its last one); the recorder
+any step but the current one are ignored (a restarted host repeats its last one); a host whose
+checkpoint is older than the last step it acked (its store deleted or replaced) stops the run, named
+(tests/faults/test_store_lost.py); the recorder
 keeps one copy per (topic, source, seq), so a re-run step is recorded once.
 
 Clock restart: with ``restart_wait_s > 0`` and a ``state_dir`` the clock itself survives
@@ -137,6 +139,10 @@ _READY_REPORT_S = 5.0
 
 class ClockError(RuntimeError):
     """The run cannot go on; the message names the host/participants and the step."""
+
+
+class LostStateError(ClockError):
+    """A restarted host lost state the run relied on: no restart can mend it (never waited out)."""
 
 
 class LockstepClock:
@@ -292,9 +298,18 @@ class LockstepClock:
                 self._record(topic)
 
     def _serve_rejoins(self) -> None:
-        """Re-send to each restarted host what was recorded on its topics in the last steps."""
+        """Re-send to each restarted host what was recorded on its topics in the last steps. A host
+        must resume at least after step cur_k - 1 (it acked that step, and a host checkpoints a step
+        before it acks it): one whose checkpoint is older or missing (its store deleted, replaced by
+        an older copy, or emptied) lost state the run already relied on, so the run stops naming it
+        (ClockError) instead of letting it step from the wrong state."""
         while self.rejoins:
             h = self.rejoins.pop(0)
+            if h.resume_k < self.cur_k - 1:
+                lost = "no checkpoint" if h.resume_k < 0 else f"a checkpoint of step {h.resume_k}"
+                raise LostStateError(f"host {h.participant} restarted with {lost} while the run is at step {self.cur_k} "
+                                 f"(it had acked step {self.cur_k - 1}): its saved state was lost (its store deleted, "
+                                 "corrupted or replaced by an older copy); it cannot rejoin the run")
             n = self.rejoined[h.participant] = self.rejoined.get(h.participant, 0) + 1
             if n == 1:
                 print(f"clock: host {h.participant} rejoined at step {self.cur_k} "
@@ -604,7 +619,7 @@ class LockstepClock:
             else:
                 self._spin_until(all_acked, timeout, lambda: who().format(timeout))
         except ClockError as exc:
-            if not self.restart:
+            if not self.restart or isinstance(exc, LostStateError):
                 raise
             print(f"clock: {exc}; waiting up to {spec.restart_wait_s:g} s for it to restart",
                   file=sys.stderr, flush=True)
