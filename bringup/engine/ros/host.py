@@ -40,6 +40,14 @@ the envelopes it missed (receivers drop them as duplicates by (source, seq)). Wh
 hello every ``rejoin_period_s``; the clock answers each with a re-send of what it recorded
 (bringup/engine/lockstep.py ResendMsg); duplicates are dropped by (source, seq).
 
+A flood of replayed step messages (genuine ones of this run, recorded off the wire and sent again:
+their MAC verifies): a step older than the last one done is dropped as it arrives and counted
+(``stale_steps``; the queue of steps never grows with them), and the last step done is answered
+again (envelopes re-published, ack re-sent) at most once per :data:`_ANSWER_AGAIN_S` - the
+restarted clock's re-announcements come once a second - so a flood neither changes what the host
+does (receivers drop re-published envelopes by (source, seq)) nor multiplies its traffic
+(tests/faults/test_step_flood.py).
+
 What a participant returns and emits is checked by the engine contract (bringup/engine/contract.py),
 the module the local engine uses too, so a violation is the same one-line error under both engines;
 the host sends it to the clock in its ack (the run's error names the participant) and exits.
@@ -117,6 +125,8 @@ QOS_SYNC_PUB = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=16, reliability
                           durability=DurabilityPolicy.TRANSIENT_LOCAL)
 QOS_SYNC_SUB = QoSProfile(history=HistoryPolicy.KEEP_ALL, reliability=ReliabilityPolicy.RELIABLE,
                           durability=DurabilityPolicy.TRANSIENT_LOCAL)
+# Wall seconds between two answers to the same step done (a restarted clock re-announces once a second).
+_ANSWER_AGAIN_S = 0.5
 _CLOCK_REMAP = ["--ros-args", "-r", "/clock:=/_lockstep/unused_clock"]
 # Fewer entities per node = smaller wait sets per spin: the host's own node has no parameter
 # services; no node has a /rosout writer (participant nodes have parameter services: run settings).
@@ -208,6 +218,8 @@ class ParticipantHost:
         self.last_wires: list[tuple[str, str, str]] = []
         self._step_wires: list[tuple[str, str, str]] = []
         self.republished = 0
+        self.stale_steps = 0  # replayed steps older than the last one done, dropped on arrival
+        self._answered_at = -float("inf")  # (monotonic) when the last step done was last answered again
         self.ckpt = None
         if state_path is not None:
             self._open_checkpoint(state_path)
@@ -291,9 +303,14 @@ class ParticipantHost:
         if text is None:
             return
         try:
-            self._steps.append(decode_step(text))
+            m = decode_step(text)
         except LockstepError as exc:
             self.gate.reject(STEP_TOPIC, "malformed", str(exc))
+            return
+        if not m.stop and m.k < self.done_k:  # (a replay: nothing to answer; never queued)
+            self.stale_steps += 1
+            return
+        self._steps.append(m)
 
     def request_stop(self, *_args) -> None:
         self._stop_requested = True
@@ -460,7 +477,7 @@ class ParticipantHost:
             if m.k <= self.done_k:
                 # a step already done (the step writer's history, after a restart): answer the one
                 # the clock may still wait for, ignore older ones
-                if m.k == self.done_k and self.last_ack is not None:
+                if m.k == self.done_k and self.last_ack is not None and self._may_answer_again():
                     self._republish_last()
                     self._ack(**self.last_ack)
                 continue
@@ -474,6 +491,15 @@ class ParticipantHost:
                 self._ack(k=m.k, t_ns=m.t_ns, error=str(exc))
                 self._flush_acks()
                 raise
+
+    def _may_answer_again(self) -> bool:
+        """At most one answer to the same step done per :data:`_ANSWER_AGAIN_S` (a replayed flood)."""
+        now = time.monotonic()
+        if now - self._answered_at < _ANSWER_AGAIN_S:
+            self.stale_steps += 1
+            return False
+        self._answered_at = now
+        return True
 
     def _republish_last(self) -> None:
         """Publish again the envelopes of step ``done_k`` (same source and seq)."""
