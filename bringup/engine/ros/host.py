@@ -112,8 +112,8 @@ from bringup.engine.lockstep import (
 )
 from bringup.engine.ros.live import HostLive, declare_run_parameters
 from bringup.engine.ros.naming import node_name_and_namespace, ros_topic_name
-from msgs_json.envelope import Envelope, Participant, StepResult
 from bringup.stop_signals import STOP_SIGNALS
+from msgs_json.envelope import Envelope, Participant, StepResult
 
 __all__ = ["QOS_DATA", "QOS_SYNC_PUB", "QOS_SYNC_SUB", "HostError", "ParticipantHost", "exit_now", "run_host"]
 

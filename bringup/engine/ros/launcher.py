@@ -92,8 +92,8 @@ from bringup.engine.ros.run_spec import CLOCK_ROLE, RunSpec
 from bringup.engine.ros.shm_cleanup import remove_unheld
 from bringup.errors import UserError
 from bringup.private_files import open_private, private_state_dir, read_private_bytes
-from bringup.stop_signals import signal_name, stop_on_signals
 from bringup.recording.journal import BagJournal
+from bringup.stop_signals import signal_name, stop_on_signals
 
 __all__ = [
     "FASTDDS_PROFILE",

@@ -1,0 +1,109 @@
+"""Two ROS hazards tried: a host stopped (SIGSTOP) past every deadline, and two runs on one --domain-id.
+
+* SIGSTOP of a satellite's process while the run steps: it neither acks nor dies. The clock's ack
+  deadline names it, the run fails (exit 2) in one line naming sat_11, the stopped process is killed
+  (a stopped process does not act on SIGTERM: the launcher's SIGKILL after 5 s ends it), no process
+  is left, no run.keys, run_status.json failed, report.json partial.
+* Two runs started at once with the same ``--domain-id`` (the id leased by the test, so no other run
+  on this machine uses it): each sees the other's DDS traffic on the same topic names. Each run's
+  messages carry MACs under its own run key, so each rejects the other's (counted in report.json
+  ``security.rejected``) and neither acts on them: both exit 0 and their observations and bundle
+  deliveries equal the local engine's run of the same scenario.
+
+Slow (a minute or two each on a loaded machine).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+pytestmark = [pytest.mark.faults, pytest.mark.ros, pytest.mark.slow, pytest.mark.timeout(900)]
+
+REPO = Path(__file__).resolve().parents[2]
+
+
+def _env() -> dict[str, str]:
+    return dict(os.environ, PYTHONPATH=str(REPO), ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST")
+
+
+def _run(engine: str, out: Path, *extra: str) -> list[str]:
+    return [sys.executable, "-m", "bringup.cli", "run", "--engine", engine, "--sats", "4", "--planes", "2",
+            "--hours", "1", "--no-plots", "--no-progress", "--out", str(out), *extra]
+
+
+def _alive(pid: int) -> bool:
+    try:
+        with open(f"/proc/{pid}/stat") as fh:
+            return fh.read().rsplit(")", 1)[1].split()[0] not in ("Z", "X")
+    except (FileNotFoundError, IndexError):
+        return False
+
+
+def test_stopped_host_fails_the_run_by_name(tmp_path):
+    out = tmp_path / "run"
+    proc = subprocess.Popen(_run("ros", out, "--real-time-factor", "200"), cwd=REPO, env=_env(),
+                            stderr=subprocess.PIPE, text=True)
+    pid = None
+    try:
+        deadline = time.monotonic() + 300
+        while time.monotonic() < deadline:
+            assert proc.poll() is None, proc.stderr.read()[-3000:]
+            mcap = out / "bag" / "bag.mcap"
+            if (out / "logs" / "sat_11.pid").exists() and mcap.exists() and mcap.stat().st_size > 50_000:
+                break  # (stepping: the clock's bag has closed chunks)
+            time.sleep(0.2)
+        pids = {p.stem: int(p.read_text()) for p in (out / "logs").glob("*.pid")}
+        pid = pids["sat_11"]
+        os.kill(pid, signal.SIGSTOP)
+        err = proc.communicate(timeout=300)[1]
+    finally:
+        if pid is not None and _alive(pid):
+            os.kill(pid, signal.SIGKILL)
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    lines = [ln for ln in err.splitlines() if "error" in ln]
+    assert proc.returncode == 2 and len(lines) == 1, err[-3000:]
+    assert "sat_11" in lines[0] and "no ack" in lines[0], lines[0]
+    st = json.loads((out / "run_status.json").read_text())
+    assert st["status"] == "failed" and "sat_11" in st["error"]
+    assert not (out / "run.keys").exists()
+    time.sleep(1.0)
+    assert not [r for r, p in pids.items() if _alive(p)], pids
+    assert json.loads((out / "report.json").read_text())["partial"] is True
+
+
+def test_two_runs_on_one_domain_id_keep_apart(tmp_path):
+    from bringup.analysis.trace import deliveries_from_bag, observations_from_bag
+    from bringup.engine.ros.launcher import lease_domain_id
+
+    local = tmp_path / "local"
+    r = subprocess.run(_run("local", local), cwd=REPO, env=_env(), capture_output=True, text=True, timeout=600)
+    assert r.returncode == 0, r.stderr[-3000:]
+    with lease_domain_id() as lease:
+        outs = [tmp_path / "a", tmp_path / "b"]
+        procs = [subprocess.Popen(_run("ros", o, "--domain-id", str(lease.domain_id), "--real-time-factor", "100"),
+                                  cwd=REPO, env=_env(), stderr=subprocess.PIPE, text=True) for o in outs]
+        try:
+            errs = [p.communicate(timeout=800)[1] for p in procs]
+        finally:
+            for p in procs:
+                if p.poll() is None:
+                    p.kill()
+                    p.wait()
+    ref = (observations_from_bag(local / "bag"), deliveries_from_bag(local / "bag"))
+    rejected = []
+    for p, o, err in zip(procs, outs, errs, strict=True):
+        assert p.returncode == 0, err[-3000:]
+        assert (observations_from_bag(o / "bag"), deliveries_from_bag(o / "bag")) == ref
+        rejected.append(json.loads((o / "report.json").read_text())["security"].get("rejected") or {})
+    print(f"DOMAIN {lease.domain_id}: rejected by run a {rejected[0]}, by run b {rejected[1]}")
+    assert any(rejected), "the runs shared a domain but neither saw the other's messages"
