@@ -80,6 +80,7 @@ from __future__ import annotations
 
 import faulthandler
 import json
+import os
 import pickle
 import signal
 import sys
@@ -112,6 +113,7 @@ from bringup.engine.lockstep import (
     encode_msg,
 )
 from bringup.engine.ros.host import QOS_DATA, QOS_SYNC_PUB, QOS_SYNC_SUB, exit_now
+from bringup.engine.ros.lifeline import ENV_RESTARTED
 from bringup.engine.ros.live import ClockLive
 from bringup.engine.ros.run_spec import CLOCK_ROLE, RunSpec
 from bringup.recording.bag import BagWriter, string_cdr, string_from_cdr
@@ -379,6 +381,21 @@ class LockstepClock:
                 self._out({"waiting": {"not_ready": missing, "roles": len(self.roles),
                                        "wall_s": round(waited, 1), "horizon_ns": self.horizon_ns}})
 
+    def _alone_on_domain(self) -> None:
+        """ClockError when another run's clock is on this ROS domain: two runs on one domain use the
+        same topic names, so each one's subscriptions count as matched for the other's publishers,
+        a host can publish before its own run's subscribers have matched and envelopes are lost (seen:
+        'recorder is missing envelopes'). Checked once every host said hello (by then DDS discovery
+        has found the other run's nodes); each run's MACs keep the other's messages out, not this."""
+        name = self.node.get_name()
+        clocks = [f"{ns.rstrip('/')}/{n}" for n, ns in self.node.get_node_names_and_namespaces() if n == name]
+        others = list(clocks)
+        others.remove(f"{self.node.get_namespace().rstrip('/')}/{name}")  # (this clock, listed once)
+        if others:
+            dom = os.environ.get("ROS_DOMAIN_ID", "0")
+            raise ClockError(f"another run is on ROS_DOMAIN_ID {dom} (its clock {others[0]}): two runs on one domain "
+                             "lose each other's messages; choose another --domain-id (or none: a free one is leased)")
+
     def _publish_step(self, msg: StepMsg) -> None:
         if not msg.start and not msg.stop:
             c = Clock()
@@ -503,6 +520,8 @@ class LockstepClock:
             k, t, msg, wall_done = got
         else:
             self._wait_ready()
+            if not os.environ.get(ENV_RESTARTED):  # (a restarted clock's dead predecessor may linger in the graph)
+                self._alone_on_domain()
             rec = 1 if (self.bag is not None or self.restart) else 0
             subs: dict[str, int] = {}
             for h in self.hellos.values():

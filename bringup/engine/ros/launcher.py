@@ -87,7 +87,7 @@ from pathlib import Path
 import msgspec
 
 from bringup.engine.keys import ENV_KEYS_DIGEST, KEYS_FILE_NAME, RunKeys
-from bringup.engine.ros.lifeline import ENV_LAUNCHER_PID
+from bringup.engine.ros.lifeline import ENV_LAUNCHER_PID, ENV_RESTARTED
 from bringup.engine.ros.run_spec import CLOCK_ROLE, RunSpec
 from bringup.engine.ros.shm_cleanup import remove_unheld
 from bringup.errors import UserError
@@ -378,11 +378,13 @@ def launch(spec: RunSpec, out_dir: Path, *, progress: Callable[[LaunchProgress],
     restarts: dict[str, int] = {}
     lingered: list[str] = []
 
-    def start(role: str, **kw) -> _Child:
+    def start(role: str, restarted: int = 0, **kw) -> _Child:
         log = out_dir / "logs" / f"{role}.log"
         fh = open(log, "ab")
         argv = [python, "-m", "bringup.cli", "node", "--run-spec", str(spec_path), "--role", role]
         cenv = dict(env)
+        if restarted:  # (a restarted clock does not take its own dead predecessor for another run)
+            cenv[ENV_RESTARTED] = str(restarted)
         if wrap is not None:
             argv, cenv = wrap(role, argv, cenv)
         proc = subprocess.Popen(argv, env=cenv, cwd=str(REPO), stderr=fh, stdin=subprocess.DEVNULL, **kw)
@@ -442,7 +444,7 @@ def launch(spec: RunSpec, out_dir: Path, *, progress: Callable[[LaunchProgress],
                             fh.write(f"launcher: {h.role} exited with code {h.proc.returncode}; "
                                      f"restart {restarts[h.role]} of {spec.max_restarts}\n")
                         remove_unheld()  # what the dead process left unheld (an empty port if it died starting)
-                        new = start(h.role, stdout=subprocess.DEVNULL)
+                        new = start(h.role, restarts[h.role], stdout=subprocess.DEVNULL)
                         hosts[hosts.index(h)] = new
                         children[children.index(h)] = new
                     dead = [h for h in hosts if h.proc.poll() not in (None, 0)]
@@ -462,7 +464,7 @@ def launch(spec: RunSpec, out_dir: Path, *, progress: Callable[[LaunchProgress],
                                  f"restart {restarts[CLOCK_ROLE]} of {spec.max_restarts}\n")
                     reader.join(timeout=2.0)
                     remove_unheld()
-                    new = start(CLOCK_ROLE, stdout=subprocess.PIPE, text=True)
+                    new = start(CLOCK_ROLE, restarts[CLOCK_ROLE], stdout=subprocess.PIPE, text=True)
                     children[children.index(clock)] = new
                     clock = new
                     reader = threading.Thread(target=read_progress, args=(clock.proc.stdout,), daemon=True)

@@ -31,9 +31,11 @@ import signal
 import sys
 import threading
 
-__all__ = ["ENV_LAUNCHER_PID", "hold"]
+__all__ = ["ENV_LAUNCHER_PID", "ENV_RESTARTED", "hold"]
 
 ENV_LAUNCHER_PID = "AGILE_DTN_LAUNCHER_PID"
+# set (to the restart count) in the environment of a process the launcher started again after a crash
+ENV_RESTARTED = "AGILE_DTN_RESTARTED"
 _PR_SET_PDEATHSIG = 1
 
 
