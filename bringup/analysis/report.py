@@ -67,6 +67,7 @@ from dataclasses import MISSING, dataclass, fields
 import numpy as np
 
 from bringup.analysis.assumed_error import assumed_error_figures
+from bringup.analysis.security_figures import security_figures
 from bringup.errors import UserError
 from bringup.recording.bag import BagReader
 from bringup.recording.bag_seal import check_bag
@@ -310,31 +311,6 @@ def regions_never_in_view(world) -> list[str]:
         if len(world.access.gp) else set()
     names = [str(n) for n in world.ctx.gps.region_names]
     return [n for i, n in enumerate(names) if i not in seen]
-
-
-def security_figures(record: dict | None) -> dict:
-    """report.json ``security`` from the run's /run/meta ``security`` record: ``rejected`` - messages
-    the run's processes rejected (not authenticated under the run key, malformed, from no host of
-    the run), by reason, summed over processes and topics; ``rejected_by_process`` - the record
-    itself, ``{process: {topic: {reason: n}}}`` (the clock, the router, each satellite...). Both
-    empty when nothing was rejected (and always under the local engine: one process, no network).
-    ValueError naming the first malformed entry (the record comes from a bag: untrusted)."""
-    if record is not None and not isinstance(record, dict):
-        raise ValueError(f"'security' is {type(record).__name__}, not an object")
-    by = (record or {}).get("rejected_by_process") or {}
-    if not isinstance(by, dict):
-        raise ValueError(f"security.rejected_by_process is {type(by).__name__}, not an object")
-    total: dict[str, int] = defaultdict(int)
-    for proc, topics in by.items():
-        if not isinstance(topics, dict):
-            raise ValueError(f"security.rejected_by_process.{str(proc)[:40]} is not an object")
-        for topic, reasons in topics.items():
-            if not isinstance(reasons, dict) or not all(type(n) is int and n >= 0 for n in reasons.values()):
-                raise ValueError(f"security.rejected_by_process.{str(proc)[:40]}.{str(topic)[:80]}: "
-                                 "not an object of counts")
-            for reason, n in reasons.items():
-                total[reason] += n
-    return {"rejected": dict(sorted(total.items())), "rejected_by_process": dict(by)}
 
 
 PASS_GAP_S = 120.0  # observations of one satellite closer than this belong to one pass over one area
