@@ -170,9 +170,7 @@ def run(args: argparse.Namespace) -> int:
         sc = sc.with_overrides(viz_period_s=args.viz_period_s)
     cuts = [parse_cut(c) for c in args.cut]
     # CPU: refused here, before the folder or the world (a run that could not step in useful time)
-    work = check_work(sc, force=getattr(args, "force", False))
-    print(f"run: estimate: {describe_work(work)}" + (" (--force)" if getattr(args, "force", False) else ""),
-          file=sys.stderr)
+    args.work_estimate = check_work(sc, force=getattr(args, "force", False))  # (said once the folder is ours)
     per_process = sats_per_process(args, len(sc.sat_names)) if args.engine == "ros" else 1
     for a, b, _, _ in cuts:
         for n in (a, b):
@@ -213,6 +211,8 @@ def _run(sc, cuts, out: Path, bag_dir: Path, args, folder: RunFolder, per_proces
         f"mode {args.mode}, engine {args.engine}"
         + (f" ({per_process} satellites per process)" if per_process > 1 else "") + f" -> {out}")
     say(f"run: BPSec key {keys.bpsec_from}")
+    if getattr(args, "work_estimate", None):
+        say(f"run: estimate: {describe_work(args.work_estimate)}" + (" (--force)" if args.force else ""))
     t0 = time.perf_counter()
     stores_ready = None
     if args.engine == "local":  # the ros engine's satellites make their own, in their processes
