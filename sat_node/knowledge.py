@@ -186,26 +186,34 @@ class ObservedView:
         return n, w
 
     def innovation(self, gp_idx, t_s) -> np.ndarray:
-        """D(g, t) of the module docstring (t at or after the planning time)."""
-        gp, t = np.broadcast_arrays(np.asarray(gp_idx), np.asarray(t_s, np.float64))
-        uniq, inv = np.unique(gp, return_inverse=True)
+        """D(g, t) of the module docstring (t at or after the planning time). ``gp_idx`` and ``t_s``
+        broadcast (a planner asks for a row of GPs by a column of times): the per-GP and per-time
+        factors are computed on the arrays as given and combined in the broadcast shape, each element
+        by the same operations in the same order as element by element."""
+        g0 = np.asarray(gp_idx)
+        t0 = np.asarray(t_s, np.float64)
+        shape = np.broadcast_shapes(g0.shape, t0.shape)
+        uniq, inv = np.unique(g0, return_inverse=True)
         n, w = self._ref(uniq)
-        a = np.exp(-np.maximum(t - self._t, 0.0) / self._p.memory_s)
-        wt = a * w[inv].reshape(gp.shape)
-        d = a * n[inv].reshape(gp.shape) / np.maximum(1.0, wt)
-        om = np.zeros(gp.shape)
-        reg = self._region[gp]
+        n0, w0 = n[inv].reshape(g0.shape), w[inv].reshape(g0.shape)
+        a = np.exp(-np.maximum(t0 - self._t, 0.0) / self._p.memory_s)
+        wt = a * w0
+        d = a * n0 / np.maximum(1.0, wt)
+        om = np.zeros(shape)
+        reg0 = self._region[g0]
         for r, (t_i, omega, delta) in self._insight.items():
-            m = reg == r
-            if m.any():
-                age = t[m] - t_i
-                om[m] = (omega + delta * np.minimum(age, self._p.memory_s) / 3600.0) * np.exp(-age / self._p.memory_s)
-        return np.clip(d + (1.0 - np.minimum(1.0, wt)) * om, -_LN_MAX, _LN_MAX)
+            m0 = reg0 == r
+            if m0.any():
+                age = t0 - t_i
+                f = (omega + delta * np.minimum(age, self._p.memory_s) / 3600.0) * np.exp(-age / self._p.memory_s)
+                m = np.broadcast_to(m0, shape)
+                om[m] = np.broadcast_to(f, shape)[m]
+        return np.clip(d + (1.0 - np.minimum(1.0, np.broadcast_to(wt, shape))) * om, -_LN_MAX, _LN_MAX)
 
     def value_at(self, gp_idx, t_s):
-        gp, t = np.broadcast_arrays(np.asarray(gp_idx), np.asarray(t_s, np.float64))
-        f = self._field.forecast_at(gp, t).astype(np.float64)
-        return np.clip(f * np.exp(self.innovation(gp, t)), 1.0, 256.0)
+        g0, t0 = np.asarray(gp_idx), np.asarray(t_s, np.float64)
+        f = np.broadcast_to(self._field.forecast_at(g0, t0), np.broadcast_shapes(g0.shape, t0.shape))
+        return np.clip(f.astype(np.float64) * np.exp(self.innovation(g0, t0)), 1.0, 256.0)
 
     def slot_of(self, t_s):
         return self._field.slot_of(t_s)
