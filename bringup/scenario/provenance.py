@@ -29,6 +29,7 @@ rebuilt from the bag alone holds the same provenance, the version equals pyproje
 
 from __future__ import annotations
 
+import copy
 import functools
 import platform
 import re
@@ -41,7 +42,7 @@ from pathlib import Path
 
 import msgspec
 
-from bringup.scenario.config import Scenario, _validate
+from bringup.scenario.config import Scenario, _validate, canonical_data
 from bringup.scenario.toml_text import to_toml
 
 __all__ = ["DIST_NAME", "FILE_KEYS", "NOT_GIT", "command_line", "dependencies", "git_state", "provenance",
@@ -151,10 +152,11 @@ def scenario_toml(sc: Scenario) -> str:
     head = (f"# Scenario '{sc.name}' as run (every override applied), written by constellation {version()}\n"
             f"# from {sc.source_path or 'overrides'}\n")
     text = head + to_toml(raw)
-    back = msgspec.to_builtins(_validate(tomllib.loads(text), "<provenance>"))
-    back.pop("source_path", None)
-    if back != raw:
-        bad = next((k for k in raw if back.get(k) != raw[k]), "?")
+    back = canonical_data(_validate(tomllib.loads(text), "<provenance>"))
+    want = canonical_data(_validate(copy.deepcopy(raw), "<provenance>"))
+    back.pop("source_path", None), want.pop("source_path", None)
+    if back != want:
+        bad = next((k for k in want if back.get(k) != want[k]), "?")
         raise RuntimeError(f"provenance: the scenario's TOML text does not load back to it (table '{bad}')")
     return text
 

@@ -24,7 +24,7 @@ import msgspec
 import numpy as np
 
 from bringup.scenario import fleet
-from bringup.scenario.config import Scenario
+from bringup.scenario.config import Scenario, canonical_data
 from bringup.scenario.limits import check_run_size
 from ground_station.osse_sources import osse_from_scenario
 from orbit_clock import (
@@ -44,12 +44,13 @@ from sat_node.scheduler.planner import Planner, PlannerSettings, SatPayload
 
 __all__ = ["OrbitContext", "World", "for_deg_per_sat", "own_payloads", "scenario_key"]
 
-_FORMAT = 1
+_FORMAT = 2
 
 
 def scenario_key(sc: Scenario) -> str:
-    """Stable hash of every scenario field (not where it was loaded from)."""
-    raw = msgspec.to_builtins(sc)
+    """Stable hash of every scenario field (not where it was loaded from, nor how the object was
+    made: tests/unit/test_world.py checks a pickled and a re-read scenario give the same key)."""
+    raw = canonical_data(sc)
     raw.pop("source_path", None)
     doc = {"format": _FORMAT, "scenario": raw}
     if fleet.element_files(sc):

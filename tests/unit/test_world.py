@@ -31,6 +31,23 @@ def test_key_changes_with_any_field(paper_scenario):
     assert scenario_key(paper_scenario) == scenario_key(paper_scenario.with_overrides(seed=1))
 
 
+def test_key_does_not_depend_on_how_the_scenario_was_made(world, tmp_path):
+    """Pickled (as world.pkl), or written as TOML and read back: the same scenario, the same key
+    (msgspec.to_builtins leaves out an omit_defaults field only when it holds the default object)."""
+    import pickle
+    import tomllib
+
+    from bringup.scenario.config import _validate
+    from bringup.scenario.provenance import scenario_toml
+
+    sc = world.scenario
+    again = pickle.loads(pickle.dumps(sc))
+    back = _validate(tomllib.loads(scenario_toml(sc)), "<test>")
+    assert scenario_key(again) == scenario_key(sc) == scenario_key(back) == world.key
+    w2 = World.load(world.save(tmp_path / "w.pkl"), world.key)
+    assert scenario_key(w2.scenario) == world.key
+
+
 def test_satellite_agents_take_the_scenario_send_order_and_hop_tolerance(world):
     """[isl] send_order / hop_tolerance_s reach every satellite's bundle agent (both engines build
     satellites this way); the paper's defaults are the study's strict priority and earliest arrival."""
