@@ -3,11 +3,15 @@
 A registry of named strategies (one line of help each, which drives scenario validation and the CLI
 help): ``synthetic`` is a seeded stand-in for the study's WRF-Hydro OSSE (Nag et al., ICAPS SPARK
 2019, section 5): the transient field of :mod:`ground_station.osse_transient` with the scenario's
-``value.transiency_min``, or (0) the slow storm-cell model of :mod:`ground_station.osse`; ``file`` a
+``value.transiency_min`` (its decorrelation) drawn on a step of at most 15 min and sampled at
+each slot's start (the slot is ``value.osse_resolution_min``, the study's "transiency": the OSSE's
+time resolution), with or without its flash floods (``value.flash_floods``), or (0) the slow
+storm-cell model of :mod:`ground_station.osse`; ``file`` a
 gridded (time, lat, lon) truth field, and optionally a forecast, loaded by
 :mod:`ground_station.osse_io`. Those modules stay below this one, so none imports another sideways.
 Every field leaves here with its measured rank figures in ``meta["rank"]``
-(:func:`ground_station.osse_stats.field_rank_figures`), which every run reports.
+(:func:`ground_station.osse_stats.field_rank_figures`; the transient field's decorrelation measured
+on its drawing step; the relative change of its values by slot lag), which every run reports.
 
 How we know it is right (tests/unit/test_osse.py): the registry holds exactly these two names, the
 scenario's synthetic field is reproducible from its seed, a field written to a file and named by a
@@ -18,6 +22,7 @@ one line naming the known ones.
 from __future__ import annotations
 
 import datetime as _dt
+import math
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -26,7 +31,7 @@ from ground_station.osse import OsseError, OsseField, as_ground_point_arrays, sy
 from ground_station.osse_geofiles import GeoFileOptions
 from ground_station.osse_io import load_value_grid
 from ground_station.osse_scale import ValueScale
-from ground_station.osse_stats import field_rank_figures
+from ground_station.osse_stats import field_rank_figures, measured_transiency_min, relative_change_by_lag
 from ground_station.osse_transient import TransientParams, transient_field_arrays
 
 __all__ = ["OSSE_SOURCES", "osse_from_scenario"]
@@ -54,13 +59,20 @@ def _synthetic_from_scenario(scenario, gps) -> OsseField:
         return synthetic_field(gps, region_names=names, region_centers_deg=centers, region_sizes_km=sizes,
                                horizon_s=scenario.scenario.horizon_s, slot_s=v.slot_s, seed=scenario.scenario.seed)
     g = as_ground_point_arrays(gps)
+    step_s = v.field_step_s
+    per_slot = round(v.slot_s / step_s)
+    n_slots = math.ceil(scenario.scenario.horizon_s / v.slot_s - 1e-9)
     truth, forecast, drawn = transient_field_arrays(
         g, region_names=names, region_centers_deg=centers, region_sizes_km=sizes,
-        horizon_s=scenario.scenario.horizon_s, slot_s=v.slot_s, seed=scenario.scenario.seed,
-        params=TransientParams(transiency_min=v.transiency_min))
+        horizon_s=n_slots * v.slot_s, slot_s=step_s, seed=scenario.scenario.seed,
+        params=TransientParams(transiency_min=v.transiency_min, flash_floods=v.flash_floods))
+    decorrelation = measured_transiency_min(truth, step_s)
+    # the OSSE output at each slot's start, held over the slot (as a file source is sampled)
+    truth, forecast = truth[::per_slot][:n_slots], forecast[::per_slot][:n_slots]
     return OsseField(values=truth, slot_s=float(v.slot_s), lat_deg=g.lat_deg, lon_deg=g.lon_deg,
                      region_index=g.region_index, region_names=names, source="synthetic",
                      meta={"seed": int(scenario.scenario.seed), "model": "transient", **drawn,
+                           "field_step_s": step_s, "decorrelation_min": decorrelation,
                            "forecast": "conditional median of the epoch state, no event born later"},
                      forecast=forecast)
 
@@ -108,5 +120,11 @@ def osse_from_scenario(scenario, gps) -> OsseField:
     if src not in OSSE_SOURCES:
         raise OsseError(f"value.osse_source '{src}': unknown (known: {', '.join(sorted(OSSE_SOURCES))})")
     field = OSSE_SOURCES[src][0](scenario, gps)
-    field.meta["rank"] = field_rank_figures(field.values, field.slot_s)
+    rank = field_rank_figures(field.values, field.slot_s)
+    rank["osse_resolution_min"] = field.slot_s / 60.0
+    # the transient field's decorrelation, measured on its drawing step (finer than a long slot)
+    rank["decorrelation_min"] = field.meta.get("decorrelation_min", rank["transiency_min"])
+    rank["flash_floods"] = field.meta.get("flash_floods")
+    rank["rel_change_by_slot_lag"] = relative_change_by_lag(field.values)
+    field.meta["rank"] = rank
     return field

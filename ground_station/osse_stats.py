@@ -7,9 +7,20 @@ that correlation at a lag of whole slots, averaged over the start slots of the h
 Every run reports them for its truth field (``osse.rank_corr_15min``, ``osse.rank_corr_60min``,
 ``osse.transiency_min``).
 
+How fast the values themselves change (the study's "case" is told by its errors: a planner that
+knows a GP's value as of ``L`` ago errs by about the field's relative change over ``L``):
+:func:`relative_change_by_lag` is the mean and the median over GPs and start slots of
+``|v(s + k) - v(s)| / v(s + k)`` (the newer value in the denominator, as the report's assumed-value
+error divides by the true value) for whole slot lags ``k``; :func:`relative_change_at` reads it at
+any lag [s], linear between slot lags - exact for a lag measured from a time uniform over a slot of
+a field held constant over each slot. Every run reports it at its median information age
+(bringup/analysis/report.py, ``osse.rel_change_at_info_age``).
+
 How we know it is right (tests/unit/test_osse_transient.py): Spearman's rho here equals
 ``scipy.stats.spearmanr`` on random data with ties; the crossing of a drawn correlation curve is
-found where it was put.
+found where it was put. tests/unit/test_osse_resolution.py: the relative change equals a direct
+loop over every (slot, GP) pair, and read between slot lags equals the average over uniformly
+spread look times of a brute force on the piecewise-constant field.
 """
 
 from __future__ import annotations
@@ -18,7 +29,8 @@ import math
 
 import numpy as np
 
-__all__ = ["field_rank_figures", "measured_transiency_min", "rank_correlation", "ranks", "spearman"]
+__all__ = ["field_rank_figures", "measured_transiency_min", "rank_correlation", "ranks", "relative_change_at",
+           "relative_change_by_lag", "spearman"]
 
 
 def ranks(v: np.ndarray) -> np.ndarray:
@@ -95,3 +107,32 @@ def field_rank_figures(values: np.ndarray, slot_s: float) -> dict:
                                           if abs(lag - round(lag)) < 1e-9 else None)
     out["transiency_min"] = measured_transiency_min(values, slot_s)
     return out
+
+
+def relative_change_by_lag(values: np.ndarray) -> dict:
+    """``{"mean": [...], "median": [...]}`` indexed by the slot lag ``k`` = 0 .. n_slots - 1: the mean
+    and median over every start slot and GP of ``|v(s + k) - v(s)| / v(s + k)`` (values > 0)."""
+    v = np.asarray(values, dtype=np.float64)
+    if v.ndim != 2 or v.size == 0:
+        raise ValueError(f"relative change: values must be [n_slots, n_gp], got shape {v.shape}")
+    if np.any(v <= 0):
+        raise ValueError("relative change: values must be > 0 (the OSSE's are 1..256)")
+    mean, med = [0.0], [0.0]
+    for k in range(1, v.shape[0]):
+        r = np.abs(v[k:] - v[:-k]) / v[k:]
+        mean.append(float(r.mean()))
+        med.append(float(np.median(r)))
+    return {"mean": mean, "median": med}
+
+
+def relative_change_at(curve: list, slot_s: float, lag_s: float) -> float | None:
+    """A :func:`relative_change_by_lag` curve read at ``lag_s`` [s], linear between slot lags; None
+    for a negative lag or one beyond the curve's last slot lag."""
+    if lag_s is None or not lag_s >= 0 or not curve:
+        return None
+    x = lag_s / float(slot_s)
+    k = math.floor(x)
+    if k >= len(curve) - 1:
+        return float(curve[-1]) if abs(x - (len(curve) - 1)) < 1e-9 else None
+    f = x - k
+    return float((1.0 - f) * curve[k] + f * curve[k + 1])

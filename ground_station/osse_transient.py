@@ -17,6 +17,8 @@ the storm-cell model's, :func:`ground_station.osse._susceptibility`: rivers and 
   region (``events_per_h``), each a Gaussian bump (radius ``event_radius_km``) of intensity
   ``event_intensity`` that appears at full strength in one slot and drains with e-folding time
   ``event_life`` x transiency.
+  ``flash_floods = False`` (scenario key ``value.flash_floods``) leaves them out of truth and
+  forecast alike, drawing the same random numbers, so the rest of the field is the same.
 * **Value** ``v = 1 + round(255 (1 - exp(-s (b + I + E))))``: integer 1..256, as the storm-cell model.
 
 Choosing ``tau`` for a transiency ``T``: the value is a monotone function of the latent
@@ -35,7 +37,8 @@ epoch; the events born later are not in it.
 How we know it is right (tests/unit/test_osse_transient.py): the measured transiency is within
 20 % of 15 and 60 min on several seeds; :func:`rank_correlation` equals scipy's Spearman on random
 fields with ties; the forecast equals the truth at the epoch and contains no event born later; the
-same seed gives the same field.
+same seed gives the same field; without flash floods the field is the one with them wherever no
+event reaches (tests/unit/test_osse_resolution.py).
 """
 
 from __future__ import annotations
@@ -43,7 +46,7 @@ from __future__ import annotations
 import math
 import zlib
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -74,6 +77,9 @@ class TransientParams:
     event_radius_km: tuple[float, float] = (3.0, 8.0)
     event_intensity: tuple[float, float] = (3.0, 8.0)
     event_life: tuple[float, float] = (1.0, 3.0)
+    # False: the events are drawn (the same random stream, so the rest of the field is the same) but
+    # not put into the truth or the forecast
+    flash_floods: bool = True
 
 
 def lag_correlation_for_half(s: np.ndarray, p: TransientParams, rng: np.random.Generator,
@@ -149,7 +155,7 @@ def transient_region_values(rng: np.random.Generator, x_km: np.ndarray, y_km: np
         x = (cos_f @ a + sin_f @ b) / math.sqrt(m)
         ev_all = np.zeros_like(x_km)
         ev_known = np.zeros_like(x_km)
-        for e in events:
+        for e in events if p.flash_floods else ():
             age = t_mid[j] - e["t0_s"]
             if age < 0:
                 continue
@@ -179,12 +185,15 @@ def transient_field_arrays(gps, *, region_names: Sequence[str], region_centers_d
     finite horizon; the field is then measured (:func:`measured_transiency_min`, all GPs) and the
     time constants scaled by ``requested / measured`` and the field drawn again from the same random
     numbers, until the measured transiency is within ``tolerance`` of the request or after
-    ``max_rounds`` (the measured figure is in ``meta`` either way)."""
+    ``max_rounds`` (the measured figure is in ``meta`` either way). The time constants are calibrated
+    on the field with its flash floods; ``params.flash_floods = False`` then draws the same field
+    without them."""
     n_slots = math.ceil(horizon_s / slot_s - 1e-9)
     want = float(params.transiency_min)
     scale = 1.0
     rounds = []
-    for _ in range(max_rounds):
+
+    def draw(p: TransientParams, scale: float):
         truth = np.empty((n_slots, len(gps)), dtype=np.int16)
         forecast = np.empty_like(truth)
         drawn = {}
@@ -193,14 +202,22 @@ def transient_field_arrays(gps, *, region_names: Sequence[str], region_centers_d
             rng = np.random.default_rng(np.random.SeedSequence([int(seed), zlib.crc32(name.encode("utf-8")), 23]))
             lat0, lon0 = region_centers_deg[r]
             x, y = local_km(gps.lat_deg[idx], gps.lon_deg[idx], lat0, lon0)
-            t, f, d = transient_region_values(rng, x, y, 0.5 * float(region_sizes_km[r]), n_slots, slot_s, params,
+            t, f, d = transient_region_values(rng, x, y, 0.5 * float(region_sizes_km[r]), n_slots, slot_s, p,
                                               tau_scale=scale)
             truth[:, idx] = t
             forecast[:, idx] = f
             drawn[name] = d
+        return truth, forecast, drawn
+
+    # calibrated with the flash floods in (the field's dynamics do not depend on the switch)
+    with_floods = replace(params, flash_floods=True)
+    for _ in range(max_rounds):
+        truth, forecast, drawn = draw(with_floods, scale)
         got = measured_transiency_min(truth, slot_s)
         rounds.append({"tau_scale": scale, "transiency_min": got})
         if got is None or abs(got - want) <= tolerance * want:
             break
         scale *= want / got
-    return truth, forecast, {"regions": drawn, "calibration": rounds}
+    if not params.flash_floods:
+        truth, forecast, drawn = draw(params, scale)
+    return truth, forecast, {"regions": drawn, "calibration": rounds, "flash_floods": bool(params.flash_floods)}

@@ -11,7 +11,7 @@ Definitions:
   ``revisit_zero_s``; ``recorded`` is the OSSE value the instrument measured (Observation.
   recorded_value).
 * observations.duplicates_15min - observations of a GP seen (by anyone) less than revisit_zero_s
-  before.
+  before; observations.duplicate_fraction - their share.
 * value.assumed_error_mean - mean over observations with a true Eq. 1 value > 0 of
   |assumed - true| / true, where assumed is what the planner expected (Observation.assumed_value).
 * value.assumed_error - mean, median, sum-based, same-slot / other-slot: bringup/analysis/assumed_error.py.
@@ -23,7 +23,7 @@ Definitions:
   region the planner had when it planned the look (sat_node/knowledge.py); ``knowledge.model`` the
   run's knowledge model and ``knowledge.info_age_s.hist`` counts per ``hist_edges_s`` bin.
 * osse.rank_corr_15min, osse.rank_corr_60min, osse.transiency_min - the truth field's rank
-  statistics (ground_station/osse_stats.py), from the run's metadata.
+  statistics (ground_station/osse_stats.py); the other osse.*, ground.*, looks.*: case_figures.py.
 * dtn.* - sat_node/dtn/stats.py over the bundle events (first delivery per bundle counts).
 * partial, horizon_reached_s - a report of a run that reached its horizon (the bag holds the run's
   closing /run/meta record and its file is complete) has ``partial`` false and
@@ -55,6 +55,9 @@ in tests/faults/test_hostile_inputs.py and tests/faults/test_recorder_kill.py;
 the report built beside the run equals ``build_report`` over the same envelopes
 (tests/unit/test_record_process.py), and the report rebuilt from a run's bag equals the run's own,
 on both engines (tests/system/test_engines_equal.py).
+
+Why one module: the report is one pure function of a run's envelopes, the same live and from a bag;
+the figure families that stand alone live beside it (assumed_error.py, case_figures.py, cadence.py).
 """
 
 from __future__ import annotations
@@ -68,6 +71,7 @@ import numpy as np
 
 from bringup.analysis.assumed_error import assumed_error_figures
 from bringup.analysis.security_figures import security_figures
+from bringup.analysis.case_figures import case_figures, ground_meta
 from bringup.errors import UserError
 from bringup.recording.bag import BagReader
 from bringup.recording.bag_seal import check_bag
@@ -113,6 +117,7 @@ class RunMeta:
     regions_never_in_view: list | None = None  # in no satellite's field of regard over the horizon
     slot_s: float = 900.0  # the OSSE's time resolution (slot) [s]
     provenance: dict | None = None  # what the run was made from (bringup/scenario/provenance.py)
+    ground: dict | None = None  # the ground network's passes (orbit_clock/ground_passes.py pass_figures)
 
     @classmethod
     def for_world(cls, world, mode: str, engine: str) -> RunMeta:
@@ -122,7 +127,7 @@ class RunMeta:
                    n_sats=len(world.sat_names), n_gp=world.n_gp, revisit_zero_s=sc.value.revisit_zero_s,
                    knowledge=sc.value.knowledge, osse=dict(world.osse.meta.get("rank") or {}),
                    regions_never_in_view=regions_never_in_view(world),
-                   slot_s=float(world.osse.slot_s))
+                   slot_s=float(world.osse.slot_s), ground=ground_meta(world))
 
     def to_json(self) -> str:
         return json.dumps(self.__dict__, sort_keys=True)
@@ -195,6 +200,7 @@ class ReportBuilder:
         self.created: dict[str, tuple] = {}
         self.delivered: dict[str, tuple[str, int]] = {}
         self.rejected: dict[str, int] = defaultdict(int)  # reason -> payloads not counted
+        self.uplinks: list[tuple[str, int]] = []  # (satellite, t_ns) of every ground uplink
 
     def add(self, env) -> None:
         t = env.topic
@@ -221,7 +227,9 @@ class ReportBuilder:
                 self.cpu_by_planner[m.sat] += m.solve_cpu_s
                 self.planned[(m.sat, m.version)] = m.planned_ns
             elif t == "/ground/uplink":
-                self.cpu_by_planner["ground"] += codec.decode(t, env.data).schedule.solve_cpu_s
+                up = codec.decode(t, env.data)
+                self.cpu_by_planner["ground"] += up.schedule.solve_cpu_s
+                self.uplinks.append((up.sat, up.t_ns))
         except ValueError:
             self.bad += 1
             self.rejected["undecodable"] += 1
@@ -264,7 +272,7 @@ class ReportBuilder:
         rep["value"]["assumed_error"] = assumed_error_figures(true_values(obs, meta.revisit_zero_s), meta.slot_s,
                                                               meta.horizon_s)
         rep["knowledge"] = _knowledge_figures(obs, meta)
-        rep["osse"] = dict(meta.osse or {})
+        rep.update(case_figures(obs, meta, self.uplinks, rep["knowledge"]["info_age_s"].get("median")))
         if meta.regions_never_in_view:
             rep["coverage"]["regions_never_in_view"] = list(meta.regions_never_in_view)
             rep.setdefault("warnings", []).append(
@@ -488,7 +496,7 @@ def _value_figures(obs: list, meta: RunMeta) -> dict:
             "gp_observed_fraction": (len(observed) / meta.n_gp) if meta.n_gp else None,
             "looks_per_gp": (len(obs) / meta.n_gp) if meta.n_gp else None,
         },
-        "observations": {"count": len(obs), "duplicates_15min": dup},
+        "observations": {"count": len(obs), "duplicates_15min": dup, "duplicate_fraction": dup / len(obs) if obs else None},
     }
 
 

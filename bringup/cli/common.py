@@ -138,8 +138,10 @@ def add_knowledge_args(p: argparse.ArgumentParser) -> None:
                         "information time: an upper bound on what a perfect onboard hydrologic model could "
                         "infer), oracle (the truth at planning time; comparison only) (default: scenario)")
     p.add_argument("--transiency-min", type=transiency_arg, default=None, metavar="MIN|slow",
-                   help="transiency of the synthetic field [min] (the study's: 15), or 'slow' for the storm-cell "
-                        "field (default: scenario)")
+                   help="decorrelation of the synthetic field [min]: the lag at which the GP values' rank "
+                        "correlation falls to 0.5 (not the study's 'transiency', which is the OSSE's time "
+                        "resolution, value.osse_resolution_min), or 'slow' for the storm-cell field "
+                        "(default: scenario)")
     p.add_argument("--gp-spacing-km", type=float, default=None,
                    help="GP spacing [km] (default: scenario; the paper's: footprint / 2)")
     p.add_argument("--planning", choices=("joint", "alone"), default=None,

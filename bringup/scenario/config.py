@@ -141,6 +141,7 @@ class RegionsCfg(_S, kw_only=True):
     list: Annotated[List[Region], msgspec.Meta(min_length=1)]
 
 
+FIELD_STEP_MAX_S = 900.0  # the transient field's longest drawing step [s] (ValueCfg.field_step_s)
 # sat_node/knowledge.py MODELS, the default first (checked by a test); RENAMED_KNOWLEDGE its RENAMED keys
 KNOWLEDGE_MODELS = ("observed", "region-truth", "oracle")
 RENAMED_KNOWLEDGE = ("study",)
@@ -172,16 +173,25 @@ class ValueCfg(_S, kw_only=True):
     osse_file: str = ""
     osse_forecast_file: str = ""
     grid: GridCfg = GridCfg()
-    slot_s: Pos = 900.0
-    revisit_zero_s: NonNeg = 900.0
+    # the study's "transiency": the OSSE's time resolution [min], the value slot and Eq. 1's zero window
+    osse_resolution_min: Annotated[float, msgspec.Meta(gt=0, le=1440)] = 15.0
     belief_sigma_min: Frac = 0.02
     belief_sigma_max: Frac = 0.08
     knowledge: Literal["observed", "region-truth", "oracle"] = "observed"
-    # 0: the slow storm-cell field; else the transient field's transiency [min] (up to a day)
+    # 0: the slow storm-cell field; else the transient field's decorrelation [min] (up to a day): the
+    # lag at which the GP values' Spearman rank correlation falls to 0.5 (not the study's
+    # "transiency", which is osse_resolution_min)
     transiency_min: Annotated[float, msgspec.Meta(ge=0, le=1440)] = 15.0
+    # the transient field's episodic flash floods (cells that appear without warning); false: none
+    flash_floods: bool = True
     observation_spread_km: Annotated[float, msgspec.Meta(gt=0, le=500)] = 10.0
     # 0: derived from the field's transiency (sat_node/knowledge.py)
     observation_memory_min: Annotated[float, msgspec.Meta(ge=0, le=10080)] = 0.0
+
+    # derived [s]: the value slot and Eq. 1's zero window are the OSSE's time resolution, as in the study;
+    # the transient field is drawn (and its decorrelation measured) on the slot split into parts <= 15 min
+    slot_s = revisit_zero_s = property(lambda self: 60.0 * self.osse_resolution_min)
+    field_step_s = property(lambda self: self.slot_s / math.ceil(self.slot_s / FIELD_STEP_MAX_S - 1e-9))
 
 
 class SchedulerCfg(_S, kw_only=True):
@@ -552,9 +562,12 @@ def _cross_checks(sc: Scenario, where: str) -> None:
             _parse_epoch(gc.band_start_utc)
         except ValueError as exc:
             bad("value.grid.band_start_utc", f"{exc} (got {gc.band_start_utc!r})")
-    if 0 < v.transiency_min < v.slot_s / 60.0:
-        bad("value.transiency_min", f"{v.transiency_min} min is shorter than one value slot "
-            f"({v.slot_s / 60.0:g} min; 0 = the slow storm-cell field)")
+    if 0 < v.transiency_min < v.field_step_s / 60.0:
+        bad("value.transiency_min", f"{v.transiency_min} min is shorter than the field's drawing step "
+            f"({v.field_step_s / 60.0:g} min; 0 = the slow storm-cell field)")
+    if v.transiency_min == 0 and not v.flash_floods:
+        bad("value.flash_floods", "false needs the transient field (transiency_min > 0): the slow "
+            "storm-cell field has no flash-flood switch")
     if sc.scheduler.dp_step_s > sc.scheduler.replan_period_s:
         bad("scheduler.dp_step_s", "is longer than scheduler.replan_period_s")
     if sc.scheduler.joint_max_partners and not sc.scheduler.joint_planning:

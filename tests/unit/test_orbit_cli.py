@@ -36,7 +36,7 @@ def test_access_csv_columns(tmp_path):
 
 
 def test_contacts_formats_round_trip(tmp_path):
-    names = ["gs_svalbard", "gs_troll"]
+    names = ["gs_svalbard", "gs_mcmurdo"]
     counts = {}
     for fmt, suffix in (("csv", "csv"), ("ion", "rc"), ("hdtn-json", "json")):
         out = tmp_path / f"p.{suffix}"

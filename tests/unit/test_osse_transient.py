@@ -16,7 +16,13 @@ from scipy.stats import spearmanr
 from bringup.scenario.config import load_scenario
 from ground_station.osse import as_ground_point_arrays
 from ground_station.osse_sources import osse_from_scenario
-from ground_station.osse_stats import field_rank_figures, measured_transiency_min, rank_correlation, spearman
+from ground_station.osse_stats import (
+    field_rank_figures,
+    measured_transiency_min,
+    rank_correlation,
+    relative_change_by_lag,
+    spearman,
+)
 from ground_station.osse_transient import TransientParams, transient_field_arrays
 from orbit_clock import ground_points
 
@@ -121,5 +127,11 @@ def test_same_seed_same_field(paper_gps):
 def test_every_field_leaves_the_registry_with_its_rank_figures(paper_gps):
     sc, _ = paper_gps
     f = osse_from_scenario(sc.with_overrides(hours=2.0), ground_points(sc))
-    assert f.meta["rank"] == field_rank_figures(f.values, f.slot_s)
-    assert set(f.meta["rank"]) == {"rank_corr_15min", "rank_corr_60min", "transiency_min"}
+    rank = dict(f.meta["rank"])
+    curve = rank.pop("rel_change_by_slot_lag")
+    assert curve == relative_change_by_lag(f.values)
+    # a 15-min OSSE is drawn on its own slot: its decorrelation is the rank figure's transiency
+    assert rank.pop("decorrelation_min") == rank["transiency_min"]
+    assert rank.pop("osse_resolution_min") == 15.0 and rank.pop("flash_floods") is True
+    assert rank == field_rank_figures(f.values, f.slot_s)
+    assert set(rank) == {"rank_corr_15min", "rank_corr_60min", "transiency_min"}

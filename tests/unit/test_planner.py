@@ -25,7 +25,7 @@ from sat_node.value import Belief, KnownObservation, prior_state
 
 @pytest.fixture(scope="module")
 def world(paper_scenario):
-    return World.build(paper_scenario.with_overrides(sats=6, hours=2))
+    return World.build(paper_scenario.with_overrides(sats=12, hours=2))
 
 
 def _busy_starts(world) -> list[tuple[str, float]]:

@@ -104,7 +104,7 @@ def test_hand_worked_value_figures(tmp_path):
     assert rep["value"]["first_look_share"] == FIRST_LOOK_SHARE
     assert abs(rep["value"]["assumed_error_mean"] - ERROR_MEAN) < 1e-12
     assert abs(rep["value"]["assumed_error_median"] - ERROR_MEDIAN) < 1e-12
-    assert rep["observations"] == {"count": 8, "duplicates_15min": DUPLICATES}
+    assert rep["observations"] == {"count": 8, "duplicates_15min": DUPLICATES, "duplicate_fraction": DUPLICATES / 8}
     assert rep["report_rejections"] == {"observation.recorded_value_out_of_range": 1}  # h
     assert rep["coverage"] == {"gp_observed": GP_OBSERVED, "gp_total": N_GP, "gp_observed_fraction": GP_FRACTION,
                                "looks_per_gp": LOOKS_PER_GP}
