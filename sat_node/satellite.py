@@ -3,8 +3,9 @@
 Pure logic, no rclpy: the ROS engine hosts it in a satellite process (bringup/engine/ros/host.py), the
 local engine in one process. It owns the satellite's three functions of docs/design.md section 2:
 
-* scheduler - distributed mode: replans every ``scheduler.replan_period_s`` over
-  ``plan_lookahead_s`` with the world's planner (sat_node/scheduler/planner.py, the same one the
+* scheduler - distributed mode: replans every ``scheduler.replan_period_s`` (and, with
+  ``scheduler.replan_trigger = "news"``, as soon as delivered news makes a planned look worthless;
+  ``"periodic"``: the period only, the study's scheme) over ``plan_lookahead_s`` with the world's planner (sat_node/scheduler/planner.py, the same one the
   ground uses) from what it knows: its own observations and those the DTN delivered (implicit
   consensus, Nag et al. section 4); centralized mode:
   executes the plan the ground uplinked at its last pass and downlinks its observations at each
@@ -270,6 +271,8 @@ class SatelliteLogic:
         """News that makes a look of the current plan worthless (the GP seen by another satellite
         within revisit_zero_s of it) triggers a replan at this step, before the periodic one: the
         scheduler "replans as news arrives" (Nag et al., section 4)."""
+        if self.sc.scheduler.replan_trigger == "periodic":  # the study's scheme: news waits for the period
+            return
         zero_ns = int(round(self.sc.value.revisit_zero_s * _NS))
         for it in self.plan:
             if it.gp == gp and it.t_ns > self.last_obs_ns and abs(it.t_ns - obs_ns) < zero_ns:

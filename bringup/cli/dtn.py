@@ -29,7 +29,7 @@ from bringup.engine.keys import resolve_bpsec_key, write_key_file
 from bringup.errors import UserError
 from orbit_clock.contact_plan import node_number
 from orbit_clock.contact_plan_io import ContactPlanError, read_contact_plan
-from sat_node.dtn.agent import AgentConfig
+from sat_node.dtn.agent import SEND_ORDERS, AgentConfig
 from sat_node.dtn.bpv7 import PAPER_EPOCH_DTN_MS, dtn_ms_of
 from sat_node.dtn.traffic import TrafficError, read_traffic
 
@@ -45,10 +45,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--bundle-bits", type=int, default=2000, help="bundle size on the link [bit] (default: 2000)")
     p.add_argument("--ttl-s", default="1:900,3:1800,15:3000",
                    help="TTL by priority as 'maxprio:seconds,...' (default: the study's 1:900,3:1800,15:3000)")
-    p.add_argument("--queue", choices=["priority", "deadline"], default="priority",
-                   help="send order: 'priority' (strict, 1 first; the study's) or 'deadline' (earliest expiry "
+    p.add_argument("--queue", choices=list(SEND_ORDERS), default="priority",
+                   help="send order: 'priority' (strict, 1 first; the study's), 'deadline' (earliest expiry "
                         "first: no bundle is left to its TTL while younger high-priority ones go, at the cost "
-                        "of mean latency)")
+                        "of mean latency) or 'fifo' (oldest first, priority ignored: the no-priority case)")
     p.add_argument("--hop-tolerance-s", type=float, default=0.0, metavar="S",
                    help="CGR takes the route with the fewest hops among those arriving within S seconds of "
                         "the earliest (default 0: earliest arrival only); fewer relays where radios queue")

@@ -196,6 +196,9 @@ class ValueCfg(_S, kw_only=True):
 
 class SchedulerCfg(_S, kw_only=True):
     replan_period_s: Pos = 600.0
+    # "news": replan every period and also when delivered news makes a planned look worthless (the
+    # project's); "periodic": every period only (the study's scheme)
+    replan_trigger: Literal["news", "periodic"] = "news"
     dp_step_s: Pos = 1.0
     plan_lookahead_s: Pos = 600.0
     joint_planning: bool = True
@@ -212,7 +215,7 @@ class IslCfg(_S, kw_only=True):
     ttl_p1_s: Pos = 900.0
     ttl_p2_3_s: Pos = 1800.0
     ttl_p4_15_s: Pos = 3000.0
-    send_order: Literal["priority", "deadline"] = "priority"
+    send_order: Literal["priority", "deadline", "fifo"] = "priority"
     hop_tolerance_s: NonNeg = 0.0
     forwarding: Literal["multicast", "unicast"] = "multicast"
 

@@ -79,8 +79,9 @@ __all__ = ["BundleAgent", "AgentConfig", "Transmission", "BundleEvent", "ttl_s_f
            "MIN_KEY_BYTES", "DROP_REASONS", "SEND_ORDERS", "FORWARDINGS", "deadline_delays", "peek_next_hop"]
 
 DROP_REASONS = ("ttl", "integrity", "no_route", "hop_limit", "other")
-# Send orders (AgentConfig.for_policy): strict priority (the study's), or earliest expiry first
-SEND_ORDERS = ("priority", "deadline")
+# Send orders (AgentConfig.for_policy): strict priority (the study's), earliest expiry first, or
+# oldest first ("fifo": priority ignored, the no-priority case beside the study's Fig. 5)
+SEND_ORDERS = ("priority", "deadline", "fifo")
 FORWARDINGS = ("multicast", "unicast")
 _NS = 1_000_000_000
 # next hops of recently heard bytes: a broadcast copy reaches every node in view, and the peek is a
@@ -155,7 +156,8 @@ class AgentConfig:
     @classmethod
     def for_policy(cls, send_order: str = "priority", hop_tolerance_s: float = 0.0, **kw) -> "AgentConfig":
         """A config for one of :data:`SEND_ORDERS` (``deadline``: each priority's delay is its TTL,
-        so the earliest expiry goes first) and a CGR hop tolerance [s]; other fields from ``kw``
+        so the earliest expiry goes first; ``fifo``: every delay 0, so the oldest bundle goes first
+        whatever its priority, which orders only bundles created at the same instant) and a CGR hop tolerance [s]; other fields from ``kw``
         (``forwarding``: one of :data:`FORWARDINGS`)."""
         if send_order not in SEND_ORDERS:
             raise ValueError(f"send order {send_order!r}: one of {', '.join(SEND_ORDERS)}")
@@ -166,6 +168,8 @@ class AgentConfig:
         cfg = cls(hop_tolerance_s=float(hop_tolerance_s), **kw)
         if send_order == "deadline":
             cfg = replace(cfg, priority_delay_s=deadline_delays(cfg.ttl_s_by_priority))
+        elif send_order == "fifo":  # every priority's delay 0: creation time alone orders the bundles
+            cfg = replace(cfg, priority_delay_s=(0.0,) * 15)
         return cfg
 
 

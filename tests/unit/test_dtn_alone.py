@@ -209,6 +209,15 @@ def test_cli_deadline_queue_changes_the_order(tmp_path, capsys):
         med[q] = rep["dtn.latency_s_by_priority.9.median"]
     # strict: the P9 waits for all 20 P1s (~40 s on air); deadline: equal TTLs, so it goes first by age
     assert med["priority"] > 40 and med["deadline"] < 10, med
+    # the P9 living three times as long as the P1s: earliest expiry sends it after every P1 (its
+    # deadline 310 s, theirs 110-130 s); fifo ignores priority and TTL: the oldest goes first
+    for q in ("deadline", "fifo"):
+        assert main(["dtn", "--contact-plan", str(tmp_path / "plan.csv"), "--traffic", str(tmp_path / "traffic.csv"),
+                     "--ttl-s", "1:100,15:300", "--queue", q, "--json"]) == 0
+        rep = json.loads(capsys.readouterr().out)
+        assert rep["dtn.delivery_ratio"] == 1.0 and rep["dtn.conservation_ok"]
+        med[q] = rep["dtn.latency_s_by_priority.9.median"]
+    assert med["deadline"] > 40 and med["fifo"] < 10, med
 
 
 def test_policy_config_names_what_is_wrong():
@@ -219,8 +228,9 @@ def test_policy_config_names_what_is_wrong():
     assert cfg.priority_delay_s == deadline_delays({1: 100.0, 15: 300.0}) == (100.0,) + (300.0,) * 14
     assert cfg.hop_tolerance_s == 12.5 and cfg.bundle_bits == 800
     assert AgentConfig.for_policy(key=TEST_BPSEC_KEY).priority_delay_s is None
-    with pytest.raises(ValueError, match="send order 'fifo'"):
-        AgentConfig.for_policy("fifo", key=TEST_BPSEC_KEY)
+    assert AgentConfig.for_policy("fifo", key=TEST_BPSEC_KEY).priority_delay_s == (0.0,) * 15
+    with pytest.raises(ValueError, match="send order 'lifo'"):
+        AgentConfig.for_policy("lifo", key=TEST_BPSEC_KEY)
     for bad in (-1.0, float("nan")):
         with pytest.raises(ValueError, match="hop tolerance"):
             AgentConfig.for_policy("priority", bad, key=TEST_BPSEC_KEY)
