@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import csv
 from collections import Counter, defaultdict
+from itertools import pairwise
 
 import pytest
 
@@ -74,7 +75,7 @@ def _study_intervals(path) -> Counter:
     out = Counter()
     for ts in times.values():
         ts = sorted(ts)
-        out.update(b - a for a, b in zip(ts, ts[1:]) if b - a < IN_PASS_GAP_S)
+        out.update(b - a for a, b in pairwise(ts) if b - a < IN_PASS_GAP_S)
     return out
 
 
