@@ -34,7 +34,8 @@ grid times and on grid times +- revisit_zero_s, on unsorted and repeated times; 
 each observation's history. The report's value of a bag of nine observations equals Eq. 1 worked
 out by hand (tests/unit/test_report_value.py).
 
-Not done: a spatial-diversity term (value for observing GPs far from recent observations).
+The optional spatial-diversity term (value for observing GPs far from recent observations) is the
+planner's, off by default: sat_node/diversity.py.
 """
 
 from __future__ import annotations

@@ -187,6 +187,10 @@ class ValueCfg(_S, kw_only=True):
     observation_spread_km: Annotated[float, msgspec.Meta(gt=0, le=500)] = 10.0
     # 0: derived from the field's transiency (sat_node/knowledge.py)
     observation_memory_min: Annotated[float, msgspec.Meta(ge=0, le=10080)] = 0.0
+    # spatial-diversity term (sat_node/diversity.py): weight (0: off), length [km], look-back window [min]
+    spatial_diversity_weight: Annotated[float, msgspec.Meta(ge=0, le=100)] = 0.0
+    spatial_diversity_km: Annotated[float, msgspec.Meta(gt=0, le=2000)] = 8.0
+    spatial_diversity_window_min: Annotated[float, msgspec.Meta(gt=0, le=1440)] = 60.0
 
     # derived [s]: the value slot and Eq. 1's zero window are the OSSE's time resolution, as in the study;
     # the transient field is drawn (and its decorrelation measured) on the slot split into parts <= 15 min

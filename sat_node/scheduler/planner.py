@@ -65,6 +65,7 @@ from sat_node.scheduler.dp import Plan, solve_dp
 from sat_node.scheduler.joint import solve_joint
 from sat_node.scheduler.nonagile import solve_nonagile
 from sat_node.scheduler.problem import SchedulingProblem, build_problem
+from sat_node.diversity import diversity_factor, recent_observed_gps
 from sat_node.value import Belief, KnownObservation, prior_state
 
 __all__ = ["SOLVERS", "Knowledge", "PersistenceView", "Planner", "PlannerSettings", "SatPayload", "ValueSource"]
@@ -127,6 +128,10 @@ class PlannerSettings:
     joint: bool = False
     joint_budget_solves: int = 0  # the dive only (sat_node/scheduler/joint.py): the search gained nothing here
     joint_max_partners: int = 0  # at most this many partners in a joint plan (Planner.group); 0: all
+    # the optional spatial-diversity term (sat_node/diversity.py): weight (0: off), length, window
+    diversity_weight: float = 0.0
+    diversity_km: float = 8.0
+    diversity_window_s: float = 3600.0
 
     @classmethod
     def from_scenario(cls, sc) -> PlannerSettings:
@@ -136,7 +141,10 @@ class PlannerSettings:
                    revisit_zero_s=float(sc.value.revisit_zero_s),
                    footprint_km=float(sc.instrument.footprint_km),
                    joint=bool(sc.scheduler.joint_planning),
-                   joint_max_partners=int(sc.scheduler.joint_max_partners))
+                   joint_max_partners=int(sc.scheduler.joint_max_partners),
+                   diversity_weight=float(sc.value.spatial_diversity_weight),
+                   diversity_km=float(sc.value.spatial_diversity_km),
+                   diversity_window_s=60.0 * float(sc.value.spatial_diversity_window_min))
 
 
 @dataclass(frozen=True)
@@ -309,6 +317,10 @@ class Planner:
             absval = knowledge.belief.absval(forecast, ids[None, :], value.slot_of(at)[:, None])
         else:
             absval = forecast
+        if st.diversity_weight > 0 and len(ids):
+            recent = recent_observed_gps(knowledge.known, t0_s, st.diversity_window_s)
+            absval = absval * diversity_factor(self.gp_ecef_km[ids], self.gp_ecef_km[recent], st.diversity_weight,
+                                               st.diversity_km)[None, :]
         if len(at) < len(times):
             absval = absval[0]  # (G,): build_problem spreads it over the window
         count, recent = prior_state(knowledge.known, ids, times, sat, st.revisit_zero_s)
