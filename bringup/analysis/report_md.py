@@ -19,6 +19,10 @@ def _fmt(v, nd=3):
     return f"{v:,}" if isinstance(v, int) else str(v)
 
 
+def _yes(x):
+    return "-" if x is None else ("yes" if x else "no")
+
+
 def _pct(x) -> str:
     return "-" if x is None else f"{x * 100:.1f} %"
 
@@ -36,6 +40,8 @@ def report_md(rep: dict, plots: list[Path] = (), base: Path | None = None) -> st
     age = k.get("info_age_s") or {}
     ae = v.get("assumed_error") or {}
     same, other = ae.get("same_slot") or {}, ae.get("other_slot") or {}
+    rc, g = f.get("rel_change_at_info_age") or {}, rep.get("ground") or {}
+    cad = (rep.get("looks") or {}).get("in_pass_interval_s") or {}
     lines = [
         f"# Run report: {rep['scenario']} / {rep['mode']} / {rep['engine']} engine",
         "",
@@ -56,6 +62,14 @@ def report_md(rep: dict, plots: list[Path] = (), base: Path | None = None) -> st
         f"{_fmt(age.get('mean'), 0)} / {_fmt(age.get('median'), 0)} / {_fmt(age.get('p90'), 0)} |",
         f"| field: rank correlation at 15 / 60 min; transiency [min] | {_fmt(f.get('rank_corr_15min'), 2)} / "
         f"{_fmt(f.get('rank_corr_60min'), 2)}; {_fmt(f.get('transiency_min'), 1)} |",
+        f"| field: OSSE resolution / decorrelation [min]; flash floods | {_fmt(f.get('osse_resolution_min'), 0)} / "
+        f"{_fmt(f.get('decorrelation_min'), 1)}; {_yes(f.get('flash_floods'))} |",
+        f"| field's relative change at the median information age, mean / median | "
+        f"{_pct(rc.get('mean'))} / {_pct(rc.get('median'))} |",
+        f"| ground passes / uplinks per satellite and orbit | {_fmt(g.get('passes_per_orbit'), 2)} / "
+        f"{_fmt(g.get('uplinks_per_orbit'), 2)} |",
+        f"| in-pass look interval: mode [s] (share) | {_fmt(cad.get('mode_s'))} "
+        f"({_pct(cad.get('mode_share'))}) |",
         f"| bundles created / delivered | {_fmt(d.get('bundles_created'))} / {_fmt(d.get('bundles_delivered'))} |",
         f"| delivery ratio | {_fmt(d.get('delivery_ratio'))} |",
         f"| latency mean / median / p95 [s] | {_fmt((d.get('latency_s') or {}).get('mean'), 1)} / "
