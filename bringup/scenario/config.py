@@ -25,7 +25,6 @@ from msgs_json.names import sat_names as _sat_names
 from msgs_json.text_input import TextInputError, read_text
 
 __all__ = [
-    "canonical_data",
     "ScenarioError",
     "Scenario",
     "load_scenario",
@@ -43,21 +42,6 @@ Lat = Annotated[float, msgspec.Meta(ge=-90, le=90)]
 Lon = Annotated[float, msgspec.Meta(ge=-180, le=180)]
 Frac = Annotated[float, msgspec.Meta(ge=0, le=1)]
 Name = Annotated[str, msgspec.Meta(min_length=1)]
-
-
-def canonical_data(obj):
-    """A scenario (or any part of it) as plain data with every field that has a value. Not
-    msgspec.to_builtins, which leaves out a field of an ``omit_defaults`` struct only when it holds
-    the very default object - so a scenario unpickled, or read from a file that spells a default out,
-    would look different from the same scenario made in memory (the world key, provenance's check
-    that its TOML loads back: tests/unit/test_world.py)."""
-    if isinstance(obj, msgspec.Struct):
-        return {f: canonical_data(v) for f in obj.__struct_fields__ if (v := getattr(obj, f)) is not msgspec.UNSET}
-    if isinstance(obj, (list, tuple)):
-        return [canonical_data(v) for v in obj]
-    if isinstance(obj, dict):
-        return {k: canonical_data(v) for k, v in obj.items()}
-    return obj
 
 
 class ScenarioError(ValueError):

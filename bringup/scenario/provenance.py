@@ -42,7 +42,8 @@ from pathlib import Path
 
 import msgspec
 
-from bringup.scenario.config import Scenario, _validate, canonical_data
+from bringup.scenario.canonical import canonical_data
+from bringup.scenario.config import Scenario, _validate
 from bringup.scenario.toml_text import to_toml
 
 __all__ = ["DIST_NAME", "FILE_KEYS", "NOT_GIT", "command_line", "dependencies", "git_state", "provenance",

@@ -24,7 +24,8 @@ import msgspec
 import numpy as np
 
 from bringup.scenario import fleet
-from bringup.scenario.config import Scenario, canonical_data
+from bringup.scenario.canonical import canonical_data
+from bringup.scenario.config import Scenario
 from bringup.scenario.limits import check_run_size
 from ground_station.osse_sources import osse_from_scenario
 from orbit_clock import (
