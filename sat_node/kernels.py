@@ -8,7 +8,9 @@ on-disk cache holds them (``__pycache__`` beside the sources, or ``NUMBA_CACHE_D
 them (~0.1 s). A process that must answer within a deadline (a satellite stepped by the lockstep
 clock of a ROS run, bringup/engine/ros/clock_node.py) calls :func:`warm_up` before it says it is
 ready, and the launcher runs it once before it starts the satellites, so that 24 processes load the
-kernels from the cache instead of all compiling them at once.
+kernels from the cache instead of all compiling them at once. ``python -m sat_node.kernels`` does the
+same once for the checkout (scripts/setup.sh starts it in the background while the rest installs):
+the cache it fills is the one every later run of this checkout loads from, and it prints the time.
 
 :func:`warm_up` runs each kernel through its ordinary caller (``solve_dp``, ``for_mask`` and
 ``prior_state`` on a two-step, two-GP instance; a CGR route and a one-to-all query on a three-contact plan), so it compiles exactly the
@@ -91,3 +93,10 @@ def warm_up(which=tuple(KERNELS)) -> dict[str, float]:
         _WARM[name]()
         took[name] = time.perf_counter() - t0
     return took
+
+
+if __name__ == "__main__":
+    t0 = time.perf_counter()
+    took = warm_up()
+    print("numba kernels ready in {:.1f} s ({}): compiled into numba's cache, or loaded from it".format(
+        time.perf_counter() - t0, ", ".join(f"{k} {v:.1f} s" for k, v in took.items())), flush=True)

@@ -431,8 +431,11 @@ def _run_ros(world, world_path: Path, args, meta, bag_dir: Path, out: Path, rout
     def progress(p) -> None:
         if p.status:  # before step 0: preparing, or waiting for processes to be ready
             update(t_ns=0, rtf=None, extra=p.status)
-            if (not show or prog is None) and p.status != last_status[0]:
-                print(f"run: {p.status}", file=sys.stderr)
+            if p.status != last_status[0] and (not show or prog is None or p.status.startswith("prepared in")):
+                if prog is not None:  # the prepare time stays on screen above the bar
+                    prog.console.print(f"run: {p.status}", highlight=False)
+                else:
+                    print(f"run: {p.status}", file=sys.stderr)
             last_status[0] = p.status
             return
         extra = f"{p.steps:,} steps, {p.steps_per_s:,.0f} steps/s"

@@ -111,6 +111,8 @@ def test_slow_start_is_waited_for_and_named_not_fatal(tmp_path):
     assert res.last.t_ns == spec.horizon_ns
     statuses = [p for p in seen if p.status]
     assert statuses[0].status.startswith("preparing the run")
+    done = [p.status for p in statuses if p.status.startswith("prepared in ")]  # the prepare time, told once
+    assert len(done) == 1 and float(done[0].split()[2]) >= 0.5, done
     waiting = [p for p in statuses if p.not_ready]
     assert waiting and all(p.not_ready == ("c1",) for p in waiting), [p.status for p in statuses]
     assert "c1" in waiting[0].status and waiting[0].wall_s >= 5.0

@@ -327,6 +327,7 @@ def _prepare(spec: RunSpec, spec_path: Path, out_dir: Path, env: dict[str, str],
     if progress is not None:
         progress(LaunchProgress(0, 0, 0, 0.0, status=f"preparing the run ({spec.prepare})"))
     log = out_dir / "logs" / "prepare.log"
+    t0 = time.monotonic()
     with open(log, "ab") as fh:
         proc = subprocess.run([python, "-m", "bringup.cli", "node", "--run-spec", str(spec_path), "--prepare"],
                               env=env, cwd=str(REPO), stdout=subprocess.DEVNULL, stderr=fh, stdin=subprocess.DEVNULL,
@@ -334,6 +335,8 @@ def _prepare(spec: RunSpec, spec_path: Path, out_dir: Path, env: dict[str, str],
     if proc.returncode != 0:
         return (f"preparing the run ({spec.prepare}) failed (exit code {proc.returncode}): "
                 f"{_Child('prepare', proc, log).last_error() or 'no message'}")
+    if progress is not None:  # what the first run of a checkout pays once (numba kernels compiled into the cache)
+        progress(LaunchProgress(0, 0, 0, 0.0, status=f"prepared in {time.monotonic() - t0:.1f} s (logs/prepare.log)"))
     return ""
 
 
