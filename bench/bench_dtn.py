@@ -7,14 +7,26 @@ issue's targets (>= 99.5 % of pairs within TTL, mean <= 10 s, priority 1 p95 <= 
 1-6 drop).
 
     .venv/bin/python bench/bench_dtn.py [--cases case4 case1] [--forwarding multicast unicast]
+
+``--side-by-side --dtnsim-src DIR --dtnsim-python PY``: the authors' simulator (dtnsim, a checkout
+the caller provides; bench/dtnsim_side.py says how to set it up) on the same inputs - its walker
+scenario edited to 21600 s, 1 kb/s and the study's TTLs - against ``constellation dtn`` of this
+checkout (and of ``--baseline-src DIR``, another checkout, when given), each a whole process, run
+alternately per case: prints every wall and CPU time with the machine's load, and the ratio dtnsim /
+ours per case and forwarding (``--repeat N`` rounds; ratios of the medians).
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import random
+import resource
+import statistics
+import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -41,7 +53,15 @@ def main() -> int:
                     help="ISL rate (the study's link budget: 1000; its simulator's configuration: 1e6)")
     ap.add_argument("--hop-tolerance-s", type=float, default=0.0, help="constellation dtn --hop-tolerance-s")
     ap.add_argument("--forwarding", nargs="+", default=["unicast", "multicast"], choices=["unicast", "multicast"])
+    ap.add_argument("--side-by-side", action="store_true",
+                    help="time dtnsim (--dtnsim-src, --dtnsim-python) against constellation dtn, alternately")
+    ap.add_argument("--dtnsim-src", type=Path, help="a checkout of github msancheznet/dtnsim")
+    ap.add_argument("--dtnsim-python", help="a Python 3.7 with dtnsim's dependencies (bench/dtnsim_side.py)")
+    ap.add_argument("--baseline-src", type=Path, help="--side-by-side: another checkout's constellation dtn too")
+    ap.add_argument("--repeat", type=int, default=1, help="--side-by-side rounds")
     args = ap.parse_args()
+    if args.side_by_side:
+        return side_by_side(args)
     plan = read_contact_plan(INPUTS / "contact_plan_3p_8s.csv", rate_bps=args.rate_bps)
     g = ContactGraph(plan)
     g.route("sat_11", "sat_35", 0.0, 2000)  # compile / load the numba cache
@@ -93,6 +113,78 @@ def _run_case(case, fwd, plan, traffic, args) -> None:
             vals = [r[f"dtn.latency_s_by_priority.{p}.{k}"] for k in ("median", "p95", "max")]
             print(f"   {p:4d} {c:7d} {r[f'dtn.latency_s_by_priority.{p}.count']:9d} "
                   + " ".join(f"{'-' if v is None else f'{v:.4g}':>7s}" for v in vals))
+
+
+def _load() -> str:
+    return "load " + "/".join(f"{x:.1f}" for x in os.getloadavg())
+
+
+def _timed(cmd: list[str], cwd: Path, env: dict) -> tuple[float, float, str]:
+    """Run ``cmd``: (wall [s], CPU of the process and its children [s], stdout)."""
+    r0 = resource.getrusage(resource.RUSAGE_CHILDREN)
+    t0 = time.perf_counter()
+    p = subprocess.run(cmd, cwd=cwd, env=env, check=False, capture_output=True, text=True)
+    wall = time.perf_counter() - t0
+    r1 = resource.getrusage(resource.RUSAGE_CHILDREN)
+    if p.returncode != 0:
+        raise SystemExit(f"{' '.join(cmd[:4])}... failed (exit {p.returncode}): {p.stderr.strip()[-400:]}")
+    return wall, (r1.ru_utime - r0.ru_utime) + (r1.ru_stime - r0.ru_stime), p.stdout
+
+
+def _ours(src: Path, case: str, fwd: str) -> tuple[float, float, dict]:
+    """``constellation dtn`` of checkout ``src`` on the study's inputs, as the issue times it (a
+    checkout from before multicast forwarding has no --forwarding: unicast is what it runs)."""
+    cmd = [sys.executable, "-m", "bringup.cli", "dtn", "--contact-plan", str(INPUTS / "contact_plan_3p_8s.csv"),
+           "--traffic", str(INPUTS / f"traffic_{case}.csv"), "--rate-bps", "1000", "--bundle-bits", "2000", "--json"]
+    if _has_forwarding(src):
+        cmd += ["--forwarding", fwd]
+    env = dict(os.environ, PYTHONPATH=str(src))
+    wall, cpu, out = _timed(cmd, src, env)
+    return wall, cpu, json.loads(out)
+
+
+def _has_forwarding(src: Path) -> bool:
+    return (src / "sat_node" / "dtn" / "multicast.py").is_file()
+
+
+def side_by_side(args) -> int:
+    import dtnsim_side  # bench/, beside this file
+
+    if args.dtnsim_src is None or args.dtnsim_python is None:
+        raise SystemExit("--side-by-side needs --dtnsim-src DIR and --dtnsim-python PY (bench/dtnsim_side.py)")
+    ttl = AgentConfig(key=b"\0" * 32).ttl_s_by_priority  # the study's TTLs, as constellation dtn's default
+    here = Path(__file__).resolve().parents[1]
+    checkouts = [("ours", here)] + ([("baseline", args.baseline_src.resolve())] if args.baseline_src else [])
+    walls: dict[tuple, list[float]] = {}
+    with tempfile.TemporaryDirectory(prefix="dtnsim-side-") as tmp:
+        configs = {case: dtnsim_side.write_inputs(args.dtnsim_src, INPUTS / f"traffic_{case}.csv", Path(tmp) / case)
+                   for case in args.cases}
+        for rnd in range(args.repeat):
+            for case in args.cases:
+                load0 = _load()
+                d = dtnsim_side.run_dtnsim(args.dtnsim_python, args.dtnsim_src, configs[case], ttl)
+                walls.setdefault((case, "dtnsim"), []).append(d["wall_s"])
+                print(f"[{rnd + 1}] {case} dtnsim: wall {d['wall_s']:.1f} s, CPU {d['cpu_s']:.1f} s "
+                      f"(simulation {d['sim_wall_s']:.1f} s wall); "
+                      f"bundles sent {d['sent']}, arrived {d['arrived']}, dropped {d['dropped']}; {load0} -> {_load()}",
+                      flush=True)
+                for label, src in checkouts:
+                    for fwd in args.forwarding if _has_forwarding(src) else ["unicast"]:
+                        load0 = _load()
+                        wall, cpu, rep = _ours(src, case, fwd)
+                        walls.setdefault((case, f"{label} {fwd}"), []).append(wall)
+                        print(f"[{rnd + 1}] {case} {label} {fwd}: wall {wall:.1f} s, CPU {cpu:.1f} s; pairs delivered "
+                              f"{rep['dtn.bundles_delivered']} of {rep['dtn.bundles_created']}, mean latency "
+                              f"{rep['dtn.latency_s.mean']:.4f} s; {load0} -> {_load()}", flush=True)
+    print("\nmedian walls and dtnsim / ours:")
+    for case in args.cases:
+        ref = statistics.median(walls[(case, "dtnsim")])
+        print(f"  {case} dtnsim {ref:.1f} s")
+        for (c, who), w in walls.items():
+            if c == case and who != "dtnsim":
+                m = statistics.median(w)
+                print(f"  {case} {who}: {m:.1f} s, dtnsim / ours {ref / m:.2f}x")
+    return 0
 
 
 if __name__ == "__main__":
