@@ -44,7 +44,7 @@ from sat_node.dtn.agent import ttl_s_for_priority
 from sat_node.dtn.cgr import ContactGraph
 from sat_node.dtn.traffic import TrafficItem
 
-__all__ = ["floor_mean", "latency_lower_bounds", "store_forward_bound_mean"]
+__all__ = ["floor_mean", "hops_within_ttl", "latency_lower_bounds", "store_forward_bound_mean"]
 
 
 def latency_lower_bounds(plan: ContactPlan, traffic: list[TrafficItem], bundle_bits: int,
@@ -82,17 +82,19 @@ def latency_lower_bounds(plan: ContactPlan, traffic: list[TrafficItem], bundle_b
 
 
 def store_forward_bound_mean(plan: ContactPlan, traffic: list[TrafficItem], bundle_bits: int,
-                             ttl_s_by_priority: dict[int, float], *, per_observation: bool = False) -> float | None:
+                             ttl_s_by_priority: dict[int, float], *, per_observation: bool = False,
+                             hops: list[int] | None = None) -> float | None:
     """Lower bound [s] on the mean latency of ANY routing and send order that delivers every bundle
     within its TTL (module docstring); the mean is over bundles that some contact path can deliver
     within their TTL at all, None when there are none. The per-bundle terms are not bounds one by one:
-    only their sum is (a policy may send any one bundle earlier than creation order would)."""
+    only their sum is (a policy may send any one bundle earlier than creation order would).
+    ``hops``: :func:`hops_within_ttl` of the same arguments, when the caller has it already."""
     if not plan.contacts:
         return None
     if per_observation:
-        return _per_observation_bound(plan, traffic, bundle_bits, ttl_s_by_priority)
+        return _per_observation_bound(plan, traffic, bundle_bits, ttl_s_by_priority, hops)
     known = set(plan.nodes)
-    tx_min, light_min, rate_by_src, hops = _bound_inputs(plan, traffic, bundle_bits, ttl_s_by_priority)
+    tx_min, light_min, rate_by_src, hops = _bound_inputs(plan, traffic, bundle_bits, ttl_s_by_priority, hops)
     radio_free: dict[str, float] = {}
     total, count = 0.0, 0
     for item, h in sorted(zip(traffic, hops), key=lambda x: x[0].t_s):  # the radio serves in creation order
@@ -127,7 +129,7 @@ def _fewest_hops(origin: int, n: int, src: np.ndarray, dst: np.ndarray, mask: np
     return hops
 
 
-def _hops_within_ttl(plan: ContactPlan, traffic: list[TrafficItem], ttl_s_by_priority: dict[int, float]):
+def hops_within_ttl(plan: ContactPlan, traffic: list[TrafficItem], ttl_s_by_priority: dict[int, float]) -> list[int]:
     """Per traffic item: its fewest hops over contacts open within [created, created + TTL] (-1: none)."""
     names = plan.nodes
     idx = {n: i for i, n in enumerate(names)}
@@ -150,19 +152,22 @@ def _hops_within_ttl(plan: ContactPlan, traffic: list[TrafficItem], ttl_s_by_pri
 
 
 def floor_mean(plan: ContactPlan, traffic: list[TrafficItem], bundle_bits: int,
-               ttl_s_by_priority: dict[int, float]) -> float | None:
+               ttl_s_by_priority: dict[int, float], *, hops: list[int] | None = None) -> float | None:
     """The any-policy floor [s] (module docstring): mean over the pairs some contact path reaches
-    within their TTL of fewest hops x (one transmission + one light time), shortest of the plan."""
+    within their TTL of fewest hops x (one transmission + one light time), shortest of the plan.
+    ``hops``: :func:`hops_within_ttl` of the same arguments, when the caller has it already."""
     if not plan.contacts:
         return None
     tx_min = bundle_bits / max(c.rate_bps for c in plan.contacts)
     light_min = min(c.range_light_s for c in plan.contacts)
-    hops = [h for h in _hops_within_ttl(plan, traffic, ttl_s_by_priority) if h > 0]
+    if hops is None:
+        hops = hops_within_ttl(plan, traffic, ttl_s_by_priority)
+    hops = [h for h in hops if h > 0]
     return float(np.mean(hops)) * (tx_min + light_min) if hops else None
 
 
 def _bound_inputs(plan: ContactPlan, traffic: list[TrafficItem], bundle_bits: int,
-                  ttl_s_by_priority: dict[int, float]):
+                  ttl_s_by_priority: dict[int, float], hops: list[int] | None = None):
     """What both store-and-forward bounds start from: the fastest transmission time, the shortest light
     time, each source's fastest rate and each bundle's fewest hops within its TTL."""
     tx_min = bundle_bits / max(c.rate_bps for c in plan.contacts)
@@ -170,13 +175,15 @@ def _bound_inputs(plan: ContactPlan, traffic: list[TrafficItem], bundle_bits: in
     rate_by_src: dict[str, float] = {}
     for c in plan.contacts:
         rate_by_src[c.src] = max(rate_by_src.get(c.src, 0.0), c.rate_bps)
-    return tx_min, light_min, rate_by_src, _hops_within_ttl(plan, traffic, ttl_s_by_priority)
+    if hops is None:
+        hops = hops_within_ttl(plan, traffic, ttl_s_by_priority)
+    return tx_min, light_min, rate_by_src, hops
 
 
 def _per_observation_bound(plan: ContactPlan, traffic: list[TrafficItem], bundle_bits: int,
-                           ttl_s_by_priority: dict[int, float]) -> float | None:
+                           ttl_s_by_priority: dict[int, float], hops: list[int] | None = None) -> float | None:
     """store_forward_bound_mean with one radio job per observation (module docstring)."""
-    tx_min, light_min, rate_by_src, hops = _bound_inputs(plan, traffic, bundle_bits, ttl_s_by_priority)
+    tx_min, light_min, rate_by_src, hops = _bound_inputs(plan, traffic, bundle_bits, ttl_s_by_priority, hops)
     obs: dict[tuple, list] = {}  # (source, row, t) -> [t, n deliverable pairs]
     total, count = 0.0, 0
     for item, h in zip(traffic, hops):

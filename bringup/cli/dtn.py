@@ -22,7 +22,12 @@ from datetime import UTC, datetime
 from pathlib import Path
 
 from bringup.analysis.dtn_alone import run_dtn
-from bringup.analysis.dtn_bounds import floor_mean, latency_lower_bounds, store_forward_bound_mean
+from bringup.analysis.dtn_bounds import (
+    floor_mean,
+    hops_within_ttl,
+    latency_lower_bounds,
+    store_forward_bound_mean,
+)
 from bringup.cli.common import add_epoch_arg, add_key_args
 from bringup.cli.run_folder import json_text
 from bringup.engine.keys import resolve_bpsec_key, write_key_file
@@ -148,9 +153,10 @@ def run(args: argparse.Namespace) -> int:
                                               per_observation=per_obs))
     report["dtn.forwarding"] = args.forwarding
     if not args.no_lower_bound:  # what no routing or send order can beat on the mean (dtn_bounds.py)
+        hops = hops_within_ttl(plan, traffic, ttl)  # both bounds start from each pair's fewest hops
         report["dtn.latency_s.store_forward_bound_mean"] = store_forward_bound_mean(
-            plan, traffic, args.bundle_bits, ttl, per_observation=per_obs)
-        report["dtn.latency_s.floor_mean"] = floor_mean(plan, traffic, args.bundle_bits, ttl)
+            plan, traffic, args.bundle_bits, ttl, per_observation=per_obs, hops=hops)
+        report["dtn.latency_s.floor_mean"] = floor_mean(plan, traffic, args.bundle_bits, ttl, hops=hops)
     report["dtn.sim_wall_s"] = run_.wall_s
     report["runtime.wall_s"] = time.perf_counter() - t0
     if args.json:

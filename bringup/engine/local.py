@@ -47,6 +47,7 @@ import heapq
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from itertools import compress
 from operator import attrgetter
 
 from bringup.engine.contract import (
@@ -202,6 +203,7 @@ class LocalEngine:
                 raise failed(ps[i].name, where, exc) from exc
 
         names = [p.name for p in ps]
+        range_n = range(n)
         steps_fn = [p.step for p in ps]
         driven = [is_event_driven(p) for p in ps]
         # Event-driven participants are called only for an inbox or a due wakeup: they are looked up
@@ -209,6 +211,10 @@ class LocalEngine:
         always = [i for i in range(n) if not driven[i]]
         any_driven = len(always) < n
         due: list[tuple[int, int]] = []  # (wakeup, index) of event-driven participants; stale entries skipped
+        # the wakeup each event-driven participant has an entry for in ``due`` (None: none live): a
+        # participant called for its inbox mostly returns the wakeup it already had, which is not
+        # pushed again (the heap stays small and holds few stale entries)
+        queued: list[int | None] = [None] * n
         # start
         t = self.t0_ns
         pending: list[Envelope] = []
@@ -222,6 +228,7 @@ class LocalEngine:
             flight[i] = r.in_flight
             if driven[i] and r.next_wakeup_ns is not None:
                 heapq.heappush(due, (r.next_wakeup_ns, i))
+                queued[i] = r.next_wakeup_ns
 
         steps = 0
         while True:
@@ -245,29 +252,31 @@ class LocalEngine:
                 on_step(t)
             i = 0
             where = f"step at {t}"
-            order = range(n)
+            order = range_n
             if any_driven:
                 called = set(always)
                 if inboxes:
-                    called.update(j for j in range(n) if inboxes[j])
+                    called.update(compress(range_n, inboxes))
                 while due and due[0][0] <= t:
                     w, j = heapq.heappop(due)
                     if wake[j] == w:
                         called.add(j)
+                    if queued[j] == w:
+                        queued[j] = None
                 order = sorted(called)
             try:
                 for i in order:
                     box = inboxes[i] if inboxes else []
-                    if driven[i]:
-                        if not must_step(True, bool(box), wake[i], t):
-                            continue  # an event-driven participant with nothing this step (contract rule 1)
+                    if driven[i] and not box and not must_step(True, False, wake[i], t):
+                        continue  # an event-driven participant with nothing this step (contract rule 1)
                     r = steps_fn[i](t, box)
                     check_result(names[i], r, where)
                     if r.emits:
                         pending.extend(self._stamp(names[i], r.emits, t, where))
                     w = r.next_wakeup_ns
-                    if w is not None and driven[i]:
+                    if w is not None and driven[i] and queued[i] != w:
                         heapq.heappush(due, (w, i))
+                        queued[i] = w
                     wake[i] = w
                     flight[i] = r.in_flight
             except EngineError:

@@ -62,6 +62,7 @@ import heapq
 import itertools
 from collections import Counter
 from dataclasses import dataclass, field, replace
+from operator import attrgetter
 from typing import Callable, NamedTuple
 
 import numpy as np
@@ -89,6 +90,7 @@ _NS = 1_000_000_000
 _PEEK_CACHE: dict[bytes, tuple] = {}
 _NEVER = 1 << 62
 _MISSING = object()
+_READY_NS = attrgetter("ready_ns")
 
 
 def deadline_delays(ttl_s_by_priority: dict[int, float]) -> tuple[float, ...]:
@@ -602,7 +604,7 @@ class BundleAgent:
         """When the radio next chooses what to send: it is free and some group is ready."""
         if not self._groups:
             return None
-        ready = min(g.ready_ns for g in self._groups.values())
+        ready = min(map(_READY_NS, self._groups.values()))
         return max(ready, self.radio_free_ns)
 
     def _decide(self, s: int) -> Transmission | None:

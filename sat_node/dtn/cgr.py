@@ -320,8 +320,9 @@ class ContactGraph:
                         node_ex[self.node_index[x]] = True
                 self._node_masks[key] = node_ex
         is_dest, found_c = self._is_dest, self._found_c
-        is_dest[dests] = True
-        found_c[dests] = -1
+        for d in dests:  # a few indices: item by item beats fancy indexing with a list
+            is_dest[d] = True
+            found_c[d] = -1
         try:
             _dijkstra(self.start_s, self.end_s, self.src, self.dst, self.rate_bps, self.owlt_s,
                       self.volume_bits if residual is None else residual, self.out_ptr, self.out_idx, self.out_maxend,
@@ -330,7 +331,8 @@ class ContactGraph:
                       float(deadline_s), arr, pred, self._no_backlog if first_backlog is None else first_backlog,
                       float(hop_tol_s), stamp, self._qid, found_c, self._found_h)
         finally:
-            is_dest[dests] = False
+            for d in dests:
+                is_dest[d] = False
         return arr, pred
 
     def _route_to(self, source, d, t_s, bits, backlog_bits, deadline_s, first_backlog_bits) -> Route | None:

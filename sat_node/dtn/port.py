@@ -179,10 +179,14 @@ class DtnPort:
         self._prev_t = t_ns
         evs = agent.events
         if not self.events:  # nobody reads them here: forget what would turn them into messages
-            del evs[:]
-            self._ev_info.clear()
-            self._creations.clear()
-            self._next_hop.clear()
+            if evs:
+                del evs[:]
+            if self._ev_info:
+                self._ev_info.clear()
+            if self._creations:
+                self._creations.clear()
+            if self._next_hop:
+                self._next_hop.clear()
             return emits
         if len(evs) > self._ev_done:
             encode = codec.encode
@@ -197,6 +201,17 @@ class DtnPort:
             self._ev_done = 0
             self._ev_info.clear()
         return emits
+
+    def idle(self, t_ns: int) -> bool:
+        """What :meth:`radio` does at a step at which the agent has nothing due by ``t_ns`` (no radio
+        decision, expiry or new event since the last call: the caller knows, e.g. only copies for
+        other nodes arrived before its wakeup): count the step and settle. True when something was
+        settled (the next event may then be later)."""
+        n = len(self._sent)
+        self._settle()
+        self._steps += 1
+        self._prev_t = t_ns
+        return len(self._sent) != n
 
     def next_event_ns(self, t_ns: int) -> int | None:
         """When a node that is not called at every step (msgs_json/envelope.py rule 1, event-driven)

@@ -167,6 +167,7 @@ class TrafficNode:
         self.created_ids: dict[int, str] = {}  # traffic index -> bundle id
         self.rejected = 0
         self.rejected_by_reason: dict[str, int] = {}
+        self._wake: int | None = 0  # the wakeup the last step returned (0 before the first: all is due)
 
     def subscriptions(self) -> list[str]:
         return self.port.subscriptions()
@@ -176,6 +177,7 @@ class TrafficNode:
 
     def step(self, t_ns: int, inbox: list[Envelope]) -> StepResult:
         port = self.port
+        heard = port.overheard
         for env in inbox:
             try:
                 port.receive(env, t_ns)
@@ -186,6 +188,14 @@ class TrafficNode:
         # and seen at the next one, so what is due at t_ns waits for the wakeup at t_ns + 1
         # (at one instant: arrivals first, then creations, then the radio's decision).
         upto = t_ns - 1
+        if (self._wake is None or t_ns < self._wake) and port.overheard - heard == len(inbox):
+            # Only copies for other nodes (the broadcast medium's most common step), before the wakeup
+            # the node asked for: no creation, radio decision or expiry is due by ``upto`` and the agent
+            # is as it was when that wakeup was computed, so the radio would only count the step and
+            # settle (DtnPort.idle); the wakeup changes only when something settled.
+            if port.idle(upto):
+                self._wake = self._wakeup(upto)
+            return StepResult([], self._wake)
         items, i = self._items, self._next
         while i < len(items) and items[i][0] <= upto:
             at, index, item = items[i]
@@ -204,11 +214,18 @@ class TrafficNode:
                     self.on_created(index_k, bid)
         self._next = i
         emits = port.radio(upto)
-        due = items[i][0] if i < len(items) else None
-        nxt = port.next_event_ns(upto)  # the radio's next decision, an expiry, a transmission's end
+        self._wake = self._wakeup(upto)
+        return StepResult(emits, self._wake)
+
+    def _wakeup(self, upto: int) -> int | None:
+        """1 ns after the next creation or the port's next event (the radio's next decision, an
+        expiry, a transmission's end) after ``upto``; None: nothing more to do."""
+        i = self._next
+        due = self._items[i][0] if i < len(self._items) else None
+        nxt = self.port.next_event_ns(upto)
         if nxt is not None and (due is None or nxt < due):
             due = nxt
-        return StepResult(emits, None if due is None else due + 1)
+        return None if due is None else due + 1
 
     def finish(self, t_ns: int) -> list[Emit]:
         emits = self.port.radio(t_ns)
