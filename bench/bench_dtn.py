@@ -156,6 +156,7 @@ def side_by_side(args) -> int:
     here = Path(__file__).resolve().parents[1]
     checkouts = [("ours", here)] + ([("baseline", args.baseline_src.resolve())] if args.baseline_src else [])
     walls: dict[tuple, list[float]] = {}
+    cpus: dict[tuple, list[float]] = {}
     with tempfile.TemporaryDirectory(prefix="dtnsim-side-") as tmp:
         configs = {case: dtnsim_side.write_inputs(args.dtnsim_src, INPUTS / f"traffic_{case}.csv", Path(tmp) / case)
                    for case in args.cases}
@@ -164,6 +165,7 @@ def side_by_side(args) -> int:
                 load0 = _load()
                 d = dtnsim_side.run_dtnsim(args.dtnsim_python, args.dtnsim_src, configs[case], ttl)
                 walls.setdefault((case, "dtnsim"), []).append(d["wall_s"])
+                cpus.setdefault((case, "dtnsim"), []).append(d["cpu_s"])
                 print(f"[{rnd + 1}] {case} dtnsim: wall {d['wall_s']:.1f} s, CPU {d['cpu_s']:.1f} s "
                       f"(simulation {d['sim_wall_s']:.1f} s wall); "
                       f"bundles sent {d['sent']}, arrived {d['arrived']}, dropped {d['dropped']}; {load0} -> {_load()}",
@@ -173,17 +175,19 @@ def side_by_side(args) -> int:
                         load0 = _load()
                         wall, cpu, rep = _ours(src, case, fwd)
                         walls.setdefault((case, f"{label} {fwd}"), []).append(wall)
+                        cpus.setdefault((case, f"{label} {fwd}"), []).append(cpu)
                         print(f"[{rnd + 1}] {case} {label} {fwd}: wall {wall:.1f} s, CPU {cpu:.1f} s; pairs delivered "
                               f"{rep['dtn.bundles_delivered']} of {rep['dtn.bundles_created']}, mean latency "
                               f"{rep['dtn.latency_s.mean']:.4f} s; {load0} -> {_load()}", flush=True)
-    print("\nmedian walls and dtnsim / ours:")
+    print("\nmedians (wall, CPU) and dtnsim / ours (on a loaded machine the CPU ratio says more):")
     for case in args.cases:
-        ref = statistics.median(walls[(case, "dtnsim")])
-        print(f"  {case} dtnsim {ref:.1f} s")
+        ref, ref_cpu = statistics.median(walls[(case, "dtnsim")]), statistics.median(cpus[(case, "dtnsim")])
+        print(f"  {case} dtnsim: wall {ref:.1f} s, CPU {ref_cpu:.1f} s")
         for (c, who), w in walls.items():
             if c == case and who != "dtnsim":
-                m = statistics.median(w)
-                print(f"  {case} {who}: {m:.1f} s, dtnsim / ours {ref / m:.2f}x")
+                m, mc = statistics.median(w), statistics.median(cpus[(c, who)])
+                print(f"  {case} {who}: wall {m:.1f} s, CPU {mc:.1f} s; dtnsim / ours: wall {ref / m:.2f}x, "
+                      f"CPU {ref_cpu / mc:.2f}x")
     return 0
 
 
