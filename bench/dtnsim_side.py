@@ -8,7 +8,7 @@ dtnsim (github msancheznet/dtnsim, the simulator that accompanied Nag et al.'s s
     /tmp/dtnsim-venv/bin/pip install pydantic==0.13 simpy==3.0.11 'networkx<2.6' pandas==0.25.3 \\
         numpy==1.17.5 pyyaml==5.1.2 tables==3.6.1 xlrd==1.2.0 'openpyxl<3.1' lxml==4.6.5
 
-:func:`write_inputs` writes, into a scratch folder, its walker scenario (tests/test_walker_cons.yaml
+:func:`write_inputs` writes, into a scratch folder, its walker scenario (DTNSIM_SRC/tests/test_walker_cons.yaml
 of that checkout: 24 satellites, CGR router, scheduled broadcast connections, its own contact plan
 and range workbooks) edited to the study's DTN-alone setting: 21600 s, a 1 kb/s radio, and each
 satellite's traffic written from this repository's traffic table (tests/fixtures/paper_inputs, itself
@@ -28,7 +28,7 @@ import subprocess
 import time
 from pathlib import Path
 
-# dtnsim's tests/test_walker_cons.yaml with the study's DTN-alone edits (until, rate, traffic folder)
+# dtnsim's DTNSIM_SRC/tests/test_walker_cons.yaml with the study's DTN-alone edits (until, rate, traffic folder)
 SCENARIO = """\
 globals:
   indir:   {indir}
@@ -123,7 +123,7 @@ def write_inputs(dtnsim_src: Path, traffic_csv: Path, folder: Path, *, until_s: 
     """dtnsim's inputs for ``traffic_csv`` in ``folder`` (module docstring); returns the config file."""
     walker = Path(dtnsim_src) / "tests" / "inputs" / "test_walker_cons"
     if not (walker / "3p_8s_contact_plan.xlsx").is_file():
-        raise SystemExit(f"--dtnsim-src {dtnsim_src}: no tests/inputs/test_walker_cons/3p_8s_contact_plan.xlsx "
+        raise SystemExit(f"--dtnsim-src {dtnsim_src}: no {walker / "3p_8s_contact_plan.xlsx"} "
                          "(a checkout of msancheznet/dtnsim?)")
     indir = folder / "inputs"
     (indir / "traffic").mkdir(parents=True, exist_ok=True)
