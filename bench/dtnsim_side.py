@@ -123,7 +123,7 @@ def write_inputs(dtnsim_src: Path, traffic_csv: Path, folder: Path, *, until_s: 
     """dtnsim's inputs for ``traffic_csv`` in ``folder`` (module docstring); returns the config file."""
     walker = Path(dtnsim_src) / "tests" / "inputs" / "test_walker_cons"
     if not (walker / "3p_8s_contact_plan.xlsx").is_file():
-        raise SystemExit(f"--dtnsim-src {dtnsim_src}: no {walker / "3p_8s_contact_plan.xlsx"} "
+        raise SystemExit(f"--dtnsim-src {dtnsim_src}: no {walker / '3p_8s_contact_plan.xlsx'} "
                          "(a checkout of msancheznet/dtnsim?)")
     indir = folder / "inputs"
     (indir / "traffic").mkdir(parents=True, exist_ok=True)
