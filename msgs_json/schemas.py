@@ -28,6 +28,13 @@ topic                  type                          meaning
 /sat_XX/dtn/counters   DtnCounters                   cumulative DTN counters (overheard copies, held)
 /sat_XX/dtn/status     TransmissionFailed            the ISL medium tells the sender a transmission
                                                      did not get through (bundle goes back to queue)
+/sat_XX/ops/mode       ModeChange                    the satellite changed mode (NOMINAL, DEGRADED,
+                                                     SAFE; sat_node/operations/modes.py)
+/sat_XX/ops/command    CommandEvent                  an operator command received, executed or
+                                                     rejected (sat_node/operations/)
+/ground/commands       GroundCommand                 a signed command uplinked to satellite ``relay``
+/sat_XX/ops/hk         Housekeeping                  the satellite's housekeeping channels at
+                                                     ``operations.hk_period_s`` (sat_node/operations/)
 /ground/downlink       GroundDownlink                observations a satellite downlinked at a pass
 /ground/uplink         GroundUplink                  a plan uplinked to a satellite at a pass
 =====================  ============================  =============================================
@@ -63,6 +70,9 @@ __all__ = [
     "CopyDiscarded",
     "GroundDownlink",
     "GroundUplink",
+    "CommandEvent",
+    "GroundCommand",
+    "ModeChange",
     "Observation",
     "Schedule",
     "ScheduleItem",
@@ -338,6 +348,69 @@ class TransmissionFailed(_Msg, kw_only=True, frozen=True):
             raise ValueError("t_ns must not be before start_ns")
 
 
+# --- operations -----------------------------------------------------------------------------------------
+class ModeChange(_Msg, kw_only=True, frozen=True):
+    """Satellite ``sat`` entered ``mode`` from ``previous`` at ``t_ns`` for ``reason`` (the rule that
+    fired, sat_node/operations/modes.py; "" when back to NOMINAL). ``imaging``: whether it images in
+    the new mode; ``plan_value_dropped``: the planner's assumed value of the looks it dropped from its
+    plan on stopping imaging (0 otherwise)."""
+
+    sat: SatName
+    t_ns: NsTime
+    mode: Literal["NOMINAL", "DEGRADED", "SAFE"]
+    previous: Literal["NOMINAL", "DEGRADED", "SAFE"]
+    reason: Annotated[str, Meta(max_length=64)] = ""
+    imaging: bool = True
+    plan_value_dropped: NonNeg = 0.0
+
+    def _check(self) -> None:
+        if self.mode == self.previous:
+            raise ValueError("a mode change needs mode != previous")
+
+
+class CommandEvent(_Msg, kw_only=True, frozen=True):
+    """Satellite ``sat`` received (``stage`` received), executed or rejected (with ``reason``) the operator
+    command ``command_id`` at ``t_ns``; ``issued_ns``: when the ground issued it (0 when a rejected
+    command could not be read); ``latency_s`` = t_ns - issued_ns."""
+
+    sat: SatName
+    t_ns: NsTime
+    command_id: Annotated[str, Meta(max_length=64)]
+    stage: Literal["received", "executed", "rejected"]
+    reason: Annotated[str, Meta(max_length=64)] = ""
+    kind: Annotated[str, Meta(max_length=16)] = ""
+    issued_ns: NsTime = 0
+    latency_s: NonNeg = 0.0
+
+
+class GroundCommand(_Msg, kw_only=True, frozen=True):
+    """The ground gateway uplinks a signed operator command (sat_node/operations/, ASCII)
+    to satellite ``relay`` at ``t_ns``, during one of its ground contacts; the relay forwards it over
+    the ISLs when it is for another satellite."""
+
+    relay: SatName
+    station: StationName
+    t_ns: NsTime
+    payload: Annotated[str, Meta(max_length=4096)]
+
+
+class Housekeeping(_Msg, kw_only=True, frozen=True):
+    """Satellite ``sat``'s housekeeping channels at ``t_ns``: ``mode`` (0 NOMINAL, 1 DEGRADED, 2 SAFE),
+    the pointing error [deg], bundles held in its store, its plan version, bundles created and
+    delivered to it, commands accepted and rejected (sat_node/operations/catalogue.py CHANNELS)."""
+
+    sat: SatName
+    t_ns: NsTime
+    mode: Annotated[int, Meta(ge=0, le=2)]
+    pointing_error_deg: Deg = 0.0
+    store_bundles: Count = 0
+    plan_version: Count = 0
+    bundles_created: Count = 0
+    bundles_delivered: Count = 0
+    commands_accepted: Count = 0
+    commands_rejected: Count = 0
+
+
 MESSAGE_TYPES: tuple[type[msgspec.Struct], ...] = (
     SimStep,
     SimAck,
@@ -355,4 +428,8 @@ MESSAGE_TYPES: tuple[type[msgspec.Struct], ...] = (
     CopyDiscarded,
     DtnCounters,
     TransmissionFailed,
+    ModeChange,
+    CommandEvent,
+    GroundCommand,
+    Housekeeping,
 )

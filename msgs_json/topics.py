@@ -26,6 +26,7 @@ __all__ = [
     "CLOCK",
     "CONTACTS",
     "DIAGNOSTICS",
+    "GROUND_COMMANDS",
     "GROUND_DOWNLINK",
     "GROUND_UPLINK",
     "SCHEMA_VERSION",
@@ -49,6 +50,9 @@ __all__ = [
     "is_known_topic",
     "is_sat_name",
     "observations_topic",
+    "ops_command_topic",
+    "ops_hk_topic",
+    "ops_mode_topic",
     "sat_of_topic",
     "schedule_topic",
     "schema_for",
@@ -60,6 +64,7 @@ SIM_ACK = "/sim/ack"
 CONTACTS = "/orbit/contacts"
 GROUND_UPLINK = "/ground/uplink"
 GROUND_DOWNLINK = "/ground/downlink"
+GROUND_COMMANDS = "/ground/commands"
 VIZ_MARKERS = "/viz/constellation"
 VIZ_VALUE = "/viz/value"  # std_msgs/msg/Float64: the run's cumulative true value (Eq. 1) so far
 VIZ_IN_FLIGHT = "/viz/bundles_in_flight"  # std_msgs/msg/UInt32: bundle copies the ISL medium holds
@@ -112,6 +117,21 @@ def dtn_status_topic(sat: str) -> str:
     return _sat(sat, "dtn/status")
 
 
+def ops_mode_topic(sat: str) -> str:
+    """The satellite's mode changes (ModeChange, sat_node/operations/modes.py)."""
+    return _sat(sat, "ops/mode")
+
+
+def ops_command_topic(sat: str) -> str:
+    """The satellite's operator-command events (CommandEvent, sat_node/operations/)."""
+    return _sat(sat, "ops/command")
+
+
+def ops_hk_topic(sat: str) -> str:
+    """The satellite's housekeeping channels (Housekeeping, sat_node/operations/)."""
+    return _sat(sat, "ops/hk")
+
+
 def fix_topic(sat: str) -> str:
     """sensor_msgs/NavSatFix of the sub-satellite point (visualisation, not an envelope)."""
     return _sat(sat, "fix")
@@ -123,6 +143,7 @@ _GLOBAL: dict[str, object] = {
     CONTACTS: S.ContactWindow,
     GROUND_UPLINK: S.GroundUplink,
     GROUND_DOWNLINK: S.GroundDownlink,
+    GROUND_COMMANDS: S.GroundCommand,
 }
 _PER_SAT: dict[str, object] = {
     "acs/command": S.AcsCommand,
@@ -134,6 +155,9 @@ _PER_SAT: dict[str, object] = {
     "dtn/out": bytes,
     "dtn/in": bytes,
     "dtn/status": S.TransmissionFailed,
+    "ops/mode": S.ModeChange,
+    "ops/command": S.CommandEvent,
+    "ops/hk": S.Housekeeping,
 }
 _SAT_TOPIC_RE = re.compile(rf"^/({SAT_NAME_PATTERN[1:-1]})/(.+)$")
 

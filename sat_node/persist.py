@@ -74,7 +74,10 @@ def restore(sat, blob: bytes) -> None:
     if port_state is not None:
         port_state["_ev_info"] = {id(ev): info for ev, info in port_state["_ev_info"]}
         vars(sat.port).update(port_state)
+    fresh_guard = getattr(sat, "guard", None)  # operator commands: the key is not in the snapshot
     vars(sat).update(state)
+    if fresh_guard is not None and getattr(sat, "guard", None) is not None:
+        sat.guard.keep_key_of(fresh_guard)
     if not isinstance(sat.known, KnownLog):  # a snapshot from before KnownLog: a plain list
         sat.known = KnownLog(sat.known)
     report = {"store_rows_added": 0, "store_rows_removed": 0}

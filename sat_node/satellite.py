@@ -63,6 +63,9 @@ from sat_node.dtn.port import DtnPort, count_rejection
 from sat_node.dtn.store import BundleStore
 from sat_node.inference import Inference, decode_inference, encode_inference
 from sat_node.knowledge import KnowledgeParams, KnowledgeState
+from sat_node.operations.commands import CommandGuard, command_key, is_command
+from sat_node.operations.notice import decode_notice, is_notice
+from sat_node.operations.onboard import OnboardOperations, operations_for
 from sat_node.value import Belief, KnownLog, KnownObservation
 
 __all__ = ["SatelliteLogic"]
@@ -79,7 +82,7 @@ class _Item:
     info_ns: int | None = None  # time of the information the look was planned with
 
 
-class SatelliteLogic:
+class SatelliteLogic(OnboardOperations):
     """Participant for satellite ``name``; ``world`` is a bringup.scenario.world.World."""
 
     def __init__(self, world, name: str, mode: str = "distributed", *, store_path: str | None = None,
@@ -129,6 +132,15 @@ class SatelliteLogic:
             self.agent = new_agent(name, world.isl_graph(cfg.hop_limit), cfg, store=store)
             self.port = DtnPort(name, self.agent)
         self.rejected_by_reason: dict[str, int] = {}
+        self.ops = operations_for(sc, name)
+        # operator commands (sat_node/operations/commands.py): only in a run that scripts some
+        self.guard = (CommandGuard(name, command_key(bpsec_key))
+                      if getattr(sc, "commands", None) and bpsec_key is not None else None)
+        self._ops_emits: list[Emit] = []  # command events of this step's inbox
+        hk_s = getattr(getattr(sc, "operations", None), "hk_period_s", 0.0)
+        self._hk_ns = round(hk_s * _NS) if hk_s else None  # housekeeping period (None: no housekeeping)
+        self._next_hk_ns = 0 if self._hk_ns else None
+        self._expected_ns: int | None = None  # the wake-up asked for at the last step
 
     # ------------------------------------------------------------------ contract
     def subscriptions(self) -> list[str]:
@@ -137,6 +149,8 @@ class SatelliteLogic:
             subs += self.port.subscriptions()
         if self.mode == "centralized":
             subs.append(T.GROUND_UPLINK)
+        if self.guard is not None:
+            subs.append(T.GROUND_COMMANDS)
         return subs
 
     def start(self, t0_ns: int) -> StepResult:
@@ -149,6 +163,8 @@ class SatelliteLogic:
         return StepResult(emits, self._wakeup(t0_ns))
 
     def step(self, t_ns: int, inbox: list[Envelope]) -> StepResult:
+        """One lockstep step: the inbox, then the mode rules (sat_node/operations/modes.py), then
+        what the mode allows (imaging, replanning), then the radio."""
         store = self.agent.store if self.agent is not None else None
         own_tx = store is not None and store.begin()  # one store transaction per step (unless a
         # caller's is open: the ROS host's checkpoint, or a local run's batch, bringup/engine/store_batches.py)
@@ -167,9 +183,15 @@ class SatelliteLogic:
                 self.rejected += 1
                 count_rejection(self.rejected_by_reason, env, exc)
                 self.last_error = f"{env.topic}: {exc}"
-        emits += self._execute(t_ns)
+        emits += self._ops_emits
+        self._ops_emits = []
+        emits += self._operations(t_ns)
+        if self.ops.imaging:
+            emits += self._execute(t_ns)
+        else:  # looks that fall due while it does not image are lost (an uplinked plan, centralized)
+            self.plan = [it for it in self.plan if it.t_ns > t_ns]
         periodic = self.next_replan_ns is not None and t_ns >= self.next_replan_ns
-        if self.mode == "distributed" and (periodic or self._news_conflict):
+        if self.mode == "distributed" and self.ops.imaging and (periodic or self._news_conflict):
             emits += self._replan(t_ns, periodic=periodic)
             if self.agent is not None and periodic:
                 emits.append(self._counters_emit(t_ns))
@@ -177,7 +199,12 @@ class SatelliteLogic:
             emits += self._downlink(t_ns)
         if self.agent is not None:
             emits += self._radio(t_ns)
-        return StepResult(emits, self._wakeup(t_ns))
+        if self._next_hk_ns is not None and t_ns >= self._next_hk_ns:
+            emits.append(self._housekeeping(t_ns))
+            self._next_hk_ns = t_ns - t_ns % self._hk_ns + self._hk_ns
+        wake = self._wakeup(t_ns)
+        self._expected_ns = wake
+        return StepResult(emits, wake)
 
     def finish(self, t_ns: int) -> list[Emit]:
         store = self.agent.store if self.agent is not None else None
@@ -189,7 +216,7 @@ class SatelliteLogic:
                 store.commit()
 
     def _finish(self, t_ns: int) -> list[Emit]:
-        emits = self._execute(t_ns)
+        emits = self._execute(t_ns) if self.ops.imaging else []
         if self.agent is not None:
             emits += self._radio(t_ns)
             emits.append(self._counters_emit(t_ns))
@@ -207,6 +234,7 @@ class SatelliteLogic:
             "observations.own": own, "observations.known": len(self.known),
             "pointing": "nadir" if self.target_km is None else "last target",
             "scheduler.cpu_s": round(self.scheduler_cpu_s, 3), "rejected_messages": self.rejected,
+            "ops.mode": self.ops.mode,
         }
         for k, n in self.rejected_by_reason.items():
             v[f"rejected.{k}"] = n
@@ -251,13 +279,19 @@ class SatelliteLogic:
         port = self.port
         if port is not None and port.is_mine(env.topic):
             b = port.receive(env, t_ns)
-            if b is not None:  # delivered here: what another satellite observed
+            if b is not None and is_notice(b.payload):  # a neighbour's mode notice
+                self._on_notice(decode_notice(b.payload))
+            elif b is not None and is_command(b.payload) and self.guard is not None:  # relayed over ISLs
+                self._on_command(b.payload, t_ns)
+            elif b is not None:  # delivered here: what another satellite observed
                 inf = decode_inference(b.payload)
                 if not 0 <= inf.gp < self.world.n_gp or inf.region != self.world.region_of_gp(inf.gp):
                     raise ValueError(f"inference payload: GP {inf.gp} / region {inf.region} not of this world")
                 self._learn(inf.gp, inf.t_ns, inf.src)
                 self.kstate.learn(inf)
                 self._check_news(inf.gp, inf.t_ns)
+        elif env.topic == T.GROUND_COMMANDS:
+            self._on_uplinked_command(codec.decode(env.topic, env.data), t_ns)
         elif env.topic == T.GROUND_UPLINK:
             up = codec.decode(env.topic, env.data)
             if up.sat != self.name:
@@ -295,8 +329,12 @@ class SatelliteLogic:
         gps = self.world.gps
         knowledge = self.kstate.knowledge(self.world.osse, gps.region_index, gps.ecef_km, t0_s, self.known,
                                           self.belief)
+        partners = None  # every other satellite (the planner's default) unless some told they do not image
+        down = self.ops.peers_not_imaging()
+        if down:
+            partners = [(n, t0_s) for n in self.world.sat_names if n != self.name and n not in down]
         return self.world.planner.plan(self.name, t0_s, window_s, knowledge, init_target_km=self.target_km,
-                                       solver=solver)
+                                       solver=solver, partners=partners)
 
     def _items(self, plan, t0_ns: int, version: int) -> list[_Item]:
         """A plan's looks as items, each with the information time of its GP's region."""
@@ -382,7 +420,10 @@ class SatelliteLogic:
             if self.mode == "centralized":
                 self.pending_downlink.append(obs)
             if self.agent is not None:
-                emits += self._originate(inf)
+                if self.ops.reason == "store_full":  # the store refuses new bundles
+                    self.ops.bundles_not_stored += 1
+                else:
+                    emits += self._originate(inf)
         return emits
 
     def _slew_angle(self, t_ns: int, target: np.ndarray) -> float:
@@ -423,9 +464,14 @@ class SatelliteLogic:
     # ------------------------------------------------------------------ timing
     def _wakeup(self, t_ns: int) -> int | None:
         cands = []
-        if self.mode == "distributed" and self.next_replan_ns is not None:
+        if self.mode == "distributed" and self.next_replan_ns is not None and self.ops.imaging:
             cands.append(self.next_replan_ns)
         if self.mode == "centralized" and self._next_pass_i < len(self.ground_passes):
             cands.append(self.ground_passes[self._next_pass_i])
+        if self._next_hk_ns is not None:
+            cands.append(self._next_hk_ns)
+        fault_ns = self.ops.faults.next_change_ns(t_ns)
+        if fault_ns is not None:
+            cands.append(fault_ns)
         cands = [c for c in cands if c > t_ns]
         return min(cands) if cands else None

@@ -25,6 +25,7 @@ Definitions:
 * osse.rank_corr_15min, osse.rank_corr_60min, osse.transiency_min - the truth field's rank
   statistics (ground_station/osse_stats.py); the other osse.*, ground.*, looks.*: case_figures.py.
 * dtn.* - sat_node/dtn/stats.py over the bundle events (first delivery per bundle counts).
+* operations.* - time in mode, value lost to faults, commands: bringup/analysis/operations.py.
 * partial, horizon_reached_s - a report of a run that reached its horizon (the bag holds the run's
   closing /run/meta record and its file is complete) has ``partial`` false and
   ``horizon_reached_s`` = ``horizon_s``; one rebuilt from a bag that ends early (the run failed or
@@ -48,6 +49,10 @@ Definitions:
   the pass came from), and how many duplicate observations (same GP within ``revisit_zero_s``) the
   later satellite made of GPs whose news it did not have when planning ("late news").
 
+Why one module: ReportBuilder decodes each envelope once, as the run writes it (the recorder beside a
+local run) or as a bag is read; every section's decoding stays in its ``add`` so a live run's report
+and a bag's come from the same code (the figures themselves live in their own modules).
+
 Oracle: the value, duplicate, first-look, assumed-error and coverage figures of a bag of nine
 observations worked out by hand (tests/unit/test_report_value.py); the consensus figures on a
 hand-worked pair of passes (tests/faults/test_faults_link.py); out-of-range payloads and partial bags
@@ -70,8 +75,9 @@ from dataclasses import MISSING, dataclass, fields
 import numpy as np
 
 from bringup.analysis.assumed_error import assumed_error_figures
-from bringup.analysis.security_figures import security_figures
 from bringup.analysis.case_figures import case_figures, ground_meta
+from bringup.analysis.operations import OPS, operations_figures
+from bringup.analysis.security_figures import security_figures
 from bringup.errors import UserError
 from bringup.recording.bag import BagReader
 from bringup.recording.bag_seal import check_bag
@@ -88,7 +94,7 @@ __all__ = ["REPORT_TOPIC_SUFFIXES", "ReportBuilder", "RunMeta", "build_report", 
            "report_from_bag", "security_figures", "true_values"]
 
 _NS = 1_000_000_000
-REPORT_TOPIC_SUFFIXES = ("/observations", "/dtn/events", "/dtn/counters", "/schedule", "/ground/uplink")
+REPORT_TOPIC_SUFFIXES = ("/observations", "/dtn/events", "/dtn/counters", "/schedule", "/ground/uplink", *OPS)
 
 
 # RunMeta's field types (as annotated) -> does a JSON value have it
@@ -200,6 +206,7 @@ class ReportBuilder:
         self.created: dict[str, tuple] = {}
         self.delivered: dict[str, tuple[str, int]] = {}
         self.rejected: dict[str, int] = defaultdict(int)  # reason -> payloads not counted
+        self.ops_msgs: list = []  # ModeChange and CommandEvent messages (bringup/analysis/operations.py)
         self.uplinks: list[tuple[str, int]] = []  # (satellite, t_ns) of every ground uplink
 
     def add(self, env) -> None:
@@ -226,6 +233,8 @@ class ReportBuilder:
                 m = codec.decode(t, env.data)
                 self.cpu_by_planner[m.sat] += m.solve_cpu_s
                 self.planned[(m.sat, m.version)] = m.planned_ns
+            elif t.endswith(OPS):  # (one under another satellite's topic is not counted)
+                self.ops_msgs += [m for m in (codec.decode(t, env.data),) if sat_of_topic(t) == m.sat]
             elif t == "/ground/uplink":
                 up = codec.decode(t, env.data)
                 self.cpu_by_planner["ground"] += up.schedule.solve_cpu_s
@@ -302,6 +311,7 @@ class ReportBuilder:
                     if k.startswith(("rejected.", "tx_failed.", "agent.dropped.", "agent.discarded.")):
                         rej[k] += v
             rep["dtn"]["rejections"] = dict(sorted(rej.items()))
+        rep.update(operations_figures(self.ops_msgs, meta.horizon_s))  # {} without any
         rep["messages_rejected_in_report"] = sum(rejected.values())
         rep["report_rejections"] = dict(sorted(rejected.items()))
         rep["security"] = security_figures(security)

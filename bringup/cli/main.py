@@ -50,6 +50,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "dtn": ("dtn",
             "run the DTN alone (BPv7 agents, CGR, the ISL medium) on a contact plan and traffic; print dtn.* figures"),
     "report": ("report", "rebuild report.json from a run's MCAP bag alone"),
+    "ops": ("ops", "the operations dictionary (commands, events, telemetry) and a run's event log"),
     "replay": ("replay",
                "republish a recorded bag (raw CDR, with /clock) onto a live ROS 2 graph at a chosen rate"),
     "bag-info": ("bag_info", "print a recorded bag's topics, message types, counts and time span"),

@@ -152,6 +152,9 @@ def compose_project(
     sc = load_scenario(scenario)
     if sats is not None or hours is not None or seed is not None:
         sc = sc.with_overrides(sats=sats, hours=hours, seed=seed)
+    if sc.commands:
+        raise UserError(f"scenario {sc.name}: [[commands]] are not deployed by compose (no command gateway "
+                        "container); run them with `constellation run`")
     if not 0 <= domain_id <= MAX_DOMAIN_ID:
         raise UserError(f"--domain-id {domain_id}: expected 0..{MAX_DOMAIN_ID}")
     if restart < 0:

@@ -4,6 +4,10 @@ A scenario is named (``paper`` -> ``bringup/scenario/toml/paper.toml``) or given
 validates every field with msgspec (types, ranges, unknown keys) and cross-field rules below; any
 problem raises :class:`ScenarioError` with one line naming the file, the key and what is wrong.
 
+Why one module: the scenario is one msgspec schema validated in one pass, with its cross-field rules
+beside it so that every key's one-line error comes from the same loader (the operations tables and
+their rules: bringup/scenario/operations_cfg.py; constellation groups: groups.py and fleet.py).
+
 Oracle: ``tests/unit/test_scenario.py`` breaks every field of paper.toml in turn and expects one
 ScenarioError naming that key.
 """
@@ -20,6 +24,7 @@ import msgspec
 
 from bringup.scenario import fleet
 from bringup.scenario.groups import ConstellationCfg, group_errors
+from bringup.scenario.operations_cfg import CommandCfg, FaultCfg, OperationsCfg, check_operations
 from msgs_json.names import MAX_SATS, MAX_STATIONS
 from msgs_json.names import sat_names as _sat_names
 from msgs_json.text_input import TextInputError, read_text
@@ -247,6 +252,9 @@ class Scenario(_S, kw_only=True):
     isl: IslCfg = IslCfg()
     ground: GroundCfg = GroundCfg()
     viz: VizCfg = VizCfg()
+    operations: OperationsCfg = OperationsCfg()
+    faults: List[FaultCfg] = []
+    commands: List[CommandCfg] = []
     # Where the file was loaded from (set by load_scenario; not a TOML key).
     source_path: str = ""
 
@@ -574,6 +582,7 @@ def _cross_checks(sc: Scenario, where: str) -> None:
     names = [r.name for r in sc.regions.list]
     if len(set(names)) != len(names):
         bad("regions.list", f"region names repeat: {names}")
+    check_operations(sc, bad)
     gs = [s.name for s in sc.ground.stations]
     if len(set(gs)) != len(gs):
         bad("ground.stations", f"station names repeat: {gs}")

@@ -1,8 +1,9 @@
 """Which participants a run has, and which process (role) hosts each (docs/design.md section 2).
 
 Roles: one per satellite (``sat_PS``, one OS process each under the ROS engine), ``router`` (the
-ISL medium; distributed mode only), ``ground`` (the ground segment; centralized mode only) and
-``contacts`` (the contact-window announcer, orbit_clock/contact_announcer.py; every mode). The
+ISL medium; distributed mode only), ``ground`` (the ground segment; centralized mode only),
+``contacts`` (the contact-window announcer, orbit_clock/contact_announcer.py; every mode) and
+``commander`` (the operator-command gateway, ground_station/commander.py; only with ``[[commands]]``). The
 router and the announcer share one truth ISL plan: the world's, with the run's faults
 (``router_kw``: ``cuts``, ``extra_delay_s``; orbit_clock/contact_faults.py).
 ``make_participant(world, role, mode)`` makes one; the ROS engine's processes call it through
@@ -26,6 +27,7 @@ from pathlib import Path
 from bringup.errors import UserError
 from bringup.scenario.world import World
 from dtn_router.router import RouterLogic
+from ground_station.commander import COMMANDER_NAME, CommanderLogic
 from ground_station.ground_segment import GroundLogic
 from orbit_clock.contact_announcer import ContactAnnouncer
 from orbit_clock.contact_faults import truth_plan
@@ -39,6 +41,7 @@ MODES = ("distributed", "centralized", "nonagile")
 ROUTER_ROLE = "router"
 GROUND_ROLE = "ground"
 CONTACTS_ROLE = "contacts"
+COMMANDER_ROLE = COMMANDER_NAME  # the operator-command gateway: only when the scenario scripts commands
 
 
 def roles_for(world_or_sats, mode: str) -> list[str]:
@@ -51,6 +54,9 @@ def roles_for(world_or_sats, mode: str) -> list[str]:
     if mode == "centralized":
         roles.append(GROUND_ROLE)
     roles.append(CONTACTS_ROLE)
+    sc = getattr(world_or_sats, "scenario", None)
+    if sc is not None and getattr(sc, "commands", None):
+        roles.append(COMMANDER_ROLE)
     return roles
 
 
@@ -94,7 +100,7 @@ def kernels_for(mode: str, role: str | None) -> tuple[str, ...]:
     """Numba kernel groups (sat_node/kernels.py) the participants of ``role`` use in ``mode`` (role
     None: the whole run's): the DP scheduler for a distributed satellite and the centralized ground
     segment, CGR for a distributed satellite."""
-    if mode == "distributed" and role not in (ROUTER_ROLE, CONTACTS_ROLE, GROUND_ROLE):
+    if mode == "distributed" and role not in (ROUTER_ROLE, CONTACTS_ROLE, GROUND_ROLE, COMMANDER_ROLE):
         return ("dp", "cgr")
     if mode == "centralized" and role in (None, GROUND_ROLE):
         return ("dp",)
@@ -109,11 +115,14 @@ def make_participant(world: World, role: str, mode: str, *, store_dir: Path | No
         return ContactAnnouncer(truth_plan(world.isl_plan, **(router_kw or {})), world.ground_plan)
     if role == GROUND_ROLE:
         return GroundLogic(world)
+    if role == COMMANDER_ROLE and world.scenario.commands:
+        return CommanderLogic(world, bpsec_key)
     if role in world.sat_names:
         store = str(store_path(store_dir, role)) if store_dir is not None and mode == "distributed" else None
         return SatelliteLogic(world, role, mode, store_path=store, bpsec_key=bpsec_key)
     raise UserError(f"role {role!r}: not a satellite of the scenario, nor "
-                    f"'{ROUTER_ROLE}'/'{GROUND_ROLE}'/'{CONTACTS_ROLE}'")
+                    f"'{ROUTER_ROLE}'/'{GROUND_ROLE}'/'{CONTACTS_ROLE}' "
+                    f"(or '{COMMANDER_ROLE}' with [[commands]])")
 
 
 def store_path(store_dir: Path, sat: str) -> Path:
