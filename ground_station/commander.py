@@ -14,7 +14,7 @@ same signed command again at the next contact: a hostile sender's tries, for the
 
 Oracle: tests/unit/test_operations_commands.py (uplink times against the ground plan searched by
 hand; the signed text verifies under the satellites' key, the forged one does not);
-tests/system/test_operations_commands.py (whole runs: latency, execution, rejections counted).
+tests/system/test_operations_commands_run.py (whole runs: latency, execution, rejections counted).
 """
 
 from __future__ import annotations

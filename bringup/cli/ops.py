@@ -8,7 +8,7 @@
   as CCSDS space packets (sat_node/operations/packets.py), by default ``telemetry.ccsds`` beside the bag.
 
 Checked by tests/unit/test_operations_catalogue.py (the dictionary file) and
-tests/system/test_operations_commands.py (the event log of a commanded run's bag).
+tests/system/test_operations_commands_run.py (the event log of a commanded run's bag).
 """
 
 from __future__ import annotations

@@ -7,7 +7,7 @@ sat_node/operations/notice.py), neighbours' notices received over the DTN, and o
 uplinked by the ground gateway or relayed over the ISLs (sat_node/operations/commands.py).
 
 Oracle: tests/unit/test_operations_satellite.py (one satellite stepped by hand),
-tests/system/test_operations_faults.py and tests/system/test_operations_commands.py (whole runs, both
+tests/system/test_operations_faults.py and tests/system/test_operations_commands_run.py (whole runs, both
 engines).
 """
 
