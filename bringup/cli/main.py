@@ -66,6 +66,8 @@ COMMANDS: dict[str, tuple[str, str]] = {
                 "write docker-compose.yml (+ run_spec.json, world.pkl beside it): one container per process of a run"),
     "bundles": ("bundles",
                 "exchange BPv7 bundle files with another DTN node: send FILES / listen --out DIR over TCPCLv4, TCPCLv3 or UDP"),
+    "aeossp": ("aeossp",
+               "AstroReason-Bench aeossp_standard: solve a case (DP onboard/central, greedy) or check a solution"),
     "containers": ("containers",
                    "container images and runs with podman: build, up COMPOSE (run to the end), down, ls"),
 }

@@ -1,0 +1,337 @@
+"""Plan an ``aeossp_standard`` case: the project's DP per satellite, onboard or central, and a greedy baseline.
+
+Candidates. For each satellite and each task of its sensor type, every start on the action grid
+whose observation keeps the target visible and within ``max_off_nadir_deg - MARGIN_DEG`` at every
+geometry sample (the same samples as :mod:`.check`), inside the task window; at most
+``MAX_STARTS`` starts per run of feasible starts (evenly spread, the earliest always kept). Each
+candidate carries its inertial look directions at start and end.
+
+DP (the idea of sat_node/scheduler/dp.py: a longest path over the satellite's time-ordered
+choices, each transition feasible under the slew law). Over the satellite's candidates sorted by
+start, ``V[i] = w_i - lambda E_i + max(0, max_j V[j])`` over predecessors ``j`` that end early
+enough for the bang-coast-bang slew plus settle (+ ``MARGIN_S``) from ``j``'s end look to ``i``'s
+start look, and observe another task; a predecessor ending more than the longest possible slew
+earlier is always feasible and is taken from a running maximum. The first observation slews from
+nadir. The battery is a resource by a Lagrangian price: ``E_i`` is the candidate's imaging and
+(nominal) slew energy [Wh]; ``lambda`` rises through ``LAMBDAS`` until :func:`.check.battery`
+holds for the plan (with ``BATTERY_RESERVE_WH`` kept); a plan that does not hold is repaired (the
+lightest action before the depletion dropped, again and again) and the best plan by weight is kept.
+
+Planning:
+- ``onboard``: satellites plan one after another in rank order (the project's rank rule: a plan
+  announced by a higher-ranked satellite outranks, so a satellite drops the tasks its higher-ranked
+  neighbours announced); each knows only its own candidates and those announcements.
+- ``central``: the joint planner's greedy dive (sat_node/scheduler/joint.py): every satellite plans
+  alone, each contested task goes to the satellite that completes it first and is forbidden to the
+  others, who replan; until nothing is contested or the time limit.
+- ``greedy`` (the baseline): tasks by weight (then earliest due), each inserted at the first
+  candidate whose slew gaps to the neighbours on its satellite's timeline hold; battery repair last.
+
+Every plan is repaired until :func:`.check.check` finds it valid (the command asserts it).
+
+How we know it is right: tests/unit/test_aeossp_planner.py (every written plan passes the check;
+the DP's value equals a brute force over all subsets of a small satellite's candidates; onboard
+never takes a task a higher-ranked satellite announced; central >= onboard on the test case).
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from bringup.benchmarks.aeossp.case import Action, Case
+from bringup.benchmarks.aeossp.check import battery, check, satellite_sequence
+from bringup.benchmarks.aeossp.geometry import (
+    Orbits,
+    ecef_to_teme,
+    off_nadir_deg,
+    slew_time_s,
+    target_ecef_km,
+    visible,
+)
+
+__all__ = ["Candidates", "plan"]
+
+MARGIN_DEG = 0.02       # off-nadir margin against our frames vs the verifier's (GMST vs full IAU)
+MARGIN_S = 0.1          # slew-gap margin [s]
+MAX_STARTS = 4
+BATTERY_RESERVE_WH = 2.0
+LAMBDAS = (0.0, 0.003, 0.01, 0.03, 0.1, 0.3, 1.0)
+
+
+class Candidates:
+    """One satellite's candidate observations as arrays sorted by start."""
+
+    def __init__(self, case: Case, orbits: Orbits, sat_id: str):
+        sat = case.sat(sat_id)
+        m = case.mission
+        step = m.action_step_s
+        grid = np.arange(0, m.horizon_s + 1, step)
+        r, e, theta = orbits.at(sat_id, grid.astype(float))
+        rows = []
+        for k, task in enumerate(case.tasks):
+            if task.sensor != sat.sensor:
+                continue
+            i0, i1 = task.release_s // step, task.due_s // step
+            tgt = target_ecef_km(task)
+            ee = e[i0:i1 + 1]
+            ok = visible(ee, tgt) & (off_nadir_deg(ee, tgt) <= sat.max_off_nadir_deg - MARGIN_DEG)
+            n = task.duration_s // step       # samples per observation: n + 1
+            if not ok.any() or len(ok) < n + 1:
+                continue
+            c = np.concatenate([[0], np.cumsum(ok)])
+            full = (c[n + 1:] - c[:-(n + 1)]) == n + 1          # start index s: samples s..s+n all ok
+            starts = np.flatnonzero(full)
+            if not starts.size:
+                continue
+            runs = np.split(starts, np.flatnonzero(np.diff(starts) > 1) + 1)
+            for run in runs:
+                pick = run if len(run) <= MAX_STARTS else run[np.unique(np.linspace(0, len(run) - 1,
+                                                                                   MAX_STARTS).astype(int))]
+                for s in pick:
+                    rows.append((k, (i0 + s) * step, (i0 + s + n) * step, i0 + s, i0 + s + n))
+        rows.sort(key=lambda x: (x[1], x[2], x[0]))
+        self.sat_id = sat_id
+        self.task = np.array([x[0] for x in rows], dtype=int)
+        self.start = np.array([x[1] for x in rows], dtype=int)
+        self.end = np.array([x[2] for x in rows], dtype=int)
+        w = np.array([t.weight for t in case.tasks])
+        self.weight = w[self.task] if rows else np.zeros(0)
+        si = np.array([x[3] for x in rows], dtype=int)
+        ei = np.array([x[4] for x in rows], dtype=int)
+        tg = np.array([target_ecef_km(t) for t in case.tasks])
+        if rows:
+            self.u0 = self._unit(ecef_to_teme(tg[self.task], theta[si]) - r[si])
+            self.u1 = self._unit(ecef_to_teme(tg[self.task], theta[ei]) - r[ei])
+            self.nadir0 = self._unit(-r[si])
+        else:
+            self.u0 = self.u1 = self.nadir0 = np.zeros((0, 3))
+        self.energy = (sat.imaging_w * (self.end - self.start) + sat.slew_w * (sat.settle_s + 10.0)) / 3600.0
+        self.sat = sat
+
+    @staticmethod
+    def _unit(v):
+        return v / np.linalg.norm(v, axis=-1, keepdims=True)
+
+    def __len__(self):
+        return len(self.task)
+
+    def need_s(self, theta_deg):
+        return slew_time_s(theta_deg, self.sat.max_rate_deg_s, self.sat.max_acc_deg_s2) + self.sat.settle_s + MARGIN_S
+
+
+def _angles(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    return np.degrees(np.arccos(np.clip(a @ b, -1.0, 1.0)))
+
+
+def dp(cand: Candidates, allowed: np.ndarray, lam: float) -> list[int]:
+    """The best path (indices into ``cand``) over allowed candidates; value w - lam * energy."""
+    idx = np.flatnonzero(allowed)
+    if not idx.size:
+        return []
+    gain = cand.weight[idx] - lam * cand.energy[idx]
+    keep = gain > 0
+    idx, gain = idx[keep], gain[keep]
+    n = len(idx)
+    if not n:
+        return []
+    start, end, task = cand.start[idx], cand.end[idx], cand.task[idx]
+    u0, u1 = cand.u0[idx], cand.u1[idx]
+    t_far = float(cand.need_s(180.0))
+    by_end = np.argsort(end, kind="stable")
+    ends_sorted = end[by_end]
+    V = np.full(n, -np.inf)
+    P = np.full(n, -1)
+    best_v, best_j, ptr = 0.0, -1, 0          # running max over predecessors ending <= start - t_far
+    first_ok = start >= cand.need_s(_angles_rows(cand.nadir0[idx], u0))
+    for i in range(n):
+        lim = start[i] - t_far
+        while ptr < n and ends_sorted[ptr] <= lim:
+            j = by_end[ptr]
+            if V[j] > best_v:
+                best_v, best_j = V[j], j
+            ptr += 1
+        v, p = (0.0, -1) if first_ok[i] else (-np.inf, -1)
+        if best_v > v and best_j >= 0:
+            v, p = best_v, best_j
+        lo = np.searchsorted(ends_sorted, lim, side="right")
+        hi = np.searchsorted(ends_sorted, start[i], side="right")
+        if hi > lo:
+            js = by_end[lo:hi]
+            js = js[(task[js] != task[i]) & np.isfinite(V[js])]
+            if js.size:
+                ok = start[i] - end[js] >= cand.need_s(_angles(u1[js], u0[i]))
+                js = js[ok]
+                if js.size:
+                    jb = js[np.argmax(V[js])]
+                    if V[jb] > v:
+                        v, p = V[jb], jb
+        if np.isfinite(v):
+            V[i], P[i] = v + gain[i], p
+    i = int(np.argmax(V))
+    if not np.isfinite(V[i]) or V[i] <= 0:
+        return []
+    path = []
+    while i >= 0:
+        path.append(int(idx[i]))
+        i = int(P[i])
+    return path[::-1]
+
+
+def _angles_rows(a, b):
+    return np.degrees(np.arccos(np.clip(np.einsum("ij,ij->i", a, b), -1.0, 1.0)))
+
+
+def _actions(case: Case, cand: Candidates, path) -> list[Action]:
+    seen, out = set(), []
+    for i in path:
+        tid = case.tasks[cand.task[i]].task_id
+        if tid in seen:
+            continue
+        seen.add(tid)
+        out.append(Action(cand.sat_id, tid, int(cand.start[i]), int(cand.end[i])))
+    return out
+
+
+def repair(case: Case, orbits: Orbits, sat_id: str, acts: list[Action]) -> list[Action]:
+    """Drop actions until the satellite's sequence and battery hold (the reserve kept)."""
+    acts = sorted(acts, key=lambda a: a.start_s)
+    while True:
+        vio, windows = satellite_sequence(case, orbits, sat_id, acts)
+        if vio:
+            bad = {v.action for v in vio}
+            acts = [a for a in acts if a not in bad]
+            continue
+        bv, _used, low = battery(case, orbits, sat_id, acts, windows)
+        if bv is None and low >= BATTERY_RESERVE_WH:
+            return acts
+        t = bv.t_s if bv is not None else None
+        if t is None:   # above zero but inside the reserve: find where the minimum is by dropping late
+            pool = acts
+        else:
+            pool = [a for a in acts if a.start_s <= t] or acts
+        worst = min(pool, key=lambda a: (case.task(a.task_id).weight, -a.start_s))
+        acts = [a for a in acts if a is not worst]
+
+
+def plan_satellite(case: Case, orbits: Orbits, cand: Candidates, allowed: np.ndarray) -> list[Action]:
+    """DP with rising battery prices: the first plan the battery holds, or the best repaired one."""
+    best: list[Action] = []
+    for lam in LAMBDAS:
+        acts = _actions(case, cand, dp(cand, allowed, lam))
+        _v, windows = satellite_sequence(case, orbits, cand.sat_id, acts)
+        bv, _u, low = battery(case, orbits, cand.sat_id, acts, windows)
+        held = bv is None and low >= BATTERY_RESERVE_WH
+        if not held:
+            acts = repair(case, orbits, cand.sat_id, acts)
+        if _weight(case, acts) > _weight(case, best):
+            best = acts
+        if held:
+            break
+    return repair(case, orbits, cand.sat_id, best)
+
+
+def _weight(case: Case, acts: list[Action]) -> float:
+    return sum(case.task(a.task_id).weight for a in acts)
+
+
+def _onboard(case, orbits, cands, deadline):
+    taken: set[int] = set()
+    plans = {}
+    for sid in sorted(cands):                 # rank order: a higher-ranked announced plan outranks
+        c = cands[sid]
+        allowed = ~np.isin(c.task, list(taken)) if taken else np.ones(len(c), bool)
+        plans[sid] = plan_satellite(case, orbits, c, allowed)
+        taken |= {_tindex(case)[a.task_id] for a in plans[sid]}
+    return plans
+
+
+_TIDX: dict[int, dict[str, int]] = {}
+
+
+def _tindex(case):
+    key = id(case)
+    if key not in _TIDX:
+        _TIDX[key] = {t.task_id: k for k, t in enumerate(case.tasks)}
+    return _TIDX[key]
+
+
+def _central(case, orbits, cands, deadline):
+    forbid: dict[str, set[int]] = {sid: set() for sid in cands}
+    plans = {sid: plan_satellite(case, orbits, c, np.ones(len(c), bool)) for sid, c in cands.items()}
+    ti = _tindex(case)
+    while time.monotonic() < deadline:
+        holders: dict[int, list[tuple[int, str]]] = {}
+        for sid, acts in plans.items():
+            for a in acts:
+                holders.setdefault(ti[a.task_id], []).append((a.end_s, sid))
+        contested = {k: sorted(h) for k, h in holders.items() if len(h) > 1}
+        if not contested:
+            break
+        dirty = set()
+        for k, h in contested.items():
+            for _end, sid in h[1:]:          # the first to complete it keeps it
+                forbid[sid].add(k)
+                dirty.add(sid)
+        for sid in sorted(dirty):
+            c = cands[sid]
+            plans[sid] = plan_satellite(case, orbits, c, ~np.isin(c.task, list(forbid[sid])))
+    # anything still contested at the deadline: drop the later copies (the check allows duplicates,
+    # but they earn nothing and cost energy)
+    seen: dict[int, tuple[int, str]] = {}
+    for sid, acts in plans.items():
+        for a in acts:
+            k = ti[a.task_id]
+            if k not in seen or a.end_s < seen[k][0]:
+                seen[k] = (a.end_s, sid)
+    return {sid: repair(case, orbits, sid, [a for a in acts if seen[ti[a.task_id]][1] == sid])
+            for sid, acts in plans.items()}
+
+
+def _greedy(case, orbits, cands, deadline):
+    by_task: dict[int, list[tuple[int, str, int]]] = {}
+    for sid, c in cands.items():
+        for i in range(len(c)):
+            by_task.setdefault(int(c.task[i]), []).append((int(c.start[i]), sid, i))
+    timeline: dict[str, list[int]] = {sid: [] for sid in cands}   # candidate indices sorted by start
+    order = sorted(by_task, key=lambda k: (-case.tasks[k].weight, case.tasks[k].due_s))
+    for k in order:
+        if time.monotonic() > deadline:
+            break
+        for _s, sid, i in sorted(by_task[k]):
+            c, tl = cands[sid], timeline[sid]
+            pos = int(np.searchsorted(c.start[tl], c.start[i])) if tl else 0
+            if pos > 0:
+                j = tl[pos - 1]
+                if c.start[i] - c.end[j] < c.need_s(_angles(c.u1[j][None], c.u0[i])[0]):
+                    continue
+            elif c.start[i] < c.need_s(_angles(c.nadir0[i][None], c.u0[i])[0]):
+                continue
+            if pos < len(tl):
+                j = tl[pos]
+                if c.start[j] - c.end[i] < c.need_s(_angles(c.u1[i][None], c.u0[j])[0]):
+                    continue
+            tl.insert(pos, i)
+            break
+    return {sid: repair(case, orbits, sid, [Action(sid, case.tasks[cands[sid].task[i]].task_id,
+                                                   int(cands[sid].start[i]), int(cands[sid].end[i])) for i in tl])
+            for sid, tl in timeline.items()}
+
+
+def plan(case: Case, planning: str = "central", time_limit_s: float = 300.0,
+         orbits: Orbits | None = None) -> list[Action]:
+    """A valid plan (asserted with :func:`.check.check`) by ``onboard``, ``central`` or ``greedy``."""
+    t0 = time.monotonic()
+    deadline = t0 + time_limit_s
+    orbits = orbits or Orbits(case.satellites, case.mission.start)
+    cands = {s.sat_id: Candidates(case, orbits, s.sat_id) for s in case.satellites}
+    fn = {"onboard": _onboard, "central": _central, "greedy": _greedy}.get(planning)
+    if fn is None:
+        raise ValueError(f"planning must be onboard, central or greedy, not {planning!r}")
+    plans = fn(case, orbits, cands, deadline)
+    acts = [a for sid in sorted(plans) for a in plans[sid]]
+    res = check(case, acts, orbits)
+    if not res.valid:
+        raise AssertionError(f"the {planning} plan fails our own check: {res.violations[0].text}")
+    return acts
