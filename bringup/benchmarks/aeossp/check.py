@@ -102,7 +102,7 @@ def geometry_samples(case: Case, a: Action) -> np.ndarray:
 
 def _geometry(case: Case, orbits: Orbits, a: Action) -> str | None:
     sat = case.sat(a.sat_id)
-    tgt = target_ecef_km(case.task(a.task_id))
+    tgt = targets_ecef_km(case)[a.task_id]
     ts = geometry_samples(case, a)
     _r, e, _th = orbits.at(a.sat_id, ts)
     vis = visible(e, tgt)
@@ -128,22 +128,55 @@ def slew_need_s(case: Case, orbits: Orbits, prev: Action | None, cur: Action) ->
     return slew_time_s(theta, sat.max_rate_deg_s, sat.max_acc_deg_s2) + sat.settle_s
 
 
+def targets_ecef_km(case: Case) -> dict[str, np.ndarray]:
+    """Every task's target in ECEF [km], computed once per case."""
+    cached = getattr(case, "_targets", None)
+    if cached is None:
+        xyz = target_ecef_km_many(case)
+        cached = {t.task_id: xyz[k] for k, t in enumerate(case.tasks)}
+        object.__setattr__(case, "_targets", cached)
+    return cached
+
+
+def target_ecef_km_many(case: Case) -> np.ndarray:
+    from orbit_clock.frames import geodetic_to_ecef_km
+
+    return geodetic_to_ecef_km([t.lat_deg for t in case.tasks], [t.lon_deg for t in case.tasks],
+                               np.array([t.alt_m for t in case.tasks]) / 1000.0)
+
+
 def satellite_sequence(case: Case, orbits: Orbits, sat_id: str, acts: list[Action], slew: bool = True):
-    """Overlap and slew violations of one satellite's actions, and its maneuver windows."""
+    """Overlap and slew violations of one satellite's actions, and its maneuver windows.
+
+    The same rule as :func:`slew_need_s`, with every look vector from one propagation."""
     out, windows, prev = [], [], None
-    for a in sorted(acts, key=lambda a: (a.start_s, a.end_s)):
-        if prev is not None and prev.end_s > a.start_s:
-            out.append(Violation("overlap", a, f"{a.sat_id} {a.task_id}: overlaps {prev.task_id}", sat_id, a.start_s))
+    acts = sorted(acts, key=lambda a: (a.start_s, a.end_s))
+    if not acts:
+        return out, windows
+    sat = case.sat(sat_id)
+    tg = targets_ecef_km(case)
+    n = len(acts)
+    ts = np.array([a.start_s for a in acts] + [a.end_s for a in acts], dtype=float)
+    r, _e, theta = orbits.at(sat_id, ts)
+    tgt = np.array([tg[a.task_id] for a in acts] * 2)
+    look = ecef_to_teme(tgt, theta) - r
+    look0, look1, nadir0 = look[:n], look[n:], -r[:n]
+    for i, a in enumerate(acts):
+        if prev is not None and acts[prev].end_s > a.start_s:
+            out.append(Violation("overlap", a, f"{a.sat_id} {a.task_id}: overlaps {acts[prev].task_id}", sat_id,
+                                 a.start_s))
             continue
-        need = slew_need_s(case, orbits, prev, a)
-        have = a.start_s - (prev.end_s if prev is not None else 0)
+        frm = nadir0[i] if prev is None else look1[prev]
+        theta_deg = float(angle_deg(frm, look0[i]))
+        need = slew_time_s(theta_deg, sat.max_rate_deg_s, sat.max_acc_deg_s2) + sat.settle_s
+        have = a.start_s - (acts[prev].end_s if prev is not None else 0)
         if slew and have + EPS < need:
             out.append(Violation("slew", a, f"{a.sat_id} {a.task_id}: slew+settle needs {need:.2f} s, has {have} s",
                                  sat_id, a.start_s))
             continue
         if slew and need > EPS:
             windows.append((a.start_s - need, float(a.start_s)))
-        prev = a
+        prev = i
     return out, windows
 
 

@@ -41,13 +41,12 @@ import time
 import numpy as np
 
 from bringup.benchmarks.aeossp.case import Action, Case
-from bringup.benchmarks.aeossp.check import battery, check, satellite_sequence
+from bringup.benchmarks.aeossp.check import battery, check, satellite_sequence, target_ecef_km_many
 from bringup.benchmarks.aeossp.geometry import (
     Orbits,
     ecef_to_teme,
     off_nadir_deg,
     slew_time_s,
-    target_ecef_km,
     visible,
 )
 
@@ -63,20 +62,30 @@ LAMBDAS = (0.0, 0.003, 0.01, 0.03, 0.1, 0.3, 1.0)
 class Candidates:
     """One satellite's candidate observations as arrays sorted by start."""
 
-    def __init__(self, case: Case, orbits: Orbits, sat_id: str):
+    def __init__(self, case: Case, orbits: Orbits, sat_id: str, slew: bool = True):
         sat = case.sat(sat_id)
+        self.slew = slew
         m = case.mission
         step = m.action_step_s
         grid = np.arange(0, m.horizon_s + 1, step)
         r, e, theta = orbits.at(sat_id, grid.astype(float))
+        tg = target_ecef_km_many(case) if getattr(case, "_targets", None) is None else \
+            np.array([case._targets[t.task_id] for t in case.tasks])
         rows = []
-        for k, task in enumerate(case.tasks):
-            if task.sensor != sat.sensor:
-                continue
-            i0, i1 = task.release_s // step, task.due_s // step
-            tgt = target_ecef_km(task)
-            ee = e[i0:i1 + 1]
-            ok = visible(ee, tgt) & (off_nadir_deg(ee, tgt) <= sat.max_off_nadir_deg - MARGIN_DEG)
+        ks = [k for k, t in enumerate(case.tasks) if t.sensor == sat.sensor]
+        lo = np.array([case.tasks[k].release_s // step for k in ks], dtype=int)
+        hi = np.array([case.tasks[k].due_s // step for k in ks], dtype=int)
+        # every (task, window sample) at once: the geometry of all windows in one vector pass
+        lens = hi - lo + 1
+        off = np.concatenate([[0], np.cumsum(lens)])
+        flat_t = np.repeat(np.arange(len(ks)), lens)
+        flat_i = np.arange(off[-1]) - np.repeat(off[:-1], lens) + np.repeat(lo, lens)
+        ee, tt = e[flat_i], tg[np.asarray(ks, dtype=int)][flat_t] if ks else np.zeros((0, 3))
+        ok_all = visible(ee, tt) & (off_nadir_deg(ee, tt) <= sat.max_off_nadir_deg - MARGIN_DEG)
+        for q, k in enumerate(ks):
+            task = case.tasks[k]
+            i0 = int(lo[q])
+            ok = ok_all[off[q]:off[q + 1]]
             n = task.duration_s // step       # samples per observation: n + 1
             if not ok.any() or len(ok) < n + 1:
                 continue
@@ -100,7 +109,6 @@ class Candidates:
         self.weight = w[self.task] if rows else np.zeros(0)
         si = np.array([x[3] for x in rows], dtype=int)
         ei = np.array([x[4] for x in rows], dtype=int)
-        tg = np.array([target_ecef_km(t) for t in case.tasks])
         if rows:
             self.u0 = self._unit(ecef_to_teme(tg[self.task], theta[si]) - r[si])
             self.u1 = self._unit(ecef_to_teme(tg[self.task], theta[ei]) - r[ei])
@@ -118,6 +126,8 @@ class Candidates:
         return len(self.task)
 
     def need_s(self, theta_deg):
+        if not self.slew:                      # the slew rule switched off: only overlap remains
+            return 0.0 * np.asarray(theta_deg, dtype=float)
         return slew_time_s(theta_deg, self.sat.max_rate_deg_s, self.sat.max_acc_deg_s2) + self.sat.settle_s + MARGIN_S
 
 
@@ -194,15 +204,19 @@ def _actions(case: Case, cand: Candidates, path) -> list[Action]:
     return out
 
 
-def repair(case: Case, orbits: Orbits, sat_id: str, acts: list[Action]) -> list[Action]:
-    """Drop actions until the satellite's sequence and battery hold (the reserve kept)."""
+def repair(case: Case, orbits: Orbits, sat_id: str, acts: list[Action], rules=(True, True)) -> list[Action]:
+    """Drop actions until the satellite's sequence and battery hold (the reserve kept).
+
+    ``rules`` = (slew, battery): either switched off to measure what it costs."""
     acts = sorted(acts, key=lambda a: a.start_s)
     while True:
-        vio, windows = satellite_sequence(case, orbits, sat_id, acts)
+        vio, windows = satellite_sequence(case, orbits, sat_id, acts, slew=rules[0])
         if vio:
             bad = {v.action for v in vio}
             acts = [a for a in acts if a not in bad]
             continue
+        if not rules[1]:
+            return acts
         bv, _used, low = battery(case, orbits, sat_id, acts, windows)
         if bv is None and low >= BATTERY_RESERVE_WH:
             return acts
@@ -215,34 +229,35 @@ def repair(case: Case, orbits: Orbits, sat_id: str, acts: list[Action]) -> list[
         acts = [a for a in acts if a is not worst]
 
 
-def plan_satellite(case: Case, orbits: Orbits, cand: Candidates, allowed: np.ndarray) -> list[Action]:
+def plan_satellite(case: Case, orbits: Orbits, cand: Candidates, allowed: np.ndarray,
+                   rules=(True, True)) -> list[Action]:
     """DP with rising battery prices: the first plan the battery holds, or the best repaired one."""
     best: list[Action] = []
-    for lam in LAMBDAS:
+    for lam in LAMBDAS if rules[1] else (0.0,):
         acts = _actions(case, cand, dp(cand, allowed, lam))
-        _v, windows = satellite_sequence(case, orbits, cand.sat_id, acts)
+        _v, windows = satellite_sequence(case, orbits, cand.sat_id, acts, slew=rules[0])
         bv, _u, low = battery(case, orbits, cand.sat_id, acts, windows)
-        held = bv is None and low >= BATTERY_RESERVE_WH
+        held = not rules[1] or (bv is None and low >= BATTERY_RESERVE_WH)
         if not held:
-            acts = repair(case, orbits, cand.sat_id, acts)
+            acts = repair(case, orbits, cand.sat_id, acts, rules)
         if _weight(case, acts) > _weight(case, best):
             best = acts
         if held:
             break
-    return repair(case, orbits, cand.sat_id, best)
+    return repair(case, orbits, cand.sat_id, best, rules)
 
 
 def _weight(case: Case, acts: list[Action]) -> float:
     return sum(case.task(a.task_id).weight for a in acts)
 
 
-def _onboard(case, orbits, cands, deadline):
+def _onboard(case, orbits, cands, deadline, rules):
     taken: set[int] = set()
     plans = {}
     for sid in sorted(cands):                 # rank order: a higher-ranked announced plan outranks
         c = cands[sid]
         allowed = ~np.isin(c.task, list(taken)) if taken else np.ones(len(c), bool)
-        plans[sid] = plan_satellite(case, orbits, c, allowed)
+        plans[sid] = plan_satellite(case, orbits, c, allowed, rules)
         taken |= {_tindex(case)[a.task_id] for a in plans[sid]}
     return plans
 
@@ -257,9 +272,9 @@ def _tindex(case):
     return _TIDX[key]
 
 
-def _central(case, orbits, cands, deadline):
+def _central(case, orbits, cands, deadline, rules):
     forbid: dict[str, set[int]] = {sid: set() for sid in cands}
-    plans = {sid: plan_satellite(case, orbits, c, np.ones(len(c), bool)) for sid, c in cands.items()}
+    plans = {sid: plan_satellite(case, orbits, c, np.ones(len(c), bool), rules) for sid, c in cands.items()}
     ti = _tindex(case)
     while time.monotonic() < deadline:
         holders: dict[int, list[tuple[int, str]]] = {}
@@ -276,7 +291,7 @@ def _central(case, orbits, cands, deadline):
                 dirty.add(sid)
         for sid in sorted(dirty):
             c = cands[sid]
-            plans[sid] = plan_satellite(case, orbits, c, ~np.isin(c.task, list(forbid[sid])))
+            plans[sid] = plan_satellite(case, orbits, c, ~np.isin(c.task, list(forbid[sid])), rules)
     # anything still contested at the deadline: drop the later copies (the check allows duplicates,
     # but they earn nothing and cost energy)
     seen: dict[int, tuple[int, str]] = {}
@@ -285,11 +300,11 @@ def _central(case, orbits, cands, deadline):
             k = ti[a.task_id]
             if k not in seen or a.end_s < seen[k][0]:
                 seen[k] = (a.end_s, sid)
-    return {sid: repair(case, orbits, sid, [a for a in acts if seen[ti[a.task_id]][1] == sid])
+    return {sid: repair(case, orbits, sid, [a for a in acts if seen[ti[a.task_id]][1] == sid], rules)
             for sid, acts in plans.items()}
 
 
-def _greedy(case, orbits, cands, deadline):
+def _greedy(case, orbits, cands, deadline, rules):
     by_task: dict[int, list[tuple[int, str, int]]] = {}
     for sid, c in cands.items():
         for i in range(len(c)):
@@ -315,23 +330,27 @@ def _greedy(case, orbits, cands, deadline):
             tl.insert(pos, i)
             break
     return {sid: repair(case, orbits, sid, [Action(sid, case.tasks[cands[sid].task[i]].task_id,
-                                                   int(cands[sid].start[i]), int(cands[sid].end[i])) for i in tl])
+                                                   int(cands[sid].start[i]), int(cands[sid].end[i])) for i in tl],
+                          rules)
             for sid, tl in timeline.items()}
 
 
 def plan(case: Case, planning: str = "central", time_limit_s: float = 300.0,
-         orbits: Orbits | None = None) -> list[Action]:
-    """A valid plan (asserted with :func:`.check.check`) by ``onboard``, ``central`` or ``greedy``."""
+         orbits: Orbits | None = None, *, slew: bool = True, battery_rule: bool = True) -> list[Action]:
+    """A valid plan (asserted with :func:`.check.check`) by ``onboard``, ``central`` or ``greedy``.
+
+    ``slew=False`` / ``battery_rule=False`` plan and check with that rule switched off (what the
+    rule costs is the WCR difference); such a plan is not a valid benchmark solution."""
     t0 = time.monotonic()
     deadline = t0 + time_limit_s
     orbits = orbits or Orbits(case.satellites, case.mission.start)
-    cands = {s.sat_id: Candidates(case, orbits, s.sat_id) for s in case.satellites}
+    cands = {s.sat_id: Candidates(case, orbits, s.sat_id, slew) for s in case.satellites}
     fn = {"onboard": _onboard, "central": _central, "greedy": _greedy}.get(planning)
     if fn is None:
         raise ValueError(f"planning must be onboard, central or greedy, not {planning!r}")
-    plans = fn(case, orbits, cands, deadline)
+    plans = fn(case, orbits, cands, deadline, (slew, battery_rule))
     acts = [a for sid in sorted(plans) for a in plans[sid]]
-    res = check(case, acts, orbits)
+    res = check(case, acts, orbits, slew=slew, battery_rule=battery_rule)
     if not res.valid:
         raise AssertionError(f"the {planning} plan fails our own check: {res.violations[0].text}")
     return acts

@@ -1,0 +1,100 @@
+"""Benchmark: the scheduler on AstroReason-Bench ``aeossp_standard`` cases, scored by our own check.
+
+Usage::
+
+    nice .venv/bin/python bench/bench_aeossp.py CASES_ROOT [--split train] [--modes greedy,onboard,central]
+        [--cases case_0001,...] [--time-limit 300] [--ablate] [--json OUT.json]
+
+``CASES_ROOT`` is the benchmark's ``dataset/cases`` folder (a checkout of github.com/Mtrya/astro-reason,
+not part of this repository). Develop on ``train`` only: the ``test*`` splits are held out.
+
+For every case of the split and every mode (``greedy``: the greedy-by-weight baseline; ``onboard``:
+the DP per satellite by rank with its neighbours' announced plans; ``central``: the DP with the
+joint planner's dive), one plan in this process (bringup/benchmarks/aeossp/planner.py), then our
+check (bringup/benchmarks/aeossp/check.py): validity, WCR, CR, TAT [s], PC [Wh], wall and CPU
+seconds of planning (reading the case not included), and the load average before the plan. With
+``--ablate``: ``central`` again with the slew rule off and with the battery rule off (planned and
+checked without it): the WCR each rule costs. Means per mode at the end; ``onboard/central`` is
+the mean ratio of WCR case by case.
+
+Nothing is asserted here; wall times on a shared machine are read with the load column.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import statistics
+import sys
+import time
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO))
+
+from bringup.benchmarks.aeossp.case import read_case
+from bringup.benchmarks.aeossp.check import check
+from bringup.benchmarks.aeossp.geometry import Orbits
+from bringup.benchmarks.aeossp.planner import plan
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("root", help="the benchmark's dataset/cases folder")
+    ap.add_argument("--split", default="train")
+    ap.add_argument("--modes", default="greedy,onboard,central")
+    ap.add_argument("--cases", default="", help="comma-separated case ids (default: all of the split)")
+    ap.add_argument("--time-limit", type=float, default=300.0)
+    ap.add_argument("--ablate", action="store_true", help="also central without the slew rule, without the battery")
+    ap.add_argument("--json", default="", help="write every row as JSON here")
+    a = ap.parse_args(argv)
+    split = Path(a.root) / a.split
+    if not split.is_dir():
+        print(f"bench_aeossp: {split}: no such split folder", file=sys.stderr)
+        return 2
+    names = a.cases.split(",") if a.cases else sorted(p.name for p in split.iterdir() if p.is_dir())
+    runs = [(m, True, True) for m in a.modes.split(",")]
+    if a.ablate:
+        runs += [("central", False, True), ("central", True, False)]
+    rows = []
+    print(f"{'case':10} {'mode':16} {'sats':>4} {'tasks':>5} {'valid':>5} {'WCR':>6} {'CR':>6} {'TAT_s':>7} "
+          f"{'PC_Wh':>8} {'wall_s':>7} {'cpu_s':>7} {'load':>5}")
+    for name in names:
+        case = read_case(split / name)
+        orbits = Orbits(case.satellites, case.mission.start)
+        for mode, slew, batt in runs:
+            label = mode + ("" if slew else "-noslew") + ("" if batt else "-nobatt")
+            load = os.getloadavg()[0]
+            t0, c0 = time.monotonic(), time.process_time()
+            acts = plan(case, mode, a.time_limit, orbits, slew=slew, battery_rule=batt)
+            wall, cpu = time.monotonic() - t0, time.process_time() - c0
+            r = check(case, acts, orbits, slew=slew, battery_rule=batt)
+            m = r.metrics
+            row = {"case": name, "mode": label, "sats": len(case.satellites), "tasks": len(case.tasks),
+                   "valid": r.valid, **m, "wall_s": wall, "cpu_s": cpu, "load": load, "actions": len(acts)}
+            rows.append(row)
+            tat = f"{m['TAT']:7.0f}" if m["TAT"] is not None else "      -"
+            print(f"{name:10} {label:16} {row['sats']:4d} {row['tasks']:5d} {r.valid!s:>5} {m['WCR']:6.3f} "
+                  f"{m['CR']:6.3f} {tat} {m['PC']:8.0f} {wall:7.1f} {cpu:7.1f} {load:5.1f}", flush=True)
+    print("\nmeans over cases:")
+    for label in dict.fromkeys(r["mode"] for r in rows):
+        rs = [r for r in rows if r["mode"] == label]
+
+        def mean(k, rs=rs):
+            return statistics.fmean(r[k] for r in rs if r[k] is not None)
+        print(f"  {label:16} n={len(rs)} valid={sum(r['valid'] for r in rs)} WCR={mean('WCR'):.3f} "
+              f"CR={mean('CR'):.3f} TAT={mean('TAT'):.0f} s PC={mean('PC'):.0f} Wh wall={mean('wall_s'):.1f} s "
+              f"cpu={mean('cpu_s'):.1f} s")
+    by = {(r["case"], r["mode"]): r for r in rows}
+    pairs = [(by[(c, "onboard")]["WCR"], by[(c, "central")]["WCR"]) for c in names
+             if (c, "onboard") in by and (c, "central") in by and by[(c, "central")]["WCR"] > 0]
+    if pairs:
+        print(f"  onboard/central WCR: {statistics.fmean(o / c for o, c in pairs):.4f} (mean of per-case ratios)")
+    if a.json:
+        Path(a.json).write_text(json.dumps(rows, indent=1) + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
