@@ -54,7 +54,7 @@ __all__ = ["Candidates", "plan"]
 
 MARGIN_DEG = 0.02       # off-nadir margin against our frames vs the verifier's (GMST vs full IAU)
 MARGIN_S = 0.1          # slew-gap margin [s]
-MAX_STARTS = 4
+MAX_STARTS = 16
 BATTERY_RESERVE_WH = 2.0
 LAMBDAS = (0.0, 0.003, 0.01, 0.03, 0.1, 0.3, 1.0)
 
