@@ -24,10 +24,11 @@ total weight, TAT mean of (earliest completing observation's end - release) [s],
 energy drawn by all satellites over the horizon [Wh] (charging not subtracted). ``slew=False`` or
 ``battery=False`` switch a rule off, to measure what it costs.
 
-How we know it is right: tests/unit/test_aeossp_check.py builds a tiny case, finds a valid solution
-by brute force over the geometry, and shows each rule (grid, window, duration, sensor, geometry,
-overlap, slew gap, battery) rejecting a hand-broken copy of it; the battery integral against a
-closed-form sum on a one-action schedule.
+How we know it is right: tests/unit/test_aeossp_check.py builds a tiny case (tasks put on a
+satellite's ground track), accepts a two-action schedule on it with the metrics computed by hand,
+and shows each rule (grid, window, duration, sensor, visibility, off-nadir, overlap, slew gap,
+battery) rejecting a copy broken in that one way; PC equals the closed-form sum of idle, imaging
+and slew energy. The official verifier agreed with it on our solutions (docs/guide/aeossp.md).
 """
 
 from __future__ import annotations

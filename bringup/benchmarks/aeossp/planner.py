@@ -29,9 +29,11 @@ Planning:
 
 Every plan is repaired until :func:`.check.check` finds it valid (the command asserts it).
 
-How we know it is right: tests/unit/test_aeossp_planner.py (every written plan passes the check;
-the DP's value equals a brute force over all subsets of a small satellite's candidates; onboard
-never takes a task a higher-ranked satellite announced; central >= onboard on the test case).
+How we know it is right: tests/unit/test_aeossp_planner.py (every mode's plan passes the check
+with no task twice; the DP's value equals a brute force over all subsets of a small satellite's
+candidates; onboard does not peek: a higher-ranked satellite's plan is the same with or without its
+lower-ranked neighbour, who never takes a task the higher one announced; the battery price makes a
+poor satellite's plan feasible where the unpriced plan would deplete it).
 """
 
 from __future__ import annotations
