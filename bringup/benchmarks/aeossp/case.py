@@ -284,8 +284,8 @@ def read_case(case_dir: str | Path) -> Case:
 def read_solution(path: str | Path, case: Case) -> list[Action]:
     """A solution JSON as actions; structure errors (unknown ids, bad times, types) are one line.
 
-    Times off the action grid or outside the horizon are kept (rounded to 1e-6 s is not done: they
-    must be whole seconds); the grid itself is judged by :func:`bringup.benchmarks.aeossp.check.check`.
+    Times must be whole seconds; times off the action grid or outside the horizon are kept and
+    judged by :func:`bringup.benchmarks.aeossp.check.check`.
     """
     p = Path(path)
     try:
