@@ -9,6 +9,8 @@ written. Oracles:
 * the bag opens with two independent readers (mcap, rosbags) with the same topics as a host run's
   bag, and ``constellation report BAG`` of it equals the report.json the clock container wrote; the
   report's science sections equal the host run's;
+* the container run's report.json has a local run's keys, and its bag's globe view (constellation czml)
+  the local run's entities;
 * nothing labelled with the test's projects is left afterwards (the ``lab`` fixture), nor when a
   run cannot even start (a missing image).
 """
@@ -79,6 +81,15 @@ def test_containers_up_equals_local_engine_and_bag_reads_as_host(lab, local_ref,
         if key in ref:
             assert rep[key] == ref[key], key
     assert (out / "report.md").stat().st_size > 0
+    # the container run's report has the keys a local run's has (its /run/meta is made as `run` makes
+    # it: the knowledge model and the OSSE figures were once lost), down to the sections' own keys
+    assert set(rep) == set(ref)
+    for key in ("osse", "knowledge", "value", "coverage"):
+        assert set(rep[key]) == set(ref[key]), key
+    # and its globe view (bringup/analysis/czml.py, from the bag alone) holds what the local run's does
+    from bringup.cli.czml import write_globe
+
+    assert write_globe(out / "bag", tmp_path / "globe") == write_globe(local_ref / "bag", tmp_path / "globe-ref")
 
 
 def test_podman_compose_runs_the_file_as_written(lab, local_ref, tmp_path):
