@@ -58,7 +58,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "compare": ("compare",
                 "run distributed, centralized and non-agile on the same scenario and seeds; Table 2 with ratios"),
     "sweep": ("sweep",
-              "the figures over a grid of any scenario keys x seeds (--grid; resumable; CSV, JSON with 95 % CIs, "
+              "the figures over a grid of any scenario keys x seeds (--grid; resumable; CSV, JSON with 95 %% CIs, "
               "plots), or the named presets"),
     "node": ("node",
              "run one process of a ROS-engine run (the clock or one participant group) from a run spec"),

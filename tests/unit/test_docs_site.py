@@ -143,3 +143,21 @@ def test_compose_and_run_accept_the_same_domain_ids(tmp_path, capsys):
     assert main(["run", "--sats", "3", "--hours", "0.01", "--out", str(tmp_path / "r"),
                  "--domain-id", str(MAX_DOMAIN_ID + 1)]) == 2
     assert f"0..{MAX_DOMAIN_ID}" in capsys.readouterr().err
+
+
+def test_every_help_text_formats():
+    """`constellation --help` and every command's `--help` print (a '%' in a help text that argparse
+    reads as a format once broke the top-level help, and with it the container image's build)."""
+    import argparse
+
+    from bringup.cli.main import build_parser
+
+    parser = build_parser()
+    assert "usage: constellation" in parser.format_help()
+    sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    for name, p in sub.choices.items():
+        assert p.format_help().startswith("usage:"), name
+        for a in p._actions:
+            if isinstance(a, argparse._SubParsersAction):
+                for q in a.choices.values():
+                    assert q.format_help().startswith("usage:"), name
