@@ -170,6 +170,8 @@ def check_bag(bag: str | Path, *, unverified_ok: bool = False) -> Integrity:
     """The bag's integrity (module docstring); :class:`IntegrityError` (one line) when its seal
     does not match and ``unverified_ok`` is False."""
     bag = Path(bag)
+    if not bag.exists():  # the reader's own one line says so; nothing to check
+        raise UserError(f"bag {bag}: not found")
     folder = bag.parent if bag.is_file() else bag
     mcap = _mcap_of(bag)
     seal_path = folder / SEAL_NAME
