@@ -25,7 +25,10 @@ plan), tests/unit/test_osse_resolution.py (the relative change against brute for
 
 from __future__ import annotations
 
+import math
 from collections import defaultdict
+
+import numpy as np
 
 from bringup.analysis.cadence import cadence_figures
 from ground_station.osse_stats import relative_change_at
@@ -36,11 +39,19 @@ __all__ = ["case_figures", "ground_meta"]
 _NS = 1_000_000_000
 
 
+def _mean_period_s(world) -> float:
+    """The constellation's orbital period [s]: the Walker shell's circular orbit, or for a fleet with
+    catalogue satellites the mean of their SGP4 mean motions (``no_kozai`` [rad/min])."""
+    walker = world.scenario.walker
+    if walker is not None and not isinstance(world.scenario.constellation, list):
+        return orbit_period_s(walker.altitude_km)
+    return float(np.mean([2.0 * math.pi / r.no_kozai * 60.0 for r in world.constellation.satrecs]))
+
+
 def ground_meta(world) -> dict:
     """The ground network's pass figures of a run of ``world`` (for the run's metadata)."""
     sc = world.scenario
-    out = pass_figures(world.ground_plan, world.sat_names, sc.scenario.horizon_s,
-                       orbit_period_s(sc.constellation.altitude_km))
+    out = pass_figures(world.ground_plan, world.sat_names, sc.scenario.horizon_s, _mean_period_s(world))
     out["stations"] = [s.name for s in sc.ground.stations]
     return out
 

@@ -520,8 +520,8 @@ def _validate(raw: dict, where: str) -> Scenario:
         if msg.startswith("Object missing required field"):
             raise ScenarioError(f"{where}: {msg}") from None
         raise ScenarioError(f"{where}: {msg}") from None
+    sc = msgspec.structs.replace(sc, source_path=where)  # (before the checks: element files are relative to it)
     _cross_checks(sc, where)
-    sc = msgspec.structs.replace(sc, source_path=where)
     try:
         fleet.check(sc)
     except fleet.FleetError as exc:

@@ -64,7 +64,7 @@ class OperationsCfg(_S, kw_only=True):
 
 def check_operations(sc, bad) -> None:
     """The cross-field rules of the operations tables; ``bad(key, why)`` raises the loader's error."""
-    names_sat = set(sc.sat_names)
+    names_sat = set(sc.sat_names) if (sc.faults or getattr(sc, "commands", None)) else set()
     for k, f in enumerate(sc.faults):
         if f.sat not in names_sat:
             bad(f"faults[{k}].sat", f"{f.sat!r} is not a satellite of this constellation")
