@@ -41,6 +41,7 @@ from pathlib import Path
 import msgspec
 from scipy.stats import t as student_t
 
+from bringup.analysis.grid import get_path
 from bringup.analysis.report import REPORT_TOPIC_SUFFIXES, RunMeta, build_report
 from bringup.analysis.stats import summarize
 from bringup.engine.keys import resolve_bpsec_key
@@ -109,16 +110,6 @@ STUDY_TABLE2: dict[str, float | None] = {
     "coverage.agile_over_nonagile": 0.952 / 0.084,
     "value.agile_over_nonagile": None,
 }
-
-
-def get_path(rep: dict, key: str):
-    """``rep["a"]["b"]`` for ``key = "a.b"``; None when any part is missing."""
-    d = rep
-    for part in key.split("."):
-        if not isinstance(d, dict) or part not in d:
-            return None
-        d = d[part]
-    return d
 
 
 _MISSING = object()

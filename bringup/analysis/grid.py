@@ -79,8 +79,8 @@ def get_path(rep: dict, key: str):
     return d
 
 
-def split_values(text: str) -> list[str]:
-    """``"1,[2, 3],'a,b'"`` -> ``["1", "[2, 3]", "'a,b'"]``: commas outside brackets and quotes."""
+def _split_top_level(text: str, is_sep) -> list[str]:
+    """``text`` cut at the characters ``is_sep`` accepts outside brackets and quotes (pieces as they are)."""
     out, cur, depth, quote = [], [], 0, ""
     for ch in text:
         if quote:
@@ -94,39 +94,23 @@ def split_values(text: str) -> list[str]:
             depth += 1
         elif ch in "]}":
             depth -= 1
-        elif ch == "," and depth == 0:
-            out.append("".join(cur).strip())
+        elif depth == 0 and is_sep(ch):
+            out.append("".join(cur))
             cur = []
             continue
         cur.append(ch)
-    out.append("".join(cur).strip())
+    out.append("".join(cur))
     return out
+
+
+def split_values(text: str) -> list[str]:
+    """``"1,[2, 3],'a,b'"`` -> ``["1", "[2, 3]", "'a,b'"]``: commas outside brackets and quotes."""
+    return [v.strip() for v in _split_top_level(text, lambda ch: ch == ",")]
 
 
 def _split_axes(text: str) -> list[str]:
     """Axes separated by whitespace outside brackets and quotes."""
-    out, cur, depth, quote = [], [], 0, ""
-    for ch in text:
-        if quote:
-            cur.append(ch)
-            if ch == quote:
-                quote = ""
-            continue
-        if ch in "\"'":
-            quote = ch
-        elif ch in "[{":
-            depth += 1
-        elif ch in "]}":
-            depth -= 1
-        elif ch.isspace() and depth == 0:
-            if cur:
-                out.append("".join(cur))
-                cur = []
-            continue
-        cur.append(ch)
-    if cur:
-        out.append("".join(cur))
-    return out
+    return [a for a in _split_top_level(text, str.isspace) if a]
 
 
 def parse_grid(texts: list[str]) -> list[Axis]:
