@@ -43,6 +43,8 @@ from dataclasses import dataclass
 from enum import IntEnum
 
 from .errors import ClError, SessionTerminated, TransferRefused
+from .listener import Listener as _Listener
+from .listener import start as _start
 
 __all__ = ["MAGIC", "VERSION", "Config", "Listener", "MsgType", "RefuseReason", "Session", "ShutdownReason",
            "ack_segment", "connect", "contact_header", "data_segment", "keepalive", "length_msg",
@@ -444,43 +446,14 @@ async def connect(host: str, port: int, config: Config,
     return s
 
 
-class Listener:
+class Listener(_Listener):
     """Accepts TCPCLv3 sessions; a failed contact header is counted and closed, never raised."""
 
-    def __init__(self, config: Config, on_bundle, on_session=None):
-        self.config, self.on_bundle, self.on_session = config, on_bundle, on_session
-        self.sessions: list[Session] = []
-        self.counters: Counter[str] = Counter()
-        self.server: asyncio.Server | None = None
+    session_cls = Session
 
-    async def _accept(self, reader, writer) -> None:
-        s = Session(reader, writer, self.config, active=False, on_bundle=self.on_bundle)
-        self.sessions.append(s)
-        self.counters["connections"] += 1
-        try:
-            await s.handshake()
-        except ClError:
-            self.counters["handshakes_failed"] += 1
-            return
-        self.counters["sessions"] += 1
-        if self.on_session is not None:
-            self.on_session(s)
-        s.start()
-
-    @property
-    def port(self) -> int:
-        return self.server.sockets[0].getsockname()[1]
-
-    async def close(self) -> None:
-        if self.server is not None:
-            self.server.close()
-            await self.server.wait_closed()
-        for s in self.sessions:
-            if not s.closed:
-                await s.close(timeout_s=1.0)
+    async def _end(self, session: Session) -> None:
+        await session.close(timeout_s=1.0)
 
 
 async def serve(host: str, port: int, config: Config, on_bundle=None, on_session=None) -> Listener:
-    lst = Listener(config, on_bundle, on_session)
-    lst.server = await asyncio.start_server(lst._accept, host, port)
-    return lst
+    return await _start(Listener(config, on_bundle, on_session), host, port)
