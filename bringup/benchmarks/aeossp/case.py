@@ -201,20 +201,28 @@ def _mission(path: Path) -> Mission:
                    steps["geometry_sample_step_s"], steps["resource_sample_step_s"])
 
 
+def _entries(entries: list, path: Path, kind: str, id_key: str):
+    """(where, entry, id) of each entry of a list of mappings with unique ``id_key`` values; one-line
+    UserError naming the entry that is not a mapping or repeats an id."""
+    seen: set[str] = set()
+    for i, e in enumerate(entries):
+        where = f"{path.name}: {kind}[{i}]"
+        if not isinstance(e, dict):
+            raise UserError(f"{where}: not a mapping")
+        eid = _str(e, id_key, where)
+        where = f"{where} ({eid})"
+        if eid in seen:
+            raise UserError(f"{where}: duplicate {id_key}")
+        seen.add(eid)
+        yield where, e, eid
+
+
 def _satellites(path: Path) -> tuple[Satellite, ...]:
     entries = _load(path, "satellites")
     if not isinstance(entries, list) or not entries:
         raise UserError(f"{path.name}: 'satellites' must be a non-empty list")
-    out, seen = [], set()
-    for i, s in enumerate(entries):
-        where = f"{path.name}: satellites[{i}]"
-        if not isinstance(s, dict):
-            raise UserError(f"{where}: not a mapping")
-        sid = _str(s, "satellite_id", where)
-        where = f"{where} ({sid})"
-        if sid in seen:
-            raise UserError(f"{where}: duplicate satellite_id")
-        seen.add(sid)
+    out = []
+    for where, s, sid in _entries(entries, path, "satellites", "satellite_id"):
         l1, l2 = _str(s, "tle_line1", where), _str(s, "tle_line2", where)
         try:
             rec = Satrec.twoline2rv(l1, l2)
@@ -246,17 +254,9 @@ def _tasks(path: Path, mission: Mission) -> tuple[Task, ...]:
     entries = _load(path, "tasks")
     if not isinstance(entries, list):
         raise UserError(f"{path.name}: 'tasks' must be a list")
-    out, seen = [], set()
+    out = []
     step = mission.action_step_s
-    for i, t in enumerate(entries):
-        where = f"{path.name}: tasks[{i}]"
-        if not isinstance(t, dict):
-            raise UserError(f"{where}: not a mapping")
-        tid = _str(t, "task_id", where)
-        where = f"{where} ({tid})"
-        if tid in seen:
-            raise UserError(f"{where}: duplicate task_id")
-        seen.add(tid)
+    for where, t, tid in _entries(entries, path, "tasks", "task_id"):
         lat = _num(t, "latitude_deg", where)
         lon = _num(t, "longitude_deg", where)
         if not -90 <= lat <= 90 or not -180 <= lon <= 360:
