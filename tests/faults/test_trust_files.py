@@ -44,14 +44,16 @@ def other_uid():
     if os.geteuid() != 0:
         yield 0
         return
-    if shutil.which("useradd") is None:
+    # (root's sbin folders may be off a minimal PATH)
+    useradd = shutil.which("useradd", path=os.pathsep.join([os.environ.get("PATH", ""), "/usr/sbin", "/sbin"]))
+    if useradd is None:
         raise RuntimeError("tests run as root need useradd to make a second local user")
     name = f"agdtn{uuid.uuid4().hex[:8]}"
-    subprocess.run(["useradd", "--no-create-home", "--shell", "/usr/sbin/nologin", name], check=True)
+    subprocess.run([useradd, "--no-create-home", "--shell", "/usr/sbin/nologin", name], check=True)
     try:
         yield pwd.getpwnam(name).pw_uid
     finally:
-        subprocess.run(["userdel", name], check=False)
+        subprocess.run([str(Path(useradd).with_name("userdel")), name], check=False)
 
 
 def _give(path: Path, uid: int) -> None:
