@@ -1,7 +1,11 @@
 """The ground gateway for operator commands: signs the scenario's ``[[commands]]`` and uplinks them.
 
-Each command (sat_node/operations/commands.py wire form) is signed with the command key at its
-issue time ``at_s`` and valid ``valid_s`` after it. It goes up at the first ground contact of any
+Each command (sat_node/operations/commands.py wire form) is signed at its issue time ``at_s`` with
+its satellite's command key - derived from the ground's own command key, which only the gateway
+holds (``satellite_command_key``) - and valid ``valid_s`` after it. A tasking request
+(``kind = "task"``) carries the target, priority and deadline; one for ``sat = "all"`` becomes one
+command per satellite (ids ``cK.sat_XX``), each under that satellite's key, and is refused up front
+when the target lies farther than ``regions.gp_spacing_km`` from every ground point. It goes up at the first ground contact of any
 satellite (the world's ground plan) that is still open at the issue time - preferring the command's
 own satellite when its contact allows the same uplink time - on ``/ground/commands`` (GroundCommand:
 the relay, the station, the signed text). A relay that is not the command's satellite forwards it
@@ -19,16 +23,42 @@ tests/system/test_operations_commands_run.py (whole runs: latency, execution, re
 
 from __future__ import annotations
 
+import datetime as dt
+
 from msgs_json import codec
 from msgs_json import schemas as S
 from msgs_json import topics as T
 from msgs_json.envelope import Emit, Envelope, LiveState, StepResult
-from sat_node.operations.commands import SETTABLE, Command, command_key, encode_command
+from sat_node.operations.commands import SETTABLE, Command, encode_command, satellite_command_key
+from sat_node.operations.tasking import nearest_gp
 
-__all__ = ["COMMANDER_NAME", "CommanderLogic", "uplink_slot"]
+__all__ = ["ALL_SATS", "COMMANDER_NAME", "CommanderLogic", "task_args", "uplink_slot"]
 
 COMMANDER_NAME = "commander"
+ALL_SATS = "all"  # a task's ``sat`` for every satellite (bringup/scenario/operations_cfg.py)
 _NS = 1_000_000_000
+
+
+def task_args(world, cfg, where: str) -> dict:
+    """The ``args`` of a task command for the scenario's ``cfg`` (lat_deg, lon_deg, priority, by);
+    ValueError in one line naming ``where`` when no ground point of the world's grid lies within
+    ``regions.gp_spacing_km`` of the target (a satellite could not plan it: refused up front)."""
+    sc = world.scenario
+    by_ns = _ns_since(cfg.by, sc.epoch)
+    gps = world.gps
+    _gp, dist = nearest_gp(gps.lat_deg, gps.lon_deg, cfg.lat_deg, cfg.lon_deg)
+    if dist > sc.regions.gp_spacing_km:
+        raise ValueError(f"{where}: the target ({cfg.lat_deg:g}, {cfg.lon_deg:g}) is {dist:.1f} km from the "
+                         f"nearest ground point; a task must fall within regions.gp_spacing_km "
+                         f"({sc.regions.gp_spacing_km:g} km) of one (inside a region)")
+    return {"lat_deg": float(cfg.lat_deg), "lon_deg": float(cfg.lon_deg), "priority": int(cfg.priority),
+            "by_ns": int(by_ns)}
+
+
+def _ns_since(text: str, epoch: dt.datetime) -> int:
+    """UTC ISO 8601 ``text`` (ending in Z) in integer ns after ``epoch``."""
+    d = dt.datetime.fromisoformat(text.removesuffix("Z")).replace(tzinfo=dt.UTC) - epoch
+    return (d.days * 86_400 + d.seconds) * _NS + d.microseconds * 1_000
 
 
 def uplink_slot(contacts, t_ns: int, prefer: str, after_ns: int | None = None) -> tuple[int, str, str] | None:
@@ -51,33 +81,50 @@ def uplink_slot(contacts, t_ns: int, prefer: str, after_ns: int | None = None) -
 class CommanderLogic:
     name = COMMANDER_NAME
 
-    def __init__(self, world, bpsec_key: bytes):
+    def __init__(self, world, ground_key: bytes):
         self.world = world
-        self._key = command_key(bpsec_key)
-        contacts = world.ground_plan.contacts
-        horizon = world.scenario.horizon_ns
+        self._ground_key = ground_key  # the ground's command key: each satellite's is derived from it
+        sc = world.scenario
         self.sends: list[tuple[int, str, str, str]] = []  # (t_ns, relay, station, signed text)
         self.not_uplinked = 0
-        for k, cfg in enumerate(world.scenario.commands):
+        seq = 0
+        for k, cfg in enumerate(sc.commands):
             t0 = int(round(cfg.at_s * _NS))
             if cfg.kind == "mode":
                 args = {"mode": cfg.mode}
+            elif cfg.kind == "task":
+                args = task_args(world, cfg, f"commands[{k}]")
             else:
                 tp = SETTABLE[cfg.name][0]
                 args = {"name": cfg.name, "value": tp(cfg.value)}
-            cmd = Command(f"c{k + 1}", k + 1, cfg.sat, cfg.kind, args, t0, t0 + int(round(cfg.valid_s * _NS)))
-            text = encode_command(cmd, b"not the command key" if cfg.forge else self._key).decode()
-            slot = uplink_slot(contacts, t0, cfg.sat)
-            if slot is None or slot[0] > horizon:
-                self.not_uplinked += 1
-                continue
-            self.sends.append((slot[0], slot[1], slot[2], text))
-            if cfg.repeat:
-                again = uplink_slot(contacts, slot[0], cfg.sat, after_ns=slot[0])
-                if again is not None and again[0] <= horizon:
-                    self.sends.append((again[0], again[1], again[2], text))
+            sats = world.sat_names if cfg.sat == ALL_SATS else [cfg.sat]
+            for sat in sats:  # a task for the constellation: one command per satellite, under its key
+                seq += 1
+                cid = f"c{k + 1}" if cfg.sat != ALL_SATS else f"c{k + 1}.{sat}"
+                cmd = Command(cid, seq, sat, cfg.kind, args, t0, t0 + int(round(cfg.valid_s * _NS)))
+                key = b"not the command key" if cfg.forge else self.key_of(sat)
+                self._queue(encode_command(cmd, key).decode(), t0, sat, repeat=cfg.repeat)
         self.sends.sort()
         self._i = 0
+
+    def key_of(self, sat: str) -> bytes:
+        """Satellite ``sat``'s command key (sat_node/operations/commands.py satellite_command_key)."""
+        return satellite_command_key(self._ground_key, sat)
+
+    def _queue(self, text: str, t0: int, sat: str, *, repeat: bool = False) -> bool:
+        """Queue ``text`` for the first uplink at or after ``t0`` (False: no contact left, counted)."""
+        contacts = self.world.ground_plan.contacts
+        horizon = self.world.scenario.horizon_ns
+        slot = uplink_slot(contacts, t0, sat)
+        if slot is None or slot[0] > horizon:
+            self.not_uplinked += 1
+            return False
+        self.sends.append((slot[0], slot[1], slot[2], text))
+        if repeat:
+            again = uplink_slot(contacts, slot[0], sat, after_ns=slot[0])
+            if again is not None and again[0] <= horizon:
+                self.sends.append((again[0], again[1], again[2], text))
+        return True
 
     def subscriptions(self) -> list[str]:
         return []

@@ -33,6 +33,7 @@ topic                  type                          meaning
 /sat_XX/ops/command    CommandEvent                  an operator command received, executed or
                                                      rejected (sat_node/operations/)
 /ground/commands       GroundCommand                 a signed command uplinked to satellite ``relay``
+/ground/acks           CommandAck                    a satellite's command event acknowledged at a pass
 /sat_XX/ops/hk         Housekeeping                  the satellite's housekeeping channels at
                                                      ``operations.hk_period_s`` (sat_node/operations/)
 /ground/downlink       GroundDownlink                observations a satellite downlinked at a pass
@@ -70,6 +71,7 @@ __all__ = [
     "CopyDiscarded",
     "GroundDownlink",
     "GroundUplink",
+    "CommandAck",
     "CommandEvent",
     "GroundCommand",
     "ModeChange",
@@ -381,6 +383,28 @@ class CommandEvent(_Msg, kw_only=True, frozen=True):
     kind: Annotated[str, Meta(max_length=16)] = ""
     issued_ns: NsTime = 0
     latency_s: NonNeg = 0.0
+    gp: Annotated[int, Meta(ge=-1)] = -1  # an executed task: the ground point it maps to (-1: none)
+    by_ns: NsTime = 0  # an executed task: its deadline
+
+
+class CommandAck(_Msg, kw_only=True, frozen=True):
+    """Satellite ``sat``'s acknowledgement of its command event (``stage`` received, executed or
+    rejected at ``event_ns``) reached the ground station ``station`` at ``t_ns``, downlinked in a
+    ground contact; ``issued_ns``: the command's issue time; ``latency_s`` = t_ns - event_ns."""
+
+    sat: SatName
+    station: StationName
+    t_ns: NsTime
+    command_id: Annotated[str, Meta(max_length=64)]
+    stage: Literal["received", "executed", "rejected"]
+    reason: Annotated[str, Meta(max_length=64)] = ""
+    event_ns: NsTime
+    issued_ns: NsTime = 0
+    latency_s: NonNeg = 0.0
+
+    def _check(self) -> None:
+        if self.t_ns < self.event_ns:
+            raise ValueError(f"CommandAck: reached the ground at {self.t_ns} ns, before its event at {self.event_ns} ns")
 
 
 class GroundCommand(_Msg, kw_only=True, frozen=True):
@@ -430,6 +454,7 @@ MESSAGE_TYPES: tuple[type[msgspec.Struct], ...] = (
     TransmissionFailed,
     ModeChange,
     CommandEvent,
+    CommandAck,
     GroundCommand,
     Housekeeping,
 )

@@ -26,6 +26,7 @@ __all__ = [
     "CLOCK",
     "CONTACTS",
     "DIAGNOSTICS",
+    "GROUND_ACKS",
     "GROUND_COMMANDS",
     "GROUND_DOWNLINK",
     "GROUND_UPLINK",
@@ -65,6 +66,7 @@ CONTACTS = "/orbit/contacts"
 GROUND_UPLINK = "/ground/uplink"
 GROUND_DOWNLINK = "/ground/downlink"
 GROUND_COMMANDS = "/ground/commands"
+GROUND_ACKS = "/ground/acks"
 VIZ_MARKERS = "/viz/constellation"
 VIZ_VALUE = "/viz/value"  # std_msgs/msg/Float64: the run's cumulative true value (Eq. 1) so far
 VIZ_IN_FLIGHT = "/viz/bundles_in_flight"  # std_msgs/msg/UInt32: bundle copies the ISL medium holds
@@ -144,6 +146,7 @@ _GLOBAL: dict[str, object] = {
     GROUND_UPLINK: S.GroundUplink,
     GROUND_DOWNLINK: S.GroundDownlink,
     GROUND_COMMANDS: S.GroundCommand,
+    GROUND_ACKS: S.CommandAck,
 }
 _PER_SAT: dict[str, object] = {
     "acs/command": S.AcsCommand,

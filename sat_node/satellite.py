@@ -45,6 +45,7 @@ created = delivered + dropped by reason + held).
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from dataclasses import dataclass
 
@@ -63,9 +64,10 @@ from sat_node.dtn.port import DtnPort, count_rejection
 from sat_node.dtn.store import BundleStore
 from sat_node.inference import Inference, decode_inference, encode_inference
 from sat_node.knowledge import KnowledgeParams, KnowledgeState
-from sat_node.operations.commands import CommandGuard, command_key, is_command
+from sat_node.operations.commands import CommandGuard, is_command
 from sat_node.operations.notice import decode_notice, is_notice
 from sat_node.operations.onboard import OnboardOperations, operations_for
+from sat_node.operations.tasking import TaskBook
 from sat_node.value import Belief, KnownLog, KnownObservation
 
 __all__ = ["SatelliteLogic"]
@@ -86,7 +88,7 @@ class SatelliteLogic(OnboardOperations):
     """Participant for satellite ``name``; ``world`` is a bringup.scenario.world.World."""
 
     def __init__(self, world, name: str, mode: str = "distributed", *, store_path: str | None = None,
-                 dtn: bool | None = None, bpsec_key: bytes | None = None):
+                 dtn: bool | None = None, bpsec_key: bytes | None = None, command_key: bytes | None = None):
         if mode not in ("distributed", "centralized", "nonagile"):
             raise ValueError(f"mode {mode!r}: expected distributed, centralized or nonagile")
         self.name = name
@@ -133,10 +135,12 @@ class SatelliteLogic(OnboardOperations):
             self.port = DtnPort(name, self.agent)
         self.rejected_by_reason: dict[str, int] = {}
         self.ops = operations_for(sc, name)
-        # operator commands (sat_node/operations/commands.py): only in a run that scripts some
-        self.guard = (CommandGuard(name, command_key(bpsec_key))
-                      if getattr(sc, "commands", None) and bpsec_key is not None else None)
+        # operator commands (sat_node/operations/commands.py): only in a run that scripts some, verified
+        # under this satellite's own command key (satellite_command_key; never the shared BPSec key)
+        self.guard = (CommandGuard(name, command_key)
+                      if getattr(sc, "commands", None) and command_key is not None else None)
         self._ops_emits: list[Emit] = []  # command events of this step's inbox
+        self.tasks = TaskBook()  # tasking requests executed here (sat_node/operations/tasking.py)
         hk_s = getattr(getattr(sc, "operations", None), "hk_period_s", 0.0)
         self._hk_ns = round(hk_s * _NS) if hk_s else None  # housekeeping period (None: no housekeeping)
         self._next_hk_ns = 0 if self._hk_ns else None
@@ -185,6 +189,7 @@ class SatelliteLogic(OnboardOperations):
                 self.last_error = f"{env.topic}: {exc}"
         emits += self._ops_emits
         self._ops_emits = []
+        emits += self._acks_due(t_ns)
         emits += self._operations(t_ns)
         if self.ops.imaging:
             emits += self._execute(t_ns)
@@ -216,7 +221,8 @@ class SatelliteLogic(OnboardOperations):
                 store.commit()
 
     def _finish(self, t_ns: int) -> list[Emit]:
-        emits = self._execute(t_ns) if self.ops.imaging else []
+        emits = self._acks_due(t_ns)
+        emits += self._execute(t_ns) if self.ops.imaging else []
         if self.agent is not None:
             emits += self._radio(t_ns)
             emits.append(self._counters_emit(t_ns))
@@ -319,6 +325,8 @@ class SatelliteLogic(OnboardOperations):
         if key not in self._known_keys:
             self._known_keys.add(key)
             self.known.append(KnownObservation(obs_ns / _NS, gp, src))
+            if self.tasks.tasks:
+                self.tasks.observed(gp, obs_ns, src)
 
     # ------------------------------------------------------------------ planning
     def _plan(self, t0_ns: int, window_s: float, solver: str = "dp"):
@@ -329,6 +337,9 @@ class SatelliteLogic(OnboardOperations):
         gps = self.world.gps
         knowledge = self.kstate.knowledge(self.world.osse, gps.region_index, gps.ecef_km, t0_s, self.known,
                                           self.belief)
+        overlay = self.tasks.overlay(self.name, t0_ns) if self.tasks.tasks else None
+        if overlay is not None:  # the GPs of interest of the tasks this satellite executed
+            knowledge = dataclasses.replace(knowledge, tasks=overlay)
         partners = None  # every other satellite (the planner's default) unless some told they do not image
         down = self.ops.peers_not_imaging()
         if down:
@@ -473,5 +484,8 @@ class SatelliteLogic(OnboardOperations):
         fault_ns = self.ops.faults.next_change_ns(t_ns)
         if fault_ns is not None:
             cands.append(fault_ns)
+        ack_ns = self._next_ack_ns()  # a command acknowledgement's downlink (sat_node/operations/onboard.py)
+        if ack_ns is not None:
+            cands.append(ack_ns)
         cands = [c for c in cands if c > t_ns]
         return min(cands) if cands else None

@@ -76,7 +76,7 @@ import numpy as np
 
 from bringup.analysis.assumed_error import assumed_error_figures
 from bringup.analysis.case_figures import case_figures, ground_meta
-from bringup.analysis.operations import OPS, operations_figures
+from bringup.analysis.operations import ACKS, OPS, operations_figures
 from bringup.analysis.security_figures import security_figures
 from bringup.errors import UserError
 from bringup.recording.bag import BagReader
@@ -94,7 +94,7 @@ __all__ = ["REPORT_TOPIC_SUFFIXES", "ReportBuilder", "RunMeta", "build_report", 
            "report_from_bag", "security_figures", "true_values"]
 
 _NS = 1_000_000_000
-REPORT_TOPIC_SUFFIXES = ("/observations", "/dtn/events", "/dtn/counters", "/schedule", "/ground/uplink", *OPS)
+REPORT_TOPIC_SUFFIXES = ("/observations", "/dtn/events", "/dtn/counters", "/schedule", "/ground/uplink", *OPS, ACKS)
 
 
 # RunMeta's field types (as annotated) -> does a JSON value have it
@@ -208,6 +208,7 @@ class ReportBuilder:
         self.rejected: dict[str, int] = defaultdict(int)  # reason -> payloads not counted
         self.ops_msgs: list = []  # ModeChange and CommandEvent messages (bringup/analysis/operations.py)
         self.uplinks: list[tuple[str, int]] = []  # (satellite, t_ns) of every ground uplink
+        self.acks: list = []  # CommandAck messages (bringup/analysis/operations.py)
 
     def add(self, env) -> None:
         t = env.topic
@@ -233,6 +234,8 @@ class ReportBuilder:
                 m = codec.decode(t, env.data)
                 self.cpu_by_planner[m.sat] += m.solve_cpu_s
                 self.planned[(m.sat, m.version)] = m.planned_ns
+            elif t == ACKS:
+                self.acks.append(codec.decode(t, env.data))
             elif t.endswith(OPS):  # (one under another satellite's topic is not counted)
                 self.ops_msgs += [m for m in (codec.decode(t, env.data),) if sat_of_topic(t) == m.sat]
             elif t == "/ground/uplink":
@@ -311,7 +314,7 @@ class ReportBuilder:
                     if k.startswith(("rejected.", "tx_failed.", "agent.dropped.", "agent.discarded.")):
                         rej[k] += v
             rep["dtn"]["rejections"] = dict(sorted(rej.items()))
-        rep.update(operations_figures(self.ops_msgs, meta.horizon_s))  # {} without any
+        rep.update(operations_figures(self.ops_msgs, meta.horizon_s, obs, self.acks))  # {} without any
         rep["messages_rejected_in_report"] = sum(rejected.values())
         rep["report_rejections"] = dict(sorted(rejected.items()))
         rep["security"] = security_figures(security)

@@ -329,7 +329,8 @@ def _run_local(world, args, meta, bag_dir: Path, out: Path, router_kw, keys, *, 
     store_dir = out / "store"  # (made by run(): _fresh_store_dir)
     # the recorder (bag, visualisation, report decoding) forks first, before the stores open
     with Recorder(bag_dir, world, report=ReportBuilder) as rec:
-        parts = all_participants(world, args.mode, store_dir=store_dir, router_kw=router_kw, bpsec_key=keys.bpsec)
+        parts = all_participants(world, args.mode, store_dir=store_dir, router_kw=router_kw, bpsec_key=keys.bpsec,
+                                 command_key=keys.command or None)
         prog, update = _progress_display(show, sc.horizon_ns)
         rec.write_envelope(Envelope(0, "run", 0, "/run/meta", json.dumps({"meta": meta.__dict__})))
 

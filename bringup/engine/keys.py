@@ -1,6 +1,6 @@
-"""A run's secrets: the BPSec key of the constellation and the run's envelope key.
+"""A run's secrets: the BPSec key of the constellation, the run's envelope key and the ground's command key.
 
-Two keys, neither of them in the source:
+Three keys, none of them in the source:
 
 * the **BPSec key** (RFC 9172/9173 BIB-HMAC-SHA2, sat_node/dtn/bpsec.py): every satellite's bundle
   agent signs the bundles it makes with it and drops bundles whose BIB does not verify. It comes
@@ -12,7 +12,15 @@ Two keys, neither of them in the source:
   topics, lockstep steps and acks) carries a MAC under it, and anything without a valid one is
   rejected. Only the run's processes have it.
 
-:class:`RunKeys` holds both. The launcher (bringup/engine/ros/launcher.py) writes them into the run
+* the **ground's command key** (sat_node/operations/commands.py): 32 random bytes per run, independent
+  of the BPSec key. The command gateway signs each operator command under the key derived from it
+  for the addressed satellite; a satellite's flight software is given only its own derived key
+  (bringup/scenario/participants.py). Every process of a ROS run reads this file, so the separation
+  is in what each satellite's software holds, not enforced by the operating system: a deployment that
+  must keep the ground's key off the satellites' computers gives each one its derived key alone
+  (not built here).
+
+:class:`RunKeys` holds all three. The launcher (bringup/engine/ros/launcher.py) writes them into the run
 folder as ``run.keys`` with owner-only permissions (created with mode 0600, never widened) and
 names the file in the run spec; every process of the run reads it at start (a restarted one too),
 and the launcher removes it when the run ends. ``constellation compose`` writes it beside the
@@ -151,17 +159,18 @@ class RunKeys:
     run: bytes
     bpsec: bytes
     bpsec_from: str = ""
+    command: bytes = b""  # the ground's command key (sat_node/operations/commands.py); b"": none
 
     @classmethod
     def generate(cls, bpsec_key_file: Path | None = None, env: dict[str, str] | None = None) -> RunKeys:
         """A new run key; the BPSec key from the deployment (:func:`resolve_bpsec_key`)."""
         bpsec, where = resolve_bpsec_key(bpsec_key_file, env)
-        return cls(secrets.token_bytes(_RUN_KEY_BYTES), bpsec, where)
+        return cls(secrets.token_bytes(_RUN_KEY_BYTES), bpsec, where, secrets.token_bytes(_RUN_KEY_BYTES))
 
     def encoded(self) -> bytes:
         """The file's content (:meth:`write`)."""
         return json.dumps({"v": 1, "run": self.run.hex(), "bpsec": self.bpsec.hex(),
-                           "bpsec_from": self.bpsec_from}).encode()
+                           "bpsec_from": self.bpsec_from, "command": self.command.hex()}).encode()
 
     def digest(self) -> str:
         """SHA-256 (hex) of the file's content: what the launcher hands its processes
@@ -188,7 +197,8 @@ class RunKeys:
                             f"${ENV_KEYS_DIGEST}): replaced after it was written; refusing its keys")
         try:
             d = json.loads(raw)
-            keys = cls(bytes.fromhex(d["run"]), bytes.fromhex(d["bpsec"]), str(d.get("bpsec_from", "")))
+            keys = cls(bytes.fromhex(d["run"]), bytes.fromhex(d["bpsec"]), str(d.get("bpsec_from", "")),
+                       bytes.fromhex(d.get("command", "")))
         except (ValueError, KeyError, TypeError):
             raise UserError(f"run keys {path}: not a run keys file") from None
         if len(keys.run) < MIN_KEY_BYTES or len(keys.bpsec) < MIN_KEY_BYTES:

@@ -8,13 +8,30 @@ and expect one ScenarioError line naming it.
 
 from __future__ import annotations
 
+import datetime as _dt
 from typing import Annotated, Literal
 
 import msgspec
 
 from sat_node.operations.commands import SETTABLE
+from sat_node.operations.tasking import PRIORITIES
 
-__all__ = ["CommandCfg", "FaultCfg", "OperationsCfg", "check_operations"]
+__all__ = ["ALL_SATS", "CommandCfg", "FaultCfg", "OperationsCfg", "check_operations", "deadline_s"]
+
+#: ``sat`` of a task for the whole constellation (one command per satellite, each under its own key)
+ALL_SATS = "all"
+
+
+def deadline_s(sc, by: str) -> float:
+    """A task's deadline ``by`` (UTC ISO 8601 ending in Z) in seconds from the scenario's epoch;
+    ValueError naming the expected form."""
+    if not by.endswith("Z"):
+        raise ValueError(f"{by!r} must be UTC ISO 8601 ending in 'Z', e.g. 2000-01-01T13:00:00Z")
+    try:
+        t = _dt.datetime.fromisoformat(by[:-1]).replace(tzinfo=_dt.UTC)
+    except ValueError:
+        raise ValueError(f"{by!r} is not an ISO 8601 time, e.g. 2000-01-01T13:00:00Z") from None
+    return (t - sc.epoch).total_seconds()
 
 Pos = Annotated[float, msgspec.Meta(gt=0)]
 NonNeg = Annotated[float, msgspec.Meta(ge=0)]
@@ -37,8 +54,9 @@ class FaultCfg(_S, kw_only=True):
 
 class CommandCfg(_S, kw_only=True):
     """An operator command the ground gateway issues at ``at_s`` to ``sat`` (ground_station/commander.py):
-    ``kind`` mode (``mode`` safe | nominal) or set (``name``, ``value``); valid for ``valid_s`` after
-    issue. ``forge`` (a wrong tag) and ``repeat`` (the same signed command uplinked twice) script a
+    ``kind`` mode (``mode`` safe | nominal), set (``name``, ``value``) or task (``lat_deg``, ``lon_deg``,
+    ``priority`` 1..3, ``by`` the deadline in UTC ISO 8601 ending in Z; ``sat = "all"``: every
+    satellite, sat_node/operations/tasking.py); valid for ``valid_s`` after issue. ``forge`` (a wrong tag) and ``repeat`` (the same signed command uplinked twice) script a
     hostile sender, to show such commands are rejected and counted."""
 
     sat: Name
@@ -47,6 +65,10 @@ class CommandCfg(_S, kw_only=True):
     mode: Literal["", "safe", "nominal"] = ""
     name: str = ""
     value: float = 0.0
+    lat_deg: float = 0.0
+    lon_deg: float = 0.0
+    priority: int = 1
+    by: str = ""
     valid_s: Pos = 3600.0
     forge: bool = False
     repeat: bool = False
@@ -78,10 +100,24 @@ def check_operations(sc, bad) -> None:
 
 
 def _check_command(c: CommandCfg, key: str, sats: set, sc, bad) -> None:
-    if c.sat not in sats:
-        bad(f"{key}.sat", f"{c.sat!r} is not a satellite of this constellation")
+    if c.sat not in sats and not (c.kind == "task" and c.sat == ALL_SATS):
+        bad(f"{key}.sat", f"{c.sat!r} is not a satellite of this constellation"
+            + (f" (a task may name {ALL_SATS!r})" if c.kind == "task" else ""))
     if c.kind == "task":
-        bad(f"{key}.kind", "tasking requests are not implemented yet; use mode or set")
+        if not (-90 <= c.lat_deg <= 90):
+            bad(f"{key}.lat_deg", f"{c.lat_deg:g} is outside [-90, 90]")
+        if not (-180 <= c.lon_deg <= 180):
+            bad(f"{key}.lon_deg", f"{c.lon_deg:g} is outside [-180, 180]")
+        if c.priority not in PRIORITIES:
+            bad(f"{key}.priority", f"{c.priority} is not one of {', '.join(map(str, PRIORITIES))} (1: most urgent)")
+        if not c.by:
+            bad(f"{key}.by", "a task needs its deadline by = 'YYYY-MM-DDTHH:MM:SSZ'")
+        try:
+            by_s = deadline_s(sc, c.by)
+        except ValueError as exc:
+            bad(f"{key}.by", str(exc))
+        if by_s <= c.at_s:
+            bad(f"{key}.by", f"{c.by} is not after the issue time at_s {c.at_s:g} s")
     if c.kind == "mode" and not c.mode:
         bad(f"{key}.mode", "a mode command needs mode = 'safe' or 'nominal'")
     if c.kind == "set":

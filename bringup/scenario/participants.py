@@ -21,6 +21,7 @@ satellites per process).
 
 from __future__ import annotations
 
+import secrets
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
@@ -32,6 +33,7 @@ from ground_station.ground_segment import GroundLogic
 from orbit_clock.contact_announcer import ContactAnnouncer
 from orbit_clock.contact_faults import truth_plan
 from sat_node.dtn.store import BundleStore
+from sat_node.operations.commands import satellite_command_key
 from sat_node.satellite import SatelliteLogic
 
 __all__ = ["AUTO_SAT_PROCESSES", "MODES", "all_participants", "kernels_for", "make_participant", "process_groups",
@@ -108,18 +110,31 @@ def kernels_for(mode: str, role: str | None) -> tuple[str, ...]:
 
 
 def make_participant(world: World, role: str, mode: str, *, store_dir: Path | None, router_kw: dict | None,
-                     bpsec_key: bytes):
+                     bpsec_key: bytes, command_key: bytes | None = None):
+    """Participant ``role``. ``command_key``: the ground's command key (bringup/engine/keys.py), needed
+    when the scenario scripts commands: the commander holds it, each satellite only the key derived
+    from it for its name (sat_node/operations/commands.py satellite_command_key)."""
+    commands = getattr(world.scenario, "commands", None)
+    if commands and command_key is None:
+        raise UserError("[[commands]] need the ground's command key (the run keys' 'command'); none was given")
+    if role == COMMANDER_ROLE and mode != "distributed" and any(c.kind == "task" for c in commands or ()):
+        raise UserError(f"tasking requests ([[commands]] kind = 'task') need onboard planning: --mode distributed, "
+                        f"not {mode}")
     if role == ROUTER_ROLE:
         return RouterLogic.for_world(world, **(router_kw or {}))
     if role == CONTACTS_ROLE:
         return ContactAnnouncer(truth_plan(world.isl_plan, **(router_kw or {})), world.ground_plan)
     if role == GROUND_ROLE:
         return GroundLogic(world)
-    if role == COMMANDER_ROLE and world.scenario.commands:
-        return CommanderLogic(world, bpsec_key)
+    if role == COMMANDER_ROLE and commands:
+        try:
+            return CommanderLogic(world, command_key)
+        except ValueError as exc:  # a task's target off every region's grid: refused up front
+            raise UserError(str(exc)) from None
     if role in world.sat_names:
         store = str(store_path(store_dir, role)) if store_dir is not None and mode == "distributed" else None
-        return SatelliteLogic(world, role, mode, store_path=store, bpsec_key=bpsec_key)
+        own = satellite_command_key(command_key, role) if commands else None
+        return SatelliteLogic(world, role, mode, store_path=store, bpsec_key=bpsec_key, command_key=own)
     raise UserError(f"role {role!r}: not a satellite of the scenario, nor "
                     f"'{ROUTER_ROLE}'/'{GROUND_ROLE}'/'{CONTACTS_ROLE}' "
                     f"(or '{COMMANDER_ROLE}' with [[commands]])")
@@ -149,7 +164,12 @@ def create_stores(store_dir: Path, sats: list[str]):
 
 
 def all_participants(world: World, mode: str, *, bpsec_key: bytes, store_dir: Path | None = None,
-                     router_kw: dict | None = None) -> list:
-    return [make_participant(world, r, mode, store_dir=store_dir, router_kw=router_kw, bpsec_key=bpsec_key)
+                     router_kw: dict | None = None, command_key: bytes | None = None) -> list:
+    """Every participant of a run in one process (the local engine); ``command_key`` None: a new
+    random ground command key (every participant is made here, so they all agree on it)."""
+    if command_key is None and getattr(world.scenario, "commands", None):
+        command_key = secrets.token_bytes(32)
+    return [make_participant(world, r, mode, store_dir=store_dir, router_kw=router_kw, bpsec_key=bpsec_key,
+                             command_key=command_key)
             for r in roles_for(world, mode)]
 

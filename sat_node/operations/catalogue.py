@@ -26,13 +26,14 @@ import msgspec
 from msgs_json import schemas as S
 from sat_node.operations.commands import KINDS, SETTABLE
 from sat_node.operations.packets import CHANNELS, HK_APID_BASE
+from sat_node.operations.tasking import PRIORITIES, TASK_VALUE
 
 __all__ = ["EVENTS", "MESSAGES", "REJECTIONS", "RULE_REASONS", "dictionary", "event_of"]
 
 #: the reasons modes.mode_for can give (its table), "" = back to NOMINAL
 RULE_REASONS = ("", "acs_fault", "pointing_error", "commanded", "instrument_fault", "store_full", "clock_late")
-#: the rejection reasons of CommandGuard and of a relay (onboard.py)
-REJECTIONS = ("malformed", "forged", "not_for_me", "replayed", "expired", "no_isl", "no_such_satellite")
+#: the rejection reasons of CommandGuard, of a relay and of a task off the grid (onboard.py)
+REJECTIONS = ("malformed", "forged", "not_for_me", "replayed", "expired", "no_isl", "no_such_satellite", "no_target")
 
 _SEVERITY_OF_MODE = {"NOMINAL": "informative", "DEGRADED": "medium", "SAFE": "high"}
 
@@ -109,7 +110,14 @@ def dictionary() -> dict:
                      {"kind": "set", "args": [{"name": "name", "type": "enum(" + ", ".join(SETTABLE) + ")"},
                                               {"name": "value", "type": "number"}],
                       "parameters": [{"name": n, "type": tp.__name__, "min": lo, "max": hi, "unit": _param_unit(n)}
-                                     for n, (tp, lo, hi) in SETTABLE.items()]}],
+                                     for n, (tp, lo, hi) in SETTABLE.items()]},
+                     {"kind": "task", "args": [{"name": "lat_deg", "type": "float", "min": -90, "max": 90, "unit": "deg"},
+                                               {"name": "lon_deg", "type": "float", "min": -180, "max": 180,
+                                                "unit": "deg"},
+                                               {"name": "priority", "type": "enum(" + ", ".join(map(str, PRIORITIES))
+                                                + ")", "unit": ""},
+                                               {"name": "by_ns", "type": "int", "unit": "ns"}],
+                      "values": {str(p): v for p, v in TASK_VALUE.items()}}],
         "command_kinds": list(KINDS),
         "events": [{"id": k, **e} for k, e in sorted(EVENTS.items())],
         "packets": {"standard": "CCSDS 133.0-B-2 space packets, big-endian, no secondary header",

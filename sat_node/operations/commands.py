@@ -5,9 +5,18 @@ bytes tells it from an observation's inference or a mode notice), followed by a 
 
     {"command":ID,"seq":N,"sat":SAT,"kind":KIND,"args":{...},"issued_ns":T0,"expires_ns":T1}\\n<hex tag>
 
-``tag`` = HMAC-SHA256 (RFC 2104, FIPS 198-1) under the **command key** over the JSON bytes. Kinds:
-``mode`` (``args.mode`` = ``safe`` | ``nominal``) and ``set`` (``args.name``, ``args.value``: one of
-:data:`SETTABLE`). Tasking requests are not built (the scenario loader refuses them).
+``tag`` = HMAC-SHA256 (RFC 2104, FIPS 198-1) under the addressee's **command key** over the JSON bytes.
+
+Keys (:func:`satellite_command_key`): the ground holds a command key of its own (a run's, in the
+run keys file next to the BPSec key: bringup/engine/keys.py; never derived from the BPSec key
+every satellite holds). Each satellite holds only the key derived from it for its own name. HMAC
+is symmetric - whoever verifies could also sign - so this is what it buys: a satellite (or anyone
+holding the BPSec key) cannot forge a command to another satellite; a compromised satellite can
+forge commands to itself only. Asymmetric signatures (Ed25519) would take that away too; the
+project has no dependency that provides them. Kinds:
+``mode`` (``args.mode`` = ``safe`` | ``nominal``), ``set`` (``args.name``, ``args.value``: one of
+:data:`SETTABLE`) and ``task`` (``args.lat_deg``, ``args.lon_deg``, ``args.priority`` 1..3,
+``args.by_ns`` the deadline: a tasking request, sat_node/operations/tasking.py).
 
 A satellite accepts a command only when (:class:`CommandGuard`, in this order) it parses
 (``malformed``), the tag verifies under the command key (``forged``), it names this satellite
@@ -27,8 +36,11 @@ import json
 import math
 from dataclasses import dataclass, field
 
-__all__ = ["SETTABLE", "Command", "CommandGuard", "CommandRejected", "command_key", "encode_command",
-           "is_command", "parse_command", "target_of"]
+from sat_node.operations.tasking import PRIORITIES
+
+__all__ = ["SETTABLE", "Command", "CommandGuard", "CommandRejected", "encode_command",
+           "is_command", "parse_command", "satellite_command_key",
+           "target_of"]
 
 _PREFIX = b'{"command":'
 #: parameters a ``set`` command may change: name -> (type, low, high)
@@ -37,7 +49,9 @@ SETTABLE = {
     "operations.store_max_bundles": (int, 1, 10**9),
     "operations.clock_late_max_s": (float, 0.0, 86400.0),
 }
-KINDS = ("mode", "set")
+KINDS = ("mode", "set", "task")
+#: the arguments of a task command (sat_node/operations/tasking.py)
+_TASK_ARGS = {"lat_deg", "lon_deg", "priority", "by_ns"}
 
 
 class CommandRejected(ValueError):
@@ -60,10 +74,14 @@ class Command:
     expires_ns: int = 0
 
 
-def command_key(bpsec_key: bytes) -> bytes:
-    """The command key of a deployment, derived from its BPSec key (HMAC-SHA256 with a fixed label:
-    an independent key for commands, never used for bundles)."""
-    return hmac.new(bpsec_key, b"constellation command key v1", hashlib.sha256).digest()
+def satellite_command_key(ground_key: bytes, sat: str) -> bytes:
+    """Satellite ``sat``'s command key: HMAC-SHA256 (RFC 2104) under the ground's command key of a
+    fixed label and the satellite's name. The ground holds ``ground_key`` (its own, independent of
+    the BPSec key the satellites share for bundles); each satellite holds its own derived key only,
+    so one satellite's key verifies (and could sign) commands to that satellite alone."""
+    if len(ground_key) < 16:
+        raise ValueError(f"the ground's command key has {len(ground_key)} bytes; at least 16 are needed")
+    return hmac.new(ground_key, b"constellation command key v2\0" + sat.encode(), hashlib.sha256).digest()
 
 
 def encode_command(c: Command, key: bytes) -> bytes:
@@ -115,6 +133,18 @@ def check_args(c: Command) -> None:
     if c.kind == "mode":
         if c.args.get("mode") not in ("safe", "nominal") or set(c.args) != {"mode"}:
             raise CommandRejected("malformed", f"mode command args {c.args!r}: expected mode safe|nominal")
+        return
+    if c.kind == "task":
+        a = c.args
+        lat, lon, pri, by = a.get("lat_deg"), a.get("lon_deg"), a.get("priority"), a.get("by_ns")
+        num = all(isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) for x in (lat, lon))
+        if set(a) != _TASK_ARGS or not num or not (-90 <= lat <= 90 and -180 <= lon <= 180):
+            raise CommandRejected("malformed", f"task command args {a!r}: expected lat_deg in [-90, 90], "
+                                  "lon_deg in [-180, 180], priority, by_ns")
+        if pri not in PRIORITIES or isinstance(pri, bool):
+            raise CommandRejected("malformed", f"task priority {pri!r}: expected one of {PRIORITIES}")
+        if isinstance(by, bool) or not isinstance(by, int) or by <= c.issued_ns:
+            raise CommandRejected("malformed", f"task deadline by_ns {by!r}: not an integer after the issue time")
         return
     name, value = c.args.get("name"), c.args.get("value")
     if name not in SETTABLE or set(c.args) != {"name", "value"}:

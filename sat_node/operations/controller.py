@@ -41,6 +41,14 @@ class ModeTransition(tuple):
 
 
 class Operations:
+    # command acknowledgements (sat_node/operations/onboard.py): queued (downlink time, number, CommandAck),
+    # how many were queued, sent, and not sent for want of a ground contact (class defaults: a
+    # checkpoint from before them restores with none)
+    acks: list | tuple = ()
+    acks_queued = 0
+    acks_sent = 0
+    acks_not_sent = 0
+
     def __init__(self, name: str, faults: FaultSchedule, limits: Limits, t0_ns: int = 0):
         self.name = name
         self.faults = faults

@@ -4,7 +4,8 @@ What it does at each step, on the satellite's own state only: the mode rules on 
 (sat_node/operations/modes.py; injected faults set the hardware bits the telemetry reads), what a
 mode change does (the plan dropped, the safe attitude, the mode notice to the neighbours,
 sat_node/operations/notice.py), neighbours' notices received over the DTN, and operator commands
-uplinked by the ground gateway or relayed over the ISLs (sat_node/operations/commands.py).
+uplinked by the ground gateway or relayed over the ISLs (sat_node/operations/commands.py), among
+them tasking requests (sat_node/operations/tasking.py: the target joins the GPs the planner values).
 
 Oracle: tests/unit/test_operations_satellite.py (one satellite stepped by hand),
 tests/system/test_operations_faults.py and tests/system/test_operations_commands_run.py (whole runs, both
@@ -26,6 +27,7 @@ from sat_node.operations.commands import CommandRejected, target_of
 from sat_node.operations.controller import Operations
 from sat_node.operations.modes import MODES, SAFE, Fault, FaultSchedule, Limits, Telemetry
 from sat_node.operations.notice import ModeNotice, encode_notice
+from sat_node.operations.tasking import Task, nearest_gp
 
 __all__ = ["OnboardOperations", "operations_for"]
 
@@ -132,7 +134,7 @@ class OnboardOperations:
         else:
             why = "no_isl" if target in self.world.sat_names else "no_such_satellite"
             self.guard.rejected[why] = self.guard.rejected.get(why, 0) + 1
-            self._ops_emits.append(_command_event(self.name, t_ns, "rejected", reason=why))
+            self._command_event(t_ns, "rejected", reason=why)
 
 
     def _on_command(self, payload: bytes, t_ns: int) -> None:
@@ -145,16 +147,73 @@ class OnboardOperations:
         except CommandRejected as exc:
             c = exc.command
             kw = {"cid": c.id, "kind": c.kind, "issued_ns": c.issued_ns} if c is not None else {}
-            self._ops_emits.append(_command_event(self.name, t_ns, "rejected", reason=exc.reason, **kw))
+            self._command_event(t_ns, "rejected", reason=exc.reason, **kw)
             return
         kw = {"cid": c.id, "kind": c.kind, "issued_ns": c.issued_ns}
-        self._ops_emits.append(_command_event(self.name, t_ns, "received", **kw))
-        if c.kind == "mode":
+        self._command_event(t_ns, "received", **kw)
+        if c.kind == "task":
+            a = c.args
+            gps = self.world.gps
+            gp, dist_km = nearest_gp(gps.lat_deg, gps.lon_deg, a["lat_deg"], a["lon_deg"])
+            if dist_km > self.sc.regions.gp_spacing_km:
+                why = "no_target"
+                self.guard.rejected[why] = self.guard.rejected.get(why, 0) + 1
+                self._command_event(t_ns, "rejected", reason=why, **kw)
+                return
+            self.tasks.add(Task(c.id, gp, a["priority"], a["by_ns"], c.issued_ns, t_ns))
+            kw |= {"gp": gp, "by_ns": a["by_ns"]}
+            if self.mode == "distributed" and self.ops.imaging:
+                self._news_conflict = True  # plan it in at this step
+        elif c.kind == "mode":
             self.ops.commanded_safe = c.args["mode"] == "safe"
         else:
             field = c.args["name"].split(".", 1)[1]
             self.ops.limits = dataclasses.replace(self.ops.limits, **{field: c.args["value"]})
-        self._ops_emits.append(_command_event(self.name, t_ns, "executed", **kw))
+        self._command_event(t_ns, "executed", **kw)
+
+    def _command_event(self, t_ns: int, stage: str, **kw) -> None:
+        """Record a command event (CommandEvent) and queue its acknowledgement for the ground: a
+        CommandAck at the first time at or after the event in one of this satellite's own ground
+        contacts (the world's ground plan), with the latency from the event (none left: not sent,
+        counted in ``ops.acks_not_sent``)."""
+        e = _command_event(self.name, t_ns, stage, **kw)
+        self._ops_emits.append(e)
+        slot = _own_contact(self.world.ground_plan.contacts, self.name, t_ns)
+        if slot is None or slot[0] > self.sc.horizon_ns:
+            self.ops.acks_not_sent += 1
+            return
+        due, station = slot
+        ev = codec.decode(e.topic, e.data)
+        ack = S.CommandAck(sat=self.name, station=station, t_ns=due, command_id=ev.command_id, stage=ev.stage,
+                           reason=ev.reason, event_ns=t_ns, issued_ns=ev.issued_ns, latency_s=(due - t_ns) / _NS)
+        self.ops.acks_queued += 1
+        self.ops.acks = [*self.ops.acks, (due, self.ops.acks_queued, ack)]
+
+    def _acks_due(self, t_ns: int) -> list[Emit]:
+        """The acknowledgements whose downlink time has come (stamped with it)."""
+        due = sorted((a for a in self.ops.acks if a[0] <= t_ns), key=lambda a: a[:2])
+        if not due:
+            return []
+        self.ops.acks = [a for a in self.ops.acks if a[0] > t_ns]
+        self.ops.acks_sent += len(due)
+        return [Emit(T.GROUND_ACKS, codec.encode(a[2]), a[0]) for a in due]
+
+    def _next_ack_ns(self) -> int | None:
+        return min((a[0] for a in self.ops.acks), default=None)
+
+
+def _own_contact(contacts, sat: str, t_ns: int) -> tuple[int, str] | None:
+    """(time, station) of the first moment at or after ``t_ns`` inside a ground contact of ``sat``
+    (ties: the station that sorts first); None when no contact is left."""
+    best = None
+    for c in contacts:
+        if c.src != sat or not str(c.dst).startswith("gs_"):
+            continue
+        s, e = int(round(c.start_s * _NS)), int(round(c.end_s * _NS))
+        t = max(t_ns, s)
+        if t < e and (best is None or (t, c.dst) < best):
+            best = (t, c.dst)
+    return best
 
 
 def _nadir_point_km(pos_km: np.ndarray) -> np.ndarray:
@@ -173,8 +232,8 @@ def operations_for(sc, name: str) -> Operations:
 
 
 def _command_event(sat: str, t_ns: int, stage: str, *, cid: str = "?", kind: str = "", reason: str = "",
-                   issued_ns: int = 0) -> Emit:
+                   issued_ns: int = 0, gp: int = -1, by_ns: int = 0) -> Emit:
     lat = max(0.0, (t_ns - issued_ns) / _NS) if issued_ns else 0.0
     msg = S.CommandEvent(sat=sat, t_ns=t_ns, command_id=cid[:64], stage=stage, reason=reason, kind=kind,
-                         issued_ns=issued_ns, latency_s=lat)
+                         issued_ns=issued_ns, latency_s=lat, gp=gp, by_ns=by_ns)
     return Emit(T.ops_command_topic(sat), codec.encode(msg), t_ns)

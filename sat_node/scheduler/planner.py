@@ -10,7 +10,10 @@ all plan here, with the same steps:
    the scenario's field itself. Today both callers pass :class:`PersistenceView`, the OSSE forecast
    as it stood at planning time (persistence: the planner cannot know the future flood state);
    the observations it knows of (its own, those delivered by the DTN or downlinked, plans it must
-   respect) enter through Eq. 1's prior state (:func:`sat_node.value.prior_state`).
+   respect) enter through Eq. 1's prior state (:func:`sat_node.value.prior_state`). An operator's
+   tasked GPs (``Knowledge.tasks``, sat_node/operations/tasking.py: what a delivered task command
+   told this planner) raise the planned satellite's value there to the task's until its deadline and
+   keep them from its predicted partners (tests/unit/test_operations_tasking.py).
 2. **GP pre-filter.** The GPs of the regions that may enter the satellite's field of regard in the
    window (a superset, :class:`orbit_clock.access.RegionPrefilter`, passed in as ``candidates``);
    none: no plan.
@@ -114,6 +117,9 @@ class Knowledge:
     value: ValueSource
     known: Sequence[KnownObservation] = ()
     belief: Belief | None = None
+    # an operator's tasked GPs (sat_node/operations/tasking.py TaskOverlay): what a delivered task
+    # command told this planner, applied to the believed value of each instance (None: no task)
+    tasks: object | None = None
 
 
 @dataclass(frozen=True)
@@ -321,6 +327,11 @@ class Planner:
             recent = recent_observed_gps(knowledge.known, t0_s, st.diversity_window_s)
             absval = absval * diversity_factor(self.gp_ecef_km[ids], self.gp_ecef_km[recent], st.diversity_weight,
                                                st.diversity_km)[None, :]
+        tasks = knowledge.tasks
+        if tasks is not None and len(ids) and times[0] <= tasks.last_by_s:
+            if len(at) < len(times):  # the tasks' deadlines make the window's rows differ
+                absval, at = np.broadcast_to(absval, (len(times), len(ids))), times
+            absval = tasks.apply(sat, ids, times, absval)
         if len(at) < len(times):
             absval = absval[0]  # (G,): build_problem spreads it over the window
         count, recent = prior_state(knowledge.known, ids, times, sat, st.revisit_zero_s)

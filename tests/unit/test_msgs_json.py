@@ -42,6 +42,7 @@ TOPIC_OF = {
     S.ModeChange: T.ops_mode_topic("sat_11"),
     S.CommandEvent: T.ops_command_topic("sat_11"),
     S.GroundCommand: T.GROUND_COMMANDS,
+    S.CommandAck: T.GROUND_ACKS,
     S.Housekeeping: T.ops_hk_topic("sat_11"),
 }
 TYPES = list(S.MESSAGE_TYPES)

@@ -21,15 +21,16 @@ from sat_node.operations.commands import (
     Command,
     CommandGuard,
     CommandRejected,
-    command_key,
     encode_command,
     is_command,
     parse_command,
+    satellite_command_key,
     target_of,
 )
 from tests.keys import TEST_BPSEC_KEY
 
-KEY = command_key(TEST_BPSEC_KEY)
+GROUND_KEY = bytes(range(32))  # the ground's command key of these tests
+KEY = satellite_command_key(GROUND_KEY, "sat_11")
 _NS = 1_000_000_000
 
 
@@ -90,7 +91,14 @@ def _scenario(commands):
 @pytest.mark.parametrize("cmd, key", [
     ({"sat": "sat_99", "kind": "mode", "mode": "safe", "at_s": 1.0}, "commands[0].sat"),
     ({"sat": "sat_11", "kind": "mode", "at_s": 1.0}, "commands[0].mode"),
-    ({"sat": "sat_11", "kind": "task", "at_s": 1.0}, "commands[0].kind"),
+    ({"sat": "sat_11", "kind": "task", "at_s": 1.0}, "commands[0].by"),
+    ({"sat": "sat_11", "kind": "task", "at_s": 1.0, "by": "2000-01-01T12:30:00"}, "commands[0].by"),
+    ({"sat": "sat_11", "kind": "task", "at_s": 4000.0, "by": "2000-01-01T12:30:00Z"}, "commands[0].by"),
+    ({"sat": "sat_11", "kind": "task", "at_s": 1.0, "by": "2000-01-01T12:30:00Z", "priority": 4},
+     "commands[0].priority"),
+    ({"sat": "sat_11", "kind": "task", "at_s": 1.0, "by": "2000-01-01T12:30:00Z", "lat_deg": 91.0},
+     "commands[0].lat_deg"),
+    ({"sat": "all", "kind": "mode", "mode": "safe", "at_s": 1.0}, "commands[0].sat"),
     ({"sat": "sat_11", "kind": "set", "name": "scheduler.dp_step_s", "value": 1.0, "at_s": 1.0}, "commands[0].name"),
     ({"sat": "sat_11", "kind": "set", "name": "operations.pointing_error_max_deg", "value": 181.0, "at_s": 1.0},
      "commands[0].value"),
@@ -122,17 +130,18 @@ def test_gateway_signs_with_the_satellites_key_and_forges_when_told():
     world = World.build(_scenario([
         {"sat": "sat_33", "kind": "mode", "mode": "safe", "at_s": 50.0},
         {"sat": "sat_33", "kind": "mode", "mode": "nominal", "at_s": 60.0, "forge": True, "repeat": True}]))
-    g = CommanderLogic(world, TEST_BPSEC_KEY)
+    g = CommanderLogic(world, GROUND_KEY)
+    key33 = satellite_command_key(GROUND_KEY, "sat_33")
     r = g.start(0)
     assert r.next_wakeup_ns == 50 * _NS and r.emits == []
     sent = g.step(50 * _NS, []).emits
     up = codec.decode(sent[0].topic, sent[0].data)
-    assert parse_command(up.payload.encode(), KEY).args == {"mode": "safe"}
+    assert parse_command(up.payload.encode(), key33).args == {"mode": "safe"}
     rest = g.step(60 * _NS, []).emits + g.finish(1800 * _NS)
     assert len(rest) == 2  # the forged one and its repeat
     for e in rest:
         with pytest.raises(CommandRejected, match="forged"):
-            parse_command(codec.decode(e.topic, e.data).payload.encode(), KEY)
+            parse_command(codec.decode(e.topic, e.data).payload.encode(), key33)
 
 
 def test_compose_refuses_scripted_commands(tmp_path):
@@ -154,13 +163,30 @@ def test_a_checkpoint_holds_no_command_key_and_a_restored_satellite_still_verifi
     from sat_node.satellite import SatelliteLogic
 
     world = World.build(_scenario([{"sat": "sat_33", "kind": "mode", "mode": "safe", "at_s": 50.0}]))
-    s = SatelliteLogic(world, "sat_33", "distributed", bpsec_key=TEST_BPSEC_KEY)
+    key = satellite_command_key(GROUND_KEY, "sat_33")
+    s = SatelliteLogic(world, "sat_33", "distributed", bpsec_key=TEST_BPSEC_KEY, command_key=key)
     s.start(0)
-    assert s.guard.accept(encode_command(_cmd(sat="sat_33"), KEY), 20).id == "c1"
+    assert s.guard.accept(encode_command(_cmd(sat="sat_33"), key), 20).id == "c1"
     blob = s.snapshot()
-    assert KEY not in blob and KEY not in pickle.dumps(s.guard)
-    r = SatelliteLogic(world, "sat_33", "distributed", bpsec_key=TEST_BPSEC_KEY)
+    assert key not in blob and key not in pickle.dumps(s.guard)
+    r = SatelliteLogic(world, "sat_33", "distributed", bpsec_key=TEST_BPSEC_KEY, command_key=key)
     r.restore(blob)
     with pytest.raises(CommandRejected, match="replayed"):  # what it had seen survives
-        r.guard.accept(encode_command(_cmd(sat="sat_33"), KEY), 30)
-    assert r.guard.accept(encode_command(_cmd(id="c2", sat="sat_33"), KEY), 30).id == "c2"
+        r.guard.accept(encode_command(_cmd(sat="sat_33"), key), 30)
+    assert r.guard.accept(encode_command(_cmd(id="c2", sat="sat_33"), key), 30).id == "c2"
+
+
+def test_only_the_satellites_own_key_verifies_its_commands():
+    """The ground's key is its own: a command signed under the BPSec key every satellite holds, under
+    the ground key itself, or under another satellite's key is forged and counted, and changes nothing."""
+    g = CommandGuard("sat_11", KEY)
+    for i, wrong in enumerate((TEST_BPSEC_KEY, GROUND_KEY, satellite_command_key(GROUND_KEY, "sat_12"),
+                               satellite_command_key(TEST_BPSEC_KEY, "sat_11"))):
+        with pytest.raises(CommandRejected, match="forged"):
+            g.accept(encode_command(_cmd(id=f"w{i}"), wrong), 20)
+    assert g.rejected == {"forged": 4} and g.accepted == 0 and g.seen == set()
+    assert g.accept(encode_command(_cmd(id="ok"), KEY), 20).id == "ok"
+    keys = {satellite_command_key(GROUND_KEY, f"sat_{i}") for i in range(11, 35)}
+    assert len(keys) == 24 and KEY in keys and TEST_BPSEC_KEY not in keys
+    with pytest.raises(ValueError, match="at least 16"):
+        satellite_command_key(b"short", "sat_11")

@@ -39,9 +39,10 @@ def build(spec: RunSpec, role: str) -> list:
         raise UserError("run spec: extra.world (path of the world pickle) is missing")
     world = World.load(Path(path), spec.extra.get("world_key"))
     store_dir = spec.extra.get("store_dir")
-    bpsec_key = spec.keys().bpsec
+    keys = spec.keys()
     return [make_participant(world, r, spec.mode, store_dir=Path(store_dir) if store_dir else None,
-                             router_kw=spec.extra.get("router"), bpsec_key=bpsec_key) for r in spec.members(role)]
+                             router_kw=spec.extra.get("router"), bpsec_key=keys.bpsec,
+                             command_key=keys.command or None) for r in spec.members(role)]
 
 
 def prepare(spec: RunSpec, role: str | None) -> dict[str, float]:
