@@ -25,18 +25,20 @@ from __future__ import annotations
 
 import datetime as dt
 
+from ground_station.operator_requests import RequestInbox
 from msgs_json import codec
 from msgs_json import schemas as S
 from msgs_json import topics as T
 from msgs_json.envelope import Emit, Envelope, LiveState, StepResult
 from sat_node.operations.commands import SETTABLE, Command, encode_command, satellite_command_key
-from sat_node.operations.tasking import nearest_gp
+from sat_node.operations.tasking import PRIORITIES, nearest_gp
 
 __all__ = ["ALL_SATS", "COMMANDER_NAME", "CommanderLogic", "task_args", "uplink_slot"]
 
 COMMANDER_NAME = "commander"
 ALL_SATS = "all"  # a task's ``sat`` for every satellite (bringup/scenario/operations_cfg.py)
 _NS = 1_000_000_000
+LIVE_VALID_S = 3600  # a live command expires this long after its issue
 
 
 def task_args(world, cfg, where: str) -> dict:
@@ -53,6 +55,25 @@ def task_args(world, cfg, where: str) -> dict:
                          f"({sc.regions.gp_spacing_km:g} km) of one (inside a region)")
     return {"lat_deg": float(cfg.lat_deg), "lon_deg": float(cfg.lon_deg), "priority": int(cfg.priority),
             "by_ns": int(by_ns)}
+
+
+class _LiveTask:
+    """A live task request's fields as task_args reads them, checked (ValueError in one line)."""
+
+    def __init__(self, req: dict):
+        lat, lon, pri, by = req.get("lat_deg"), req.get("lon_deg"), req.get("priority"), req.get("by")
+        if not all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in (lat, lon)) \
+                or not (-90 <= lat <= 90 and -180 <= lon <= 180):
+            raise ValueError(f"target ({lat!r}, {lon!r}): expected lat_deg in [-90, 90], lon_deg in [-180, 180]")
+        if pri not in PRIORITIES or isinstance(pri, bool):
+            raise ValueError(f"priority {pri!r}: expected one of {', '.join(map(str, PRIORITIES))}")
+        if not isinstance(by, str) or not by.endswith("Z"):
+            raise ValueError(f"deadline {by!r}: expected UTC ISO 8601 ending in Z")
+        try:
+            dt.datetime.fromisoformat(by[:-1])
+        except ValueError:
+            raise ValueError(f"deadline {by!r}: not an ISO 8601 time") from None
+        self.lat_deg, self.lon_deg, self.priority, self.by = float(lat), float(lon), int(pri), by
 
 
 def _ns_since(text: str, epoch: dt.datetime) -> int:
@@ -81,9 +102,11 @@ def uplink_slot(contacts, t_ns: int, prefer: str, after_ns: int | None = None) -
 class CommanderLogic:
     name = COMMANDER_NAME
 
-    def __init__(self, world, ground_key: bytes):
+    def __init__(self, world, ground_key: bytes, live: RequestInbox | None = None):
         self.world = world
         self._ground_key = ground_key  # the ground's command key: each satellite's is derived from it
+        self.live = live  # live operator requests (ground_station/operator_requests.py), None: none
+        self.live_issued = 0
         sc = world.scenario
         self.sends: list[tuple[int, str, str, str]] = []  # (t_ns, relay, station, signed text)
         self.not_uplinked = 0
@@ -106,6 +129,55 @@ class CommanderLogic:
                 self._queue(encode_command(cmd, key).decode(), t0, sat, repeat=cfg.repeat)
         self.sends.sort()
         self._i = 0
+        self._seq = seq
+
+    def _poll(self, t_ns: int) -> None:
+        """Issue the live operator requests that arrived (ground_station/operator_requests.py) now, at
+        ``t_ns``, and answer each one."""
+        if self.live is None:
+            return
+        self.live.mark_time(t_ns)
+        new = False
+        for name, req, err in self.live.poll():
+            if req is not None:
+                try:
+                    ids = self._issue_live(req, t_ns)
+                except ValueError as exc:
+                    err = f"refused: {exc}"
+                    self.live.refused["refused"] = self.live.refused.get("refused", 0) + 1
+                else:
+                    new = True
+                    self.live.reply(name, {"ok": True, "commands": ids, "issued_s": t_ns / _NS})
+                    continue
+            self.live.reply(name, {"ok": False, "error": err})
+        if new:  # the sends not yet made, in time order again
+            self.sends = self.sends[:self._i] + sorted(self.sends[self._i:])
+
+    def _issue_live(self, req: dict, t_ns: int) -> list[str]:
+        """Sign and queue the commands of one operator request issued at ``t_ns``; ValueError (one line)."""
+        kind, sat = req["request"], req["sat"]
+        names = self.world.sat_names
+        if sat not in names and not (kind == "task" and sat == ALL_SATS):
+            raise ValueError(f"sat {sat!r} is not a satellite of this run" + (" (or 'all')" if kind == "task" else ""))
+        if kind == "mode":
+            if req.get("mode") not in ("safe", "nominal"):
+                raise ValueError(f"mode {req.get('mode')!r}: expected safe or nominal")
+            args = {"mode": req["mode"]}
+        else:
+            cfg = _LiveTask(req)
+            args = task_args(self.world, cfg, "task")
+            if args["by_ns"] <= t_ns:
+                raise ValueError(f"the deadline {cfg.by} is not after the issue time ({t_ns / _NS:g} s into the run)")
+        self.live_issued += 1
+        k = self.live_issued
+        ids = []
+        for s in (names if sat == ALL_SATS else [sat]):
+            self._seq += 1
+            cid = f"op{k}" if sat != ALL_SATS else f"op{k}.{s}"
+            cmd = Command(cid, self._seq, s, kind, args, t_ns, t_ns + LIVE_VALID_S * _NS)
+            if self._queue(encode_command(cmd, self.key_of(s)).decode(), t_ns, s):
+                ids.append(cid)
+        return ids
 
     def key_of(self, sat: str) -> bytes:
         """Satellite ``sat``'s command key (sat_node/operations/commands.py satellite_command_key)."""
@@ -130,16 +202,21 @@ class CommanderLogic:
         return []
 
     def start(self, t0_ns: int) -> StepResult:
+        self._poll(t0_ns)
         return StepResult(self._due(t0_ns), self._wakeup(t0_ns))
 
     def step(self, t_ns: int, inbox: list[Envelope]) -> StepResult:
+        self._poll(t_ns)
         return StepResult(self._due(t_ns), self._wakeup(t_ns))
 
     def finish(self, t_ns: int) -> list[Emit]:
         return self._due(t_ns)
 
     def live_state(self, t_ns: int) -> LiveState:
-        return LiveState(None, {"commands.sent": self._i, "commands.not_uplinked": self.not_uplinked},
+        v = {"commands.sent": self._i, "commands.not_uplinked": self.not_uplinked, "live.issued": self.live_issued}
+        if self.live is not None:
+            v.update((f"live.refused.{k}", n) for k, n in self.live.refused.items())
+        return LiveState(None, v,
                          0, f"{self._i} of {len(self.sends)} commands uplinked")
 
     def _due(self, t_ns: int) -> list[Emit]:

@@ -135,10 +135,10 @@ class SatelliteLogic(OnboardOperations):
             self.port = DtnPort(name, self.agent)
         self.rejected_by_reason: dict[str, int] = {}
         self.ops = operations_for(sc, name)
-        # operator commands (sat_node/operations/commands.py): only in a run that scripts some, verified
-        # under this satellite's own command key (satellite_command_key; never the shared BPSec key)
-        self.guard = (CommandGuard(name, command_key)
-                      if getattr(sc, "commands", None) and command_key is not None else None)
+        # operator commands (sat_node/operations/commands.py): only in a run that takes some (scripted or
+        # live; the deployment then gives this satellite its own command key, satellite_command_key:
+        # never the shared BPSec key)
+        self.guard = CommandGuard(name, command_key) if command_key is not None else None
         self._ops_emits: list[Emit] = []  # command events of this step's inbox
         self.tasks = TaskBook()  # tasking requests executed here (sat_node/operations/tasking.py)
         hk_s = getattr(getattr(sc, "operations", None), "hk_period_s", 0.0)

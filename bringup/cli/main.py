@@ -51,6 +51,8 @@ COMMANDS: dict[str, tuple[str, str]] = {
             "run the DTN alone (BPv7 agents, CGR, the ISL medium) on a contact plan and traffic; print dtn.* figures"),
     "report": ("report", "rebuild report.json from a run's MCAP bag alone"),
     "ops": ("ops", "the operations dictionary (commands, events, telemetry) and a run's event log"),
+    "task": ("task", "task a running ROS run (--live-commands): image lat, lon with priority P before a deadline"),
+    "command": ("command", "command a satellite of a running ROS run (--live-commands): mode safe|nominal"),
     "replay": ("replay",
                "republish a recorded bag (raw CDR, with /clock) onto a live ROS 2 graph at a chosen rate"),
     "bag-info": ("bag_info", "print a recorded bag's topics, message types, counts and time span"),

@@ -62,6 +62,7 @@ from bringup.scenario.work import describe as describe_work
 from bringup.scenario.world import World
 from bringup.stop_signals import STOP_SIGNALS, Interrupted, stop_on_signals
 from dtn_router.router import ROUTER_NAME
+from ground_station.operator_requests import OPERATOR_DIR
 from msgs_json.envelope import Envelope
 
 # every file a run writes is closed before run() returns (bag by its writer or recorder process,
@@ -114,6 +115,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--force", action="store_true",
                    help="run a scenario past the work estimate's limits (ISL links in view, DP cells; "
                         "bringup/scenario/work.py): for a machine known to be fast enough")
+    p.add_argument("--live-commands", action="store_true",
+                   help="ros engine: take operator commands while the run goes on (`constellation task --out OUT "
+                        "...`, `constellation command --out OUT SAT mode safe`; docs/guide/operations.md)")
     p.add_argument("--restart", type=int, default=0, metavar="N",
                    help="ros engine: restart a crashed process (satellite, router, ground or the clock) up to "
                         "N times; every process checkpoints each step and resumes from it (default 0: a crash "
@@ -211,6 +215,9 @@ def _run(sc, cuts, out: Path, bag_dir: Path, args, folder: RunFolder, per_proces
         f"mode {args.mode}, engine {args.engine}"
         + (f" ({per_process} satellites per process)" if per_process > 1 else "") + f" -> {out}")
     say(f"run: BPSec key {keys.bpsec_from}")
+    if getattr(args, "live_commands", False) and args.engine != "ros":
+        raise UserError("--live-commands needs --engine ros (a local run has no live process to command; "
+                        "script the commands with [[commands]] instead)")
     if getattr(args, "work_estimate", None):
         say(f"run: estimate: {describe_work(args.work_estimate)}" + (" (--force)" if args.force else ""))
     t0 = time.perf_counter()
@@ -405,7 +412,16 @@ def _close_all(parts: list) -> None:
 def _run_ros(world, world_path: Path, args, meta, bag_dir: Path, out: Path, router_kw, keys, say, *,
              show: bool, per_process: int = 1) -> dict:
     sc = world.scenario
-    groups = process_groups(roles_for(world, args.mode), world.sat_names, per_process)
+    live = bool(getattr(args, "live_commands", False))
+    groups = process_groups(roles_for(world, args.mode, live_commands=live), world.sat_names, per_process)
+    extra_live = {}
+    if live:  # the folder live operator requests go into (ground_station/operator_requests.py)
+        op_dir = out / OPERATOR_DIR
+        if op_dir.exists():
+            shutil.rmtree(op_dir)
+        op_dir.mkdir(mode=0o700)
+        extra_live = {"operator_dir": str(op_dir.resolve())}
+        say(f"run: live commands: constellation task --out {out} --lat .. --lon .. --priority P --by ISO")
     store_dir = out / "store"
     if store_dir.exists():
         shutil.rmtree(store_dir)
@@ -424,7 +440,7 @@ def _run_ros(world, world_path: Path, args, meta, bag_dir: Path, out: Path, rout
                    state_dir=str((out / "state").resolve()) if args.restart else None,
                    extra={"world": str(world_path.resolve()), "world_key": world.key,
                           "store_dir": str(store_dir.resolve()), "meta": meta.__dict__,
-                          "router": router_kw})
+                          "router": router_kw, **extra_live})
     prog, update = _progress_display(show, sc.horizon_ns)
 
     last_status = [""]

@@ -30,6 +30,7 @@ from bringup.scenario.world import World
 from dtn_router.router import RouterLogic
 from ground_station.commander import COMMANDER_NAME, CommanderLogic
 from ground_station.ground_segment import GroundLogic
+from ground_station.operator_requests import RequestInbox, operator_key
 from orbit_clock.contact_announcer import ContactAnnouncer
 from orbit_clock.contact_faults import truth_plan
 from sat_node.dtn.store import BundleStore
@@ -46,7 +47,7 @@ CONTACTS_ROLE = "contacts"
 COMMANDER_ROLE = COMMANDER_NAME  # the operator-command gateway: only when the scenario scripts commands
 
 
-def roles_for(world_or_sats, mode: str) -> list[str]:
+def roles_for(world_or_sats, mode: str, *, live_commands: bool = False) -> list[str]:
     sats = list(world_or_sats.sat_names) if hasattr(world_or_sats, "sat_names") else list(world_or_sats)
     if mode not in MODES:
         raise UserError(f"--mode {mode!r}: expected one of {', '.join(MODES)}")
@@ -57,7 +58,7 @@ def roles_for(world_or_sats, mode: str) -> list[str]:
         roles.append(GROUND_ROLE)
     roles.append(CONTACTS_ROLE)
     sc = getattr(world_or_sats, "scenario", None)
-    if sc is not None and getattr(sc, "commands", None):
+    if live_commands or (sc is not None and getattr(sc, "commands", None)):
         roles.append(COMMANDER_ROLE)
     return roles
 
@@ -110,14 +111,17 @@ def kernels_for(mode: str, role: str | None) -> tuple[str, ...]:
 
 
 def make_participant(world: World, role: str, mode: str, *, store_dir: Path | None, router_kw: dict | None,
-                     bpsec_key: bytes, command_key: bytes | None = None):
+                     bpsec_key: bytes, command_key: bytes | None = None, live: tuple[Path, bytes] | None = None):
     """Participant ``role``. ``command_key``: the ground's command key (bringup/engine/keys.py), needed
-    when the scenario scripts commands: the commander holds it, each satellite only the key derived
-    from it for its name (sat_node/operations/commands.py satellite_command_key)."""
-    commands = getattr(world.scenario, "commands", None)
+    when the scenario scripts commands or the run takes live ones: the commander holds it, each
+    satellite only the key derived from it for its name (sat_node/operations/commands.py
+    satellite_command_key). ``live``: (the run's operator folder, the run key) when the run takes live
+    operator requests (ground_station/operator_requests.py; ``constellation run --live-commands``)."""
+    scripted = getattr(world.scenario, "commands", None)
+    commands = bool(scripted) or live is not None
     if commands and command_key is None:
         raise UserError("[[commands]] need the ground's command key (the run keys' 'command'); none was given")
-    if role == COMMANDER_ROLE and mode != "distributed" and any(c.kind == "task" for c in commands or ()):
+    if role == COMMANDER_ROLE and mode != "distributed" and any(c.kind == "task" for c in scripted or ()):
         raise UserError(f"tasking requests ([[commands]] kind = 'task') need onboard planning: --mode distributed, "
                         f"not {mode}")
     if role == ROUTER_ROLE:
@@ -127,8 +131,9 @@ def make_participant(world: World, role: str, mode: str, *, store_dir: Path | No
     if role == GROUND_ROLE:
         return GroundLogic(world)
     if role == COMMANDER_ROLE and commands:
+        inbox = RequestInbox(live[0], operator_key(live[1])) if live is not None else None
         try:
-            return CommanderLogic(world, command_key)
+            return CommanderLogic(world, command_key, live=inbox)
         except ValueError as exc:  # a task's target off every region's grid: refused up front
             raise UserError(str(exc)) from None
     if role in world.sat_names:

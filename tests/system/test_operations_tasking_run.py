@@ -48,8 +48,8 @@ def scenario(path: Path, commands=COMMANDS) -> Path:
     return path
 
 
-def run(engine: str, out: Path) -> Path:
-    sc = scenario(out.with_suffix(".toml"))
+def run(engine: str, out: Path, commands=COMMANDS) -> Path:
+    sc = scenario(out.with_suffix(".toml"), commands)
     cmd = [sys.executable, "-m", "bringup.cli", "run", "--engine", engine, "--scenario", str(sc),
            "--sats", "12", "--hours", "0.5", "--out", str(out), "--no-plots", "--no-progress"]
     r = subprocess.run(cmd, capture_output=True, text=True, timeout=1200, check=False)

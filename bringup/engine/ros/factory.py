@@ -40,9 +40,11 @@ def build(spec: RunSpec, role: str) -> list:
     world = World.load(Path(path), spec.extra.get("world_key"))
     store_dir = spec.extra.get("store_dir")
     keys = spec.keys()
+    op_dir = spec.extra.get("operator_dir")  # live operator requests (constellation run --live-commands)
+    live = (Path(op_dir), keys.run) if op_dir else None
     return [make_participant(world, r, spec.mode, store_dir=Path(store_dir) if store_dir else None,
                              router_kw=spec.extra.get("router"), bpsec_key=keys.bpsec,
-                             command_key=keys.command or None) for r in spec.members(role)]
+                             command_key=keys.command or None, live=live) for r in spec.members(role)]
 
 
 def prepare(spec: RunSpec, role: str | None) -> dict[str, float]:
