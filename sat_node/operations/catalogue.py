@@ -60,7 +60,7 @@ def _catalogue() -> dict[int, dict]:
 EVENTS: dict[int, dict] = _catalogue()
 _BY_KEY = {(e["message"], e.get("mode", e.get("stage")), e.get("reason", "")): k for k, e in EVENTS.items()}
 #: the operations messages the dictionary describes
-MESSAGES = (S.ModeChange, S.CommandEvent, S.GroundCommand, S.Housekeeping)
+MESSAGES = (S.ModeChange, S.CommandEvent, S.CommandAck, S.GroundCommand, S.Housekeeping)
 
 
 def event_of(msg) -> tuple[int, str, str]:

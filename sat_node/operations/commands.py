@@ -25,7 +25,8 @@ A satellite accepts a command only when (:class:`CommandGuard`, in this order) i
 
 How we know it is right: tests/unit/test_operations_commands.py - the MAC against Python's
 ``hmac`` module recomputed by the test over the exact bytes, a flipped byte of payload or tag is
-``forged``, the same command twice is ``replayed``, a late one ``expired``, every rejection counted.
+``forged``, the same command twice is ``replayed``, a late one ``expired``, every rejection counted;
+a command under the BPSec key, the ground's key itself or another satellite's key is ``forged``.
 """
 
 from __future__ import annotations

@@ -5,11 +5,14 @@ What it does at each step, on the satellite's own state only: the mode rules on 
 mode change does (the plan dropped, the safe attitude, the mode notice to the neighbours,
 sat_node/operations/notice.py), neighbours' notices received over the DTN, and operator commands
 uplinked by the ground gateway or relayed over the ISLs (sat_node/operations/commands.py), among
-them tasking requests (sat_node/operations/tasking.py: the target joins the GPs the planner values).
+them tasking requests (sat_node/operations/tasking.py: the target joins the GPs the planner values),
+and the acknowledgement of each command event to the ground (CommandAck on /ground/acks at the
+first moment in one of the satellite's own ground contacts).
 
 Oracle: tests/unit/test_operations_satellite.py (one satellite stepped by hand),
-tests/system/test_operations_faults.py and tests/system/test_operations_commands_run.py (whole runs, both
-engines).
+tests/unit/test_operations_tasking.py (a task executed, the peek test),
+tests/system/test_operations_faults.py, tests/system/test_operations_commands_run.py and
+tests/system/test_operations_tasking_run.py (whole runs, both engines; acks inside the ground contacts).
 """
 
 from __future__ import annotations
