@@ -15,6 +15,12 @@ regard reach its GPs after their uplinked plans end (sat_node/scheduler/planner.
 cannot change what it already uplinked, but it does not give this satellite a GP another one will
 be better placed to take.
 
+Downlinks are bundles (sat_node/dtn/downlink.py): the ground segment runs a bundle agent with the
+satellites' persistent store (ground_station/ground_agent.py) that receives each downlinked bundle at
+its pass and delivers it (or, with a ground gateway, forwards it to the gateway's peer,
+ground_station/gateway.py); the observation the ground learns is the one the bundle carries.
+Bundles the gateway's peer sends go up to their satellite at its next pass (``/ground/bundles``).
+
 Value knowledge: what was downlinked only. The ground processes each downlinked observation itself
 (the recorded value through its own seeded inference noise) and keeps it in its
 :class:`~sat_node.knowledge.KnowledgeState`; the scenario's knowledge model (``value.knowledge``,
@@ -37,8 +43,11 @@ from msgs_json import codec
 from msgs_json import schemas as S
 from msgs_json import topics as T
 from msgs_json.envelope import Emit, Envelope, StepResult
+from sat_node.dtn.downlink import GROUND_NODE
 from sat_node.knowledge import KnowledgeParams, KnowledgeState
 from sat_node.value import Belief, KnownObservation
+
+from .ground_agent import GroundAgent
 
 __all__ = ["GroundLogic", "GROUND_NAME"]
 
@@ -50,10 +59,19 @@ _NS = 1_000_000_000
 
 
 class GroundLogic:
+    """``bpsec_key``: the constellation's key (the ground's bundle agent checks the downlinks' BIBs;
+    None: no agent - the ground can plan (start) but refuses downlinks); ``store_path``: its bundle
+    store (None: in memory); ``gateway``: a started ground_station.gateway.Gateway (None: none)."""
+
     name = GROUND_NAME
 
-    def __init__(self, world):
+    def __init__(self, world, bpsec_key: bytes | None = None, *, store_path: str | None = None, gateway=None):
         self.world = world
+        self.gateway = gateway
+        self.dtn = None if bpsec_key is None else GroundAgent(
+            world, bpsec_key, store_path=store_path, peer_node=None if gateway is None else gateway.spec.node,
+            foreign="accept" if gateway is None else gateway.spec.foreign)
+        self._to_peer: dict[str, object] = {}  # bundle id -> transmission handed to the gateway
         sc = world.scenario
         self.sc = sc
         self.sats = list(world.sat_names)
@@ -80,31 +98,107 @@ class GroundLogic:
         for sat in self.sats:
             station = self.world.station_nodes[0] if self.world.station_nodes else "gs_ground"
             emits.append(self._plan_and_uplink(sat, t0_ns, station))
-        return StepResult(emits, None)
+        return StepResult(emits, self._wakeup(t0_ns))
 
     def step(self, t_ns: int, inbox: list[Envelope]) -> StepResult:
+        store = self.dtn.store if self.dtn is not None else None
+        own_tx = store is not None and store.begin()  # one store transaction per step, as a satellite's
+        try:
+            return self._step(t_ns, inbox)
+        finally:
+            if own_tx:
+                store.commit()
+
+    def _step(self, t_ns: int, inbox: list[Envelope]) -> StepResult:
         emits = []
+        if self.gateway is not None:
+            self._from_gateway(t_ns)
         for env in inbox:
             try:
                 dl = codec.decode(env.topic, env.data)
             except ValueError:
                 self.rejected += 1
                 continue
-            if dl.sat not in self.planned:
+            if dl.sat not in self.planned or self.dtn is None:
                 self.rejected += 1
                 continue
             osse, region = self.world.osse, self.world.gps.region_index
-            for o in dl.observations:
+            for data in dl.bundles:
+                try:  # what the downlinked bundle carries, once the ground's agent took it
+                    o = self.dtn.downlink(data, dl.sat, dl.t_ns)
+                except ValueError:
+                    self.rejected += 1
+                    continue
+                if o is None:
+                    continue
                 self.downlinked.append(KnownObservation(o.t_ns / _NS, o.gp, o.sat))
                 inferred = o.recorded_value * float(self.belief.factor(o.gp, osse.slot_of(o.t_ns / _NS)))
                 self.kstate.observe(osse, o.gp, o.t_ns, inferred, int(region[o.gp]), src=o.sat)
             # what it planned for that satellite up to the pass is now known as executed (or not)
             self.planned[dl.sat] = [k for k in self.planned[dl.sat] if k.t_s * _NS > dl.t_ns]
             emits.append(self._plan_and_uplink(dl.sat, t_ns, dl.station))
-        return StepResult(emits, None)
+        emits += self._transmit(t_ns)
+        return StepResult(emits, self._wakeup(t_ns))
 
     def finish(self, t_ns: int) -> list[Emit]:
-        return []
+        if self.dtn is None:
+            return []
+        if self.gateway is not None:
+            self._from_gateway(t_ns)
+        emits = self._transmit(t_ns)
+        if self.gateway is not None:  # the peer's acknowledgments of what is on its way
+            self.gateway.flush()
+            self._from_gateway(t_ns)
+        return emits
+
+    def close(self) -> None:
+        """Close the ground's bundle store (after ``finish``)."""
+        if self.dtn is not None:
+            self.dtn.close()
+
+    # ------------------------------------------------------------------ the bundle agent
+    def _from_gateway(self, t_ns: int) -> None:
+        """What the gateway brought since the last step: acknowledgments, then the peer's bundles."""
+        for bid in self.gateway.take_acks():
+            tx = self._to_peer.pop(bid, None)
+            if tx is not None:
+                self.dtn.acknowledged(tx)
+        for data in self.gateway.take_received():
+            self.dtn.from_peer(data, t_ns)
+
+    def _transmit(self, t_ns: int) -> list[Emit]:
+        if self.dtn is None:
+            return []
+        ups, to_peer = self.dtn.transmissions(t_ns)
+        for tx in to_peer:
+            if self.gateway is None:  # (the graph has no peer contact without a gateway)
+                raise RuntimeError(f"ground agent sent bundle {tx.bundle_id} to a peer without a gateway")
+            self._to_peer[tx.bundle_id] = tx
+            self.gateway.submit(tx.bundle_id, tx.bundle_bytes)
+        return [Emit(T.GROUND_BUNDLES, codec.encode(S.GroundBundle(station=u.station, sat=u.sat, t_ns=u.t_ns,
+                                                                      bundle=u.data)), u.t_ns) for u in ups]
+
+    def _wakeup(self, t_ns: int) -> int | None:
+        cands = []
+        nxt = self.dtn.next_event_ns() if self.dtn is not None else None
+        if nxt is not None:
+            cands.append(max(nxt, t_ns + 1))
+        if self.gateway is not None:  # look for the peer's bundles and acknowledgments this often
+            cands.append(t_ns + self.gateway.poll_ns)
+        return min(cands) if cands else None
+
+    def gateway_report(self) -> dict:
+        """The ground agent's and the gateway's counters (the run writes them to gateway.json)."""
+        d = self.dtn
+        out = {"ground_node": f"ipn:{GROUND_NODE}", "agent": dict(sorted(d.counters.items())),
+               "rx_policy": dict(sorted(d.agent.rx_counts.items())),
+               "events": dict(sorted(d.agent.counters.items())), "held_at_end": d.held(),
+               "uplinked": [{"bundle": b, "sat": s, "t_ns": t} for b, s, t in d.uplinked],
+               "from_peer": [{"bundle": b, "dest": e, "t_ns": t, "result": r} for b, e, t, r in d.peer_log],
+               "awaiting_acknowledgment": len(self._to_peer)}
+        if self.gateway is not None:
+            out["gateway"] = self.gateway.report()
+        return out
 
     def _next_pass_after(self, sat: str, t_ns: int) -> int | None:
         for s, e, _ in self.passes[sat]:

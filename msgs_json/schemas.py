@@ -37,6 +37,8 @@ topic                  type                          meaning
 /sat_XX/ops/hk         Housekeeping                  the satellite's housekeeping channels at
                                                      ``operations.hk_period_s`` (sat_node/operations/)
 /ground/downlink       GroundDownlink                observations a satellite downlinked at a pass
+                                                     (and the bundles carrying them)
+/ground/bundles        GroundBundle                  a bundle the ground's agent uplinks (gateway)
 /ground/uplink         GroundUplink                  a plan uplinked to a satellite at a pass
 =====================  ============================  =============================================
 
@@ -74,6 +76,7 @@ __all__ = [
     "CommandAck",
     "CommandEvent",
     "GroundCommand",
+    "GroundBundle",
     "ModeChange",
     "Observation",
     "Schedule",
@@ -234,12 +237,15 @@ class Observation(_Msg, kw_only=True, frozen=True):
 
 
 class GroundDownlink(_Msg, kw_only=True, frozen=True):
-    """Observations ``sat`` downlinked to ``station`` during the pass at ``t_ns`` (centralized mode)."""
+    """Observations ``sat`` downlinked to ``station`` during the pass at ``t_ns`` (centralized mode),
+    and the BPv7 bundles that carry them to the ground's bundle agent (one per observation, in the
+    same order: sat_node/dtn/downlink.py)."""
 
     station: StationName
     sat: SatName
     t_ns: NsTime
     observations: list[Observation] = []
+    bundles: Annotated[list[bytes], Meta(max_length=100_000)] = []
 
     def _check(self) -> None:
         if any(o.sat != self.sat for o in self.observations):
@@ -407,6 +413,16 @@ class CommandAck(_Msg, kw_only=True, frozen=True):
             raise ValueError(f"CommandAck: reached the ground at {self.t_ns} ns, before its event at {self.event_ns} ns")
 
 
+class GroundBundle(_Msg, kw_only=True, frozen=True):
+    """One BPv7 bundle the ground's bundle agent uplinks from ``station`` to ``sat`` at ``t_ns``
+    (ground_station/ground_agent.py: a bundle a gateway's peer sent into the constellation)."""
+
+    station: StationName
+    sat: SatName
+    t_ns: NsTime
+    bundle: Annotated[bytes, Meta(max_length=1 << 24)]
+
+
 class GroundCommand(_Msg, kw_only=True, frozen=True):
     """The ground gateway uplinks a signed operator command (sat_node/operations/, ASCII)
     to satellite ``relay`` at ``t_ns``, during one of its ground contacts; the relay forwards it over
@@ -456,5 +472,6 @@ MESSAGE_TYPES: tuple[type[msgspec.Struct], ...] = (
     CommandEvent,
     CommandAck,
     GroundCommand,
+    GroundBundle,
     Housekeeping,
 )

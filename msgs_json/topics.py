@@ -28,6 +28,7 @@ __all__ = [
     "DIAGNOSTICS",
     "GROUND_ACKS",
     "GROUND_COMMANDS",
+    "GROUND_BUNDLES",
     "GROUND_DOWNLINK",
     "GROUND_UPLINK",
     "SCHEMA_VERSION",
@@ -67,6 +68,7 @@ GROUND_UPLINK = "/ground/uplink"
 GROUND_DOWNLINK = "/ground/downlink"
 GROUND_COMMANDS = "/ground/commands"
 GROUND_ACKS = "/ground/acks"
+GROUND_BUNDLES = "/ground/bundles"  # bundles the ground's agent uplinks (only with a ground gateway)
 VIZ_MARKERS = "/viz/constellation"
 VIZ_VALUE = "/viz/value"  # std_msgs/msg/Float64: the run's cumulative true value (Eq. 1) so far
 VIZ_IN_FLIGHT = "/viz/bundles_in_flight"  # std_msgs/msg/UInt32: bundle copies the ISL medium holds
@@ -147,6 +149,7 @@ _GLOBAL: dict[str, object] = {
     GROUND_DOWNLINK: S.GroundDownlink,
     GROUND_COMMANDS: S.GroundCommand,
     GROUND_ACKS: S.CommandAck,
+    GROUND_BUNDLES: S.GroundBundle,
 }
 _PER_SAT: dict[str, object] = {
     "acs/command": S.AcsCommand,

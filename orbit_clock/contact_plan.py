@@ -5,7 +5,9 @@ the study's plan (tests/fixtures/paper_inputs/contact_plan_3p_8s.csv) and in ION
 Node names are the satellites' names (``sat_PS``, or ``sat_PPPP_SSSS`` beyond 9 planes x 9 slots:
 msgs_json/names.py) and ``gs_<name>`` for ground stations; the ipn node number (RFC 9171 section
 4.2.5.1.2) of a satellite is its name's digits (``10*P + S``, ``10000*P + S``) and of the i-th
-ground station (0-based, scenario order) is ``100 + i``.
+ground station (0-based, scenario order) is ``100 + i``. A DTN node outside the constellation (the
+ground segment's bundle agent, a gateway's terrestrial peer: ground_station/ground_agent.py) is named
+``ipn_<N>`` after its node number N.
 
 File formats (the study's CSV, ION, HDTN JSON) are read and written by
 orbit_clock/contact_plan_io.py.
@@ -21,7 +23,7 @@ from dataclasses import dataclass
 
 from msgs_json.names import STATION_NODE_BASE, is_sat_name, sat_from_number, sat_number
 
-__all__ = ["GS_NODE_BASE", "Contact", "ContactPlan", "canonical_node", "node_name", "node_number"]
+__all__ = ["GS_NODE_BASE", "Contact", "ContactPlan", "canonical_node", "ipn_node", "node_name", "node_number"]
 
 GS_NODE_BASE = STATION_NODE_BASE
 _STUDY_RE = re.compile(r"^(?:s|Sat|SAT)([1-9])([1-9])$")  # the study's spellings of sat_PS
@@ -93,6 +95,8 @@ def node_number(name: str, ground_stations: list[str] | None = None) -> int:
         return n
     if name.startswith("gs_") and ground_stations is not None and name in ground_stations:
         return GS_NODE_BASE + ground_stations.index(name)
+    if name.startswith("ipn_") and name[4:].isdigit() and name[4] != "0":
+        return int(name[4:])
     raise ValueError(f"node name {name!r}: not a satellite (sat_PS, sat_PPPP_SSSS), nor a known ground station")
 
 
@@ -104,6 +108,13 @@ def node_name(number: int, ground_stations: list[str] | None = None) -> str:
     if ground_stations is not None and 0 <= number - GS_NODE_BASE < len(ground_stations):
         return ground_stations[number - GS_NODE_BASE]
     raise ValueError(f"ipn node number {number}: not a satellite (11..99, 10001..) nor a known ground station")
+
+
+def ipn_node(number: int) -> str:
+    """The name of a DTN node outside the constellation by its ipn node number (``ipn_<N>``)."""
+    if not 0 < int(number) < 1 << 64:
+        raise ValueError(f"ipn node number {number}: must be 1..2^64-1")
+    return f"ipn_{int(number)}"
 
 
 def canonical_node(name: str) -> str:

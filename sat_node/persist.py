@@ -37,7 +37,8 @@ from sat_node.value import KnownLog
 
 __all__ = ["persistent_connection", "restore", "snapshot"]
 
-_SAT_SHARED = ("world", "sc", "belief", "agent", "port")
+# _key: the BPSec key (centralized downlinks) never goes in a checkpoint
+_SAT_SHARED = ("world", "sc", "belief", "agent", "port", "_key")
 _AGENT_SHARED = ("graph", "store", "config", "on_event", "_out_starts", "_backlog_buf", "_excluded_buf")
 _PORT_SHARED = ("agent",)
 

@@ -46,7 +46,9 @@ created = delivered + dropped by reason + held).
 from __future__ import annotations
 
 import dataclasses
+import hashlib
 import time
+from collections import Counter
 from dataclasses import dataclass
 
 import numpy as np
@@ -55,12 +57,16 @@ from msgs_json import codec
 from msgs_json import schemas as S
 from msgs_json import topics as T
 from msgs_json.envelope import Emit, Envelope, LiveState, StepResult
+from orbit_clock.contact_plan import node_number
 from sat_node import persist
 from sat_node.acs import angle_between_deg, nadir_unit, unit_vectors
 from sat_node.dtn.agent import AgentConfig
-from sat_node.dtn.bpv7 import dtn_ms_of
+from sat_node.dtn.bpsec import IntegrityError
+from sat_node.dtn.bpv7 import BundleError, decode_bundle, dtn_ms_of
+from sat_node.dtn.downlink import GROUND_NODE, downlink_bundle
 from sat_node.dtn.multicast import new_agent
 from sat_node.dtn.port import DtnPort, count_rejection
+from sat_node.dtn.rx_policy import admit
 from sat_node.dtn.store import BundleStore
 from sat_node.inference import Inference, decode_inference, encode_inference
 from sat_node.knowledge import KnowledgeParams, KnowledgeState
@@ -88,7 +94,8 @@ class SatelliteLogic(OnboardOperations):
     """Participant for satellite ``name``; ``world`` is a bringup.scenario.world.World."""
 
     def __init__(self, world, name: str, mode: str = "distributed", *, store_path: str | None = None,
-                 dtn: bool | None = None, bpsec_key: bytes | None = None, command_key: bytes | None = None):
+                 dtn: bool | None = None, bpsec_key: bytes | None = None, command_key: bytes | None = None,
+                 downlink_node: int = GROUND_NODE, ground_bundles: bool = False):
         if mode not in ("distributed", "centralized", "nonagile"):
             raise ValueError(f"mode {mode!r}: expected distributed, centralized or nonagile")
         self.name = name
@@ -114,6 +121,19 @@ class SatelliteLogic(OnboardOperations):
         self.rejected = 0
         self.dtn = (mode == "distributed") if dtn is None else dtn
         self.pending_downlink: list[S.Observation] = []
+        # centralized: each downlinked observation is a bundle to the ground segment (or, with a ground
+        # gateway, to the gateway's peer node: sat_node/dtn/downlink.py); ground_bundles: the ground
+        # uplinks bundles from the gateway's peer (/ground/bundles), delivered here
+        if mode == "centralized" and bpsec_key is None:
+            raise ValueError(f"satellite {name}: centralized downlinks are bundles signed with the "
+                             "constellation's BPSec key (bpsec_key), given by the deployment")
+        self._key = bpsec_key
+        self._epoch_dtn_ms = dtn_ms_of(sc.epoch)
+        self.downlink_node = int(downlink_node)
+        self.ground_bundles = ground_bundles and mode == "centralized"
+        self.from_ground: Counter[str] = Counter()  # what became of the bundles the ground uplinked
+        # (bundle id, payload bytes, the payload's SHA-256, t_ns)
+        self.delivered_from_ground: list[tuple[str, int, str, int]] = []
         self.ground_passes = sorted({int(round(c.start_s * _NS)) for c in world.ground_plan.contacts
                                      if c.src == name})
         self._next_pass_i = 0
@@ -153,6 +173,8 @@ class SatelliteLogic(OnboardOperations):
             subs += self.port.subscriptions()
         if self.mode == "centralized":
             subs.append(T.GROUND_UPLINK)
+        if self.ground_bundles:
+            subs.append(T.GROUND_BUNDLES)
         if self.guard is not None:
             subs.append(T.GROUND_COMMANDS)
         return subs
@@ -296,6 +318,8 @@ class SatelliteLogic(OnboardOperations):
                 self._learn(inf.gp, inf.t_ns, inf.src)
                 self.kstate.learn(inf)
                 self._check_news(inf.gp, inf.t_ns)
+        elif env.topic == T.GROUND_BUNDLES:
+            self._on_ground_bundle(codec.decode(env.topic, env.data), t_ns)
         elif env.topic == T.GROUND_COMMANDS:
             self._on_uplinked_command(codec.decode(env.topic, env.data), t_ns)
         elif env.topic == T.GROUND_UPLINK:
@@ -460,11 +484,33 @@ class SatelliteLogic(OnboardOperations):
             pass_ns = self.ground_passes[self._next_pass_i]
             self._next_pass_i += 1
             station = self._station_at(pass_ns)
-            msg = S.GroundDownlink(station=station, sat=self.name, t_ns=pass_ns,
-                                   observations=[o for o in self.pending_downlink if o.t_ns <= pass_ns])
+            obs = [o for o in self.pending_downlink if o.t_ns <= pass_ns]
+            bundles = [downlink_bundle(o, self._key, self._epoch_dtn_ms, self.downlink_node) for o in obs]
+            msg = S.GroundDownlink(station=station, sat=self.name, t_ns=pass_ns, observations=obs,
+                                   bundles=bundles)
             self.pending_downlink = [o for o in self.pending_downlink if o.t_ns > pass_ns]
             emits.append(Emit(T.GROUND_DOWNLINK, codec.encode(msg), pass_ns))
         return emits
+
+    def _on_ground_bundle(self, msg: S.GroundBundle, t_ns: int) -> None:
+        """A bundle the ground uplinked (from the gateway's peer): the BIB checked when present,
+        bundles of other stacks accepted (the ground applied the gateway's policy), delivered when
+        it is for this satellite; every outcome counted in ``from_ground``."""
+        if msg.sat != self.name:
+            return
+        try:
+            b = decode_bundle(msg.bundle)
+            admit(b, self._key, "accept", counts=self.from_ground)
+        except (BundleError, IntegrityError) as exc:
+            self.from_ground["refused"] += 1
+            self.last_error = f"{T.GROUND_BUNDLES}: {exc}"
+            return
+        if b.dest[0] != node_number(self.name):
+            self.from_ground["not_for_this_satellite"] += 1
+            return
+        self.from_ground["delivered"] += 1
+        digest = hashlib.sha256(b.payload).hexdigest()
+        self.delivered_from_ground.append((b.bundle_id, len(b.payload), digest, t_ns))
 
     def _station_at(self, pass_ns: int) -> str:
         for c in self.world.ground_plan.contacts:

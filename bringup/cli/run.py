@@ -32,6 +32,7 @@ from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
 from bringup.analysis.report import ReportBuilder, RunMeta, report_from_bag
 from bringup.analysis.report_md import report_md
+from bringup.cli import gateway_run as cli_gateway
 from bringup.cli.common import (
     add_key_args,
     add_scenario_args,
@@ -87,6 +88,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="ros: real rclpy nodes, one OS process per satellite (or --sats-per-process), DDS on "
                         "loopback; local: the same logic in one process, identical results (default: ros)")
     p.add_argument("--out", type=Path, default=None, help="run folder (default runs/<scenario>-<mode>)")
+    p.add_argument("--ground-gateway", default=None, metavar="URL",
+                   help="centralized, local engine: the ground's bundle agent exchanges bundles with a DTN "
+                        "node: tcpcl4|tcpcl3|udp://HOST:PORT?node=N[&listen=HOST:PORT]"
+                        "[&foreign=accept|refuse]; "
+                        "the downlinks go to ipn:N.1, the node's bundles up to their satellite "
+                        "(docs/guide/dtn-interop.md)")
     p.add_argument("--real-time-factor", type=float, default=None,
                    help="pace the clock at this many sim seconds per wall second (default: as fast as possible)")
     p.add_argument("--no-progress", action="store_true", help="no progress display")
@@ -164,6 +171,7 @@ def run(args: argparse.Namespace) -> int:
     if not 0 <= args.restart <= MAX_RESTARTS:
         raise UserError(f"--restart {args.restart}: must be in 0..{MAX_RESTARTS}")
     sc = scenario_from_args(args)
+    gateway_spec = cli_gateway.gateway_spec(args)
     if args.domain_id is not None and not 0 <= args.domain_id <= MAX_DOMAIN_ID:
         raise UserError(f"--domain-id {args.domain_id}: expected 0..{MAX_DOMAIN_ID}")
     if args.engine != "ros" and (args.domain_id is not None or args.namespace or args.ros_args):
@@ -185,7 +193,10 @@ def run(args: argparse.Namespace) -> int:
     keys = keys_from_args(args)
     # SIGTERM, SIGHUP, SIGQUIT as Ctrl-C: the folder says "interrupted" with the signal, a partial
     # report of what the bag holds, the keys removed (bringup/stop_signals.py)
-    with stop_on_signals(), RunFolder(args.out or Path("runs") / f"{sc.name}-{args.mode}") as folder:
+    # the gateway's peer is reached before anything else is made: an unreachable one is one line, exit 2
+    args._gateway = cli_gateway.start_gateway(gateway_spec)
+    with cli_gateway.closing(args._gateway), stop_on_signals(), \
+            RunFolder(args.out or Path("runs") / f"{sc.name}-{args.mode}") as folder:
         out = folder.path
         bag_dir = out / "bag"
         try:
@@ -336,8 +347,9 @@ def _run_local(world, args, meta, bag_dir: Path, out: Path, router_kw, keys, *, 
     store_dir = out / "store"  # (made by run(): _fresh_store_dir)
     # the recorder (bag, visualisation, report decoding) forks first, before the stores open
     with Recorder(bag_dir, world, report=ReportBuilder) as rec:
-        parts = all_participants(world, args.mode, store_dir=store_dir, router_kw=router_kw, bpsec_key=keys.bpsec,
-                                 command_key=keys.command or None)
+        parts = all_participants(world, args.mode, store_dir=store_dir, router_kw=router_kw,
+                                 bpsec_key=keys.bpsec, command_key=keys.command or None,
+                                 gateway=getattr(args, "_gateway", None))
         prog, update = _progress_display(show, sc.horizon_ns)
         rec.write_envelope(Envelope(0, "run", 0, "/run/meta", json.dumps({"meta": meta.__dict__})))
 
@@ -383,7 +395,10 @@ def _run_local(world, args, meta, bag_dir: Path, out: Path, router_kw, keys, *, 
         # while the recorder finishes the bag and the report, the satellites' stores close: SQLite
         # checkpoints each WAL into its file and syncs it, mostly waiting on the disk, so the 24
         # closes run side by side (~1 s one after the other on the paper run)
+        gateway = cli_gateway.write_gateway_report(out, parts, lambda *a: print(*a, file=sys.stderr))
         rep = rec.finish(meta, json.loads(json.dumps(runtime)), meanwhile=lambda: _close_all(parts))
+        if gateway is not None:  # the ground gateway's counters, each policy decision per reason
+            rep["gateway"] = gateway
     return runtime, rep
 
 

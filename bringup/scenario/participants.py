@@ -111,12 +111,15 @@ def kernels_for(mode: str, role: str | None) -> tuple[str, ...]:
 
 
 def make_participant(world: World, role: str, mode: str, *, store_dir: Path | None, router_kw: dict | None,
-                     bpsec_key: bytes, command_key: bytes | None = None, live: tuple[Path, bytes] | None = None):
+                     bpsec_key: bytes, command_key: bytes | None = None, live: tuple[Path, bytes] | None = None,
+                     gateway=None):
     """Participant ``role``. ``command_key``: the ground's command key (bringup/engine/keys.py), needed
     when the scenario scripts commands or the run takes live ones: the commander holds it, each
     satellite only the key derived from it for its name (sat_node/operations/commands.py
     satellite_command_key). ``live``: (the run's operator folder, the run key) when the run takes live
-    operator requests (ground_station/operator_requests.py; ``constellation run --live-commands``)."""
+    operator requests (ground_station/operator_requests.py; ``constellation run --live-commands``).
+    ``gateway``: a started ground_station.gateway.Gateway (local runs with ``--ground-gateway``): the
+    ground forwards to its peer, and the satellites address their downlinks to the peer's node."""
     scripted = getattr(world.scenario, "commands", None)
     commands = bool(scripted) or live is not None
     if commands and command_key is None:
@@ -129,7 +132,11 @@ def make_participant(world: World, role: str, mode: str, *, store_dir: Path | No
     if role == CONTACTS_ROLE:
         return ContactAnnouncer(truth_plan(world.isl_plan, **(router_kw or {})), world.ground_plan)
     if role == GROUND_ROLE:
-        return GroundLogic(world)
+        # the ground's store is a file when it can hold bundles across steps: with a gateway (bundles for
+        # the peer until acknowledged, bundles from it until their pass); without one every downlink is
+        # delivered at once and the store stays empty (kept in memory)
+        store = None if store_dir is None or gateway is None else str(Path(store_dir) / "ground.sqlite")
+        return GroundLogic(world, bpsec_key, store_path=store, gateway=gateway)
     if role == COMMANDER_ROLE and commands:
         inbox = RequestInbox(live[0], operator_key(live[1])) if live is not None else None
         try:
@@ -139,7 +146,10 @@ def make_participant(world: World, role: str, mode: str, *, store_dir: Path | No
     if role in world.sat_names:
         store = str(store_path(store_dir, role)) if store_dir is not None and mode == "distributed" else None
         own = satellite_command_key(command_key, role) if commands else None
-        return SatelliteLogic(world, role, mode, store_path=store, bpsec_key=bpsec_key, command_key=own)
+        if gateway is None:
+            return SatelliteLogic(world, role, mode, store_path=store, bpsec_key=bpsec_key, command_key=own)
+        return SatelliteLogic(world, role, mode, store_path=store, bpsec_key=bpsec_key, command_key=own,
+                              downlink_node=gateway.spec.node, ground_bundles=True)
     raise UserError(f"role {role!r}: not a satellite of the scenario, nor "
                     f"'{ROUTER_ROLE}'/'{GROUND_ROLE}'/'{CONTACTS_ROLE}' "
                     f"(or '{COMMANDER_ROLE}' with [[commands]])")
@@ -169,12 +179,12 @@ def create_stores(store_dir: Path, sats: list[str]):
 
 
 def all_participants(world: World, mode: str, *, bpsec_key: bytes, store_dir: Path | None = None,
-                     router_kw: dict | None = None, command_key: bytes | None = None) -> list:
+                     router_kw: dict | None = None, command_key: bytes | None = None, gateway=None) -> list:
     """Every participant of a run in one process (the local engine); ``command_key`` None: a new
     random ground command key (every participant is made here, so they all agree on it)."""
     if command_key is None and getattr(world.scenario, "commands", None):
         command_key = secrets.token_bytes(32)
     return [make_participant(world, r, mode, store_dir=store_dir, router_kw=router_kw, bpsec_key=bpsec_key,
-                             command_key=command_key)
+                             command_key=command_key, gateway=gateway)
             for r in roles_for(world, mode)]
 

@@ -71,9 +71,9 @@ from orbit_clock.contact_plan import ContactPlan, node_name, node_number
 
 from .bpsec import IntegrityError, add_bib
 from .rx_policy import FOREIGN_POLICIES, admit
-from .bpv7 import PAPER_EPOCH_DTN_MS, Bundle, BundleError, decode_bundle, encode_bundle, ipn
+from .bpv7 import BIB_BLOCK, PAPER_EPOCH_DTN_MS, Bundle, BundleError, decode_bundle, encode_bundle, ipn
 from .cgr import ContactGraph
-from .routing_blocks import peek_next_hops, set_routing
+from .routing_blocks import RECIPIENTS_BLOCK, peek_next_hops, set_routing
 from .store import BundleStore, StoredBundle
 
 __all__ = ["BundleAgent", "AgentConfig", "Transmission", "BundleEvent", "ttl_s_for_priority",
@@ -313,6 +313,9 @@ class BundleAgent:
         self._settle_at = _NEVER  # when the oldest transmission in flight is settled (O(1) check per copy heard)
         self.last_received: Bundle | None = None  # what the last receive() decoded (None: nothing)
         self.cgr_queries = 0  # route searches run (memo hits aside): a measure of the routing work
+        # nodes outside the constellation that this agent's graph names (``ipn_<N>``: the ground
+        # segment, a gateway's peer): their numbers resolve to those names
+        self._outside = {node_number(n): n for n in self.graph.node_index if n.startswith("ipn_")}
         self._seq = 0 if store is None else store.get_meta("seq")
         if store is not None:
             self._resume()
@@ -328,6 +331,19 @@ class BundleAgent:
             self.events.append(ev)
         if self.on_event is not None:
             self.on_event(ev)
+
+    def _name_of(self, number: int, default=_MISSING) -> str | None:
+        """The node name of an ipn node number: a satellite's, or a node outside the constellation
+        that this agent's graph names; else ValueError (or ``default``)."""
+        name = self._outside.get(number)
+        if name is not None:
+            return name
+        try:
+            return node_name(number)
+        except ValueError:
+            if default is _MISSING:
+                raise
+            return default
 
     def _bits(self, data: bytes) -> int:
         return self.config.bundle_bits or 8 * len(data)
@@ -420,9 +436,14 @@ class BundleAgent:
             return "dropped.integrity"
         try:
             c = self.config
+            foreign = b.block(BIB_BLOCK) is None and b.block(RECIPIENTS_BLOCK) is None
             (_node, priority, _life), = admit(b, c.key if c.verify_integrity else None, c.foreign,
                                               c.foreign_priority, self.rx_counts)
-            dest = node_name(b.dest[0])
+            try:
+                dest = self._name_of(b.dest[0])
+            except ValueError:
+                self.rx_counts["rx.unknown_destination"] += 1  # no node of that number in this agent's graph
+                raise
         except (IntegrityError, BundleError, ValueError) as exc:
             self.last_error = str(exc)
             self._emit(now_ns, "dropped", None, b.bundle_id, reason="integrity")
@@ -446,9 +467,13 @@ class BundleAgent:
         if count + 1 > limit:
             self._emit(now_ns, "dropped", h, b.bundle_id, reason="hop_limit")
             return "dropped.hop_limit"
+        if foreign:  # admitted by this node's policy: it signs it as the security source (RFC 9172 3.5), so
+            # the nodes after it - which take a recipients block only with the BIB - accept it
+            add_bib(b, c.key, ipn(self.number, 0))
+            self.rx_counts["rx.foreign_signed"] += 1
         b.hop_count = (limit, count + 1)
         if b.previous_node is not None:
-            h.excluded_node = node_name(b.previous_node[0])
+            h.excluded_node = self._name_of(b.previous_node[0], None)
         return self._accept(h, now_ns)
 
     def _accept(self, h: _Held, now_ns: int) -> str:
@@ -787,7 +812,7 @@ class BundleAgent:
             created = self._created_ns(b)
             h = _Held(b, sb.priority, sb.dest, sb.expiry_ns, created, sb.received_ns)
             if b.previous_node is not None and b.previous_node[0] != self.number:
-                h.excluded_node = node_name(b.previous_node[0])
+                h.excluded_node = self._name_of(b.previous_node[0], None)
             h.bits = self.config.bundle_bits or 8 * len(sb.data)
             self._held[sb.bundle_id] = h
             heapq.heappush(self._expiry_heap, (h.expiry_ns, sb.bundle_id))

@@ -18,8 +18,12 @@ Foreign bundles (no BIB at all and no recipients block), by ``AgentConfig.foreig
 * ``"refuse"`` (the default, the constellation's closed policy): dropped as ``integrity``
   (``rx.foreign_refused``);
 * ``"accept"``: admitted as an ordinary unicast bundle to its primary block's destination, which
-  must be an ipn EID (``rx.foreign_accepted``; otherwise ``rx.foreign_unroutable``), at priority
-  ``AgentConfig.foreign_priority`` (default 15, the least urgent) and its own lifetime.
+  must be an ipn EID (``rx.foreign_accepted``; otherwise ``rx.foreign_unroutable``; a node number
+  the agent does not know is dropped after it: ``rx.unknown_destination``), at priority
+  ``AgentConfig.foreign_priority`` (default 15, the least urgent) and its own lifetime. The
+  unicast agent (sat_node/dtn/agent.py) that admits one and forwards it adds a BIB under the
+  constellation's key with itself as security source (RFC 9172 3.5; ``rx.foreign_signed``): the
+  nodes after it take a bundle with a recipients block only with the BIB.
 A bundle that carries a BIB is always checked (a BIB that fails drops the bundle, foreign or
 not: ``rx.bib_failed``), and a bundle with a recipients block but no BIB is refused
 (``rx.unsigned_constellation_bundle``): only the constellation writes block 200.

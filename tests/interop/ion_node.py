@@ -39,8 +39,8 @@ class IonNode:
     to the peers ``plans`` = {node number: "tcp/127.0.0.1:PORT" or "udp/127.0.0.1:PORT"}."""
 
     def __init__(self, home: Path, node: int, plans: dict[int, str], endpoints=(1, 2),
-                 contacts: str = ""):
-        self.home, self.node, self.plans = home, node, plans
+                 contacts: str = "", exits: str = ""):
+        self.home, self.node, self.plans, self.exits = home, node, plans, exits
         self.prefix = ion_prefix()
         self.tcp_port, self.udp_port = free_port(), free_port(socket.SOCK_DGRAM)
         self.endpoints, self.contacts = endpoints, contacts
@@ -71,7 +71,7 @@ class IonNode:
                                        "heapWords 1000000\n")
         (h / "n.ionrc").write_text(f"1 {self.node} n.ionconfig\n{self.contacts}s\n")
         (h / "n.ionsecrc").write_text("1\n")
-        (h / "n.ipnrc").write_text("".join(f"a plan {n} {duct}\n" for n, duct in self.plans.items()))
+        (h / "n.ipnrc").write_text("".join(f"a plan {n} {duct}\n" for n, duct in self.plans.items()) + self.exits)
         ducts = "".join(f"a outduct tcp {d[4:]} ''\n" if d.startswith("tcp/") else f"a outduct udp {d[4:]} udpclo\n"
                         for d in self.plans.values())
         eps = "".join(f"a endpoint ipn:{self.node}.{e} q\n" for e in self.endpoints)
@@ -123,8 +123,10 @@ class IonNode:
         self.cmd("bprecvfile", endpoint, str(count), timeout=timeout)
         return [(self.home / f"testfile{i}").read_bytes() for i in range(1, count + 1)]
 
-    def send_file(self, src: str, dest: str, path: Path) -> None:
+    def send_file(self, src: str, dest: str, path: Path, ttl_s: int | None = None) -> None:
         """One bundle with ``path``'s bytes as payload, ION's default class of service and lifetime
-        (300 s). (With an explicit class of service "1", ION 4.1.3 queued the bundles and never sent
-        them on the TCP outduct: measured, not understood.)"""
-        self.cmd("bpsendfile", src, dest, str(path))
+        (300 s), or class of service "0.1" (no custody, standard priority) and ``ttl_s``. (With the
+        class of service "1" - custody requested - ION 4.1.3 queued the bundles and never sent them
+        on the TCP outduct: measured.)"""
+        extra = [] if ttl_s is None else ["0.1", str(int(ttl_s))]
+        self.cmd("bpsendfile", src, dest, str(path), *extra)

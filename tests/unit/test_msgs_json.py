@@ -43,6 +43,7 @@ TOPIC_OF = {
     S.CommandEvent: T.ops_command_topic("sat_11"),
     S.GroundCommand: T.GROUND_COMMANDS,
     S.CommandAck: T.GROUND_ACKS,
+    S.GroundBundle: T.GROUND_BUNDLES,
     S.Housekeeping: T.ops_hk_topic("sat_11"),
 }
 TYPES = list(S.MESSAGE_TYPES)

@@ -1,0 +1,215 @@
+"""The ground gateway's convergence-layer side (ground_station/gateway.py) against the project's own
+listeners (sat_node/dtn/cl: the ``bundles listen`` machinery) on loopback: URL forms and their
+one-line errors; every bundle arrives byte-identical, in order, and is reported acknowledged only
+after the listener has it; a lost session is opened again and the unacknowledged bundles sent
+again; bundles the peer sends (on the ground's session or to its ``listen`` address) are taken in;
+an unreachable peer is one line at start."""
+
+from __future__ import annotations
+
+import asyncio
+import socket
+import threading
+import time
+
+import pytest
+
+from ground_station.gateway import Gateway, GatewaySpec, parse_gateway
+from sat_node.dtn.bpv7 import Bundle, encode_bundle, ipn
+from sat_node.dtn.cl import ClError, tcpcl3, tcpcl4, udp
+
+
+def test_url_forms():
+    assert parse_gateway("tcpcl4://127.0.0.1:4556?node=2") == GatewaySpec("tcpcl4", "127.0.0.1", 4556, 2)
+    s = parse_gateway("udp://localhost:4556?node=7&listen=127.0.0.1:4557&foreign=refuse")
+    assert (s.cl, s.host, s.port, s.node, s.listen, s.foreign) == (
+        "udp", "localhost", 4556, 7, ("127.0.0.1", 4557), "refuse")
+    assert parse_gateway(s.url) == s
+    assert parse_gateway("tcpcl3://127.0.0.1:4556/?node=3").cl == "tcpcl3"
+
+
+@pytest.mark.parametrize("url,words", [
+    ("http://127.0.0.1:1?node=2", "scheme must be one of"),
+    ("tcpcl4://127.0.0.1?node=2", "expected HOST:PORT"),
+    ("tcpcl4://127.0.0.1:0?node=2", "expected HOST:PORT"),
+    ("tcpcl4://127.0.0.1:4556", "node=N"),
+    ("tcpcl4://127.0.0.1:4556?node=x", "node=N"),
+    ("tcpcl4://127.0.0.1:4556?node=100", "ground segment's own node"),
+    ("tcpcl4://127.0.0.1:4556?node=2&node=3", "node given 2 times"),
+    ("tcpcl4://127.0.0.1:4556?node=2&port=3", "unknown parameter 'port'"),
+    ("tcpcl4://127.0.0.1:4556?node=2&foreign=maybe", "foreign='maybe'"),
+    ("tcpcl4://127.0.0.1:4556?node=2&listen=here", "listen 'here'"),
+    ("tcpcl4://127.0.0.1:4556/x?node=2", "nothing may follow"),
+])
+def test_bad_urls_are_one_line_errors(url, words):
+    with pytest.raises(ValueError, match=words) as e:
+        parse_gateway(url)
+    assert "\n" not in str(e.value)
+
+
+class Peer:
+    """The project's listener for one layer, in an event loop on its own thread; it can also send."""
+
+    def __init__(self, cl: str, port: int = 0):
+        self.cl, self.got, self.sessions = cl, [], []
+        self.loop = asyncio.new_event_loop()
+        threading.Thread(target=self.loop.run_forever, daemon=True).start()
+        self.lst = self.call(self._serve(port))
+        self.port = self.lst.port
+
+    def call(self, coro, timeout=20):
+        return asyncio.run_coroutine_threadsafe(coro, self.loop).result(timeout)
+
+    async def _serve(self, port):
+        def take(data, _s):
+            self.got.append(bytes(data))
+
+        if self.cl == "udp":
+            return await udp.serve("127.0.0.1", port, take)
+        mod = tcpcl4 if self.cl == "tcpcl4" else tcpcl3
+        cfg = (tcpcl4.Config(node_id="ipn:2.0", segment_mru=700) if self.cl == "tcpcl4"
+               else tcpcl3.Config(eid="ipn:2.0"))
+        return await mod.serve("127.0.0.1", port, cfg, on_bundle=take, on_session=self.sessions.append)
+
+    def close(self):
+        self.call(self.lst.close())
+        self.loop.call_soon_threadsafe(self.loop.stop)
+
+
+def _bundles(n, tag=b"x"):
+    return [encode_bundle(Bundle(dest=ipn(2, 1), src=ipn(11, 1), creation_ms=10**9 + i, seq=i,
+                                 lifetime_ms=60_000, payload=tag * (100 + 400 * i))) for i in range(n)]
+
+
+def _wait(cond, timeout=10.0):
+    end = time.monotonic() + timeout
+    while not cond() and time.monotonic() < end:
+        time.sleep(0.02)
+    return cond()
+
+
+@pytest.mark.parametrize("cl", ["tcpcl4", "tcpcl3", "udp"])
+def test_bundles_reach_the_listener_byte_identical_and_acknowledged(cl):
+    peer = Peer(cl)
+    gw = Gateway(GatewaySpec(cl, "127.0.0.1", peer.port, 2)).start()
+    try:
+        data = _bundles(5)
+        for i, d in enumerate(data):
+            gw.submit(f"b{i}", d)
+        gw.flush()
+        assert _wait(lambda: len(peer.got) == 5)
+        assert peer.got == data  # byte-identical, in order (transfers larger than the v4 segment MRU)
+        assert gw.take_acks() == [f"b{i}" for i in range(5)]
+        c = gw.counters
+        assert c["sent"] == 5 and c["bytes_sent"] == sum(map(len, data))
+        assert c["acknowledged" if cl != "udp" else "unacknowledged"] == 5
+        assert gw.report()["acknowledged"] is (cl != "udp")
+    finally:
+        gw.close()
+        peer.close()
+
+
+@pytest.mark.parametrize("cl", ["tcpcl4", "tcpcl3"])
+def test_a_lost_session_is_opened_again_and_unacknowledged_bundles_sent_again(cl):
+    peer = Peer(cl)
+    port = peer.port
+    gw = Gateway(GatewaySpec(cl, "127.0.0.1", port, 2), reconnect_s=0.2).start()
+    try:
+        gw.submit("a", _bundles(1, b"a")[0])
+        gw.flush()
+        assert gw.take_acks() == ["a"]
+        peer.close()  # the peer goes away (its sessions ended)
+        time.sleep(0.3)
+        gw.submit("b", _bundles(1, b"b")[0])
+        time.sleep(0.5)
+        assert gw.take_acks() == []  # nobody took it: not acknowledged
+        peer2 = Peer(cl, port)
+        gw.flush()
+        assert gw.take_acks() == ["b"] and peer2.got == _bundles(1, b"b")
+        assert gw.counters["reconnects"] >= 1 and gw.counters["send_failed"] >= 1
+        peer2.close()
+    finally:
+        gw.close()
+
+
+@pytest.mark.parametrize("cl", ["tcpcl4", "tcpcl3"])
+def test_the_peer_sends_on_the_grounds_session(cl):
+    peer = Peer(cl)
+    gw = Gateway(GatewaySpec(cl, "127.0.0.1", peer.port, 2)).start()
+    try:
+        assert _wait(lambda: peer.sessions)
+        data = _bundles(3, b"p")
+        for d in data:
+            peer.call(peer.sessions[0].send(d, timeout_s=10))
+        assert _wait(lambda: gw.counters["received"] == 3)
+        assert gw.take_received() == data
+    finally:
+        gw.close()
+        peer.close()
+
+
+def _free(kind=socket.SOCK_STREAM) -> int:
+    s = socket.socket(socket.AF_INET, kind)
+    s.bind(("127.0.0.1", 0))
+    p = s.getsockname()[1]
+    s.close()
+    return p
+
+
+@pytest.mark.parametrize("cl", ["tcpcl4", "tcpcl3", "udp"])
+def test_the_peer_sends_to_the_listen_address(cl):
+    peer = Peer(cl)
+    lport = _free(socket.SOCK_DGRAM if cl == "udp" else socket.SOCK_STREAM)
+    gw = Gateway(GatewaySpec(cl, "127.0.0.1", peer.port, 2, listen=("127.0.0.1", lport))).start()
+    try:
+        data = _bundles(2, b"q")
+
+        async def send():
+            if cl == "udp":
+                return await udp.send("127.0.0.1", lport, data)
+            mod = tcpcl4 if cl == "tcpcl4" else tcpcl3
+            cfg = tcpcl4.Config(node_id="ipn:2.0") if cl == "tcpcl4" else tcpcl3.Config(eid="ipn:2.0")
+            s = await mod.connect("127.0.0.1", lport, cfg)
+            for d in data:
+                await s.send(d, timeout_s=10)
+            await (s.terminate() if cl == "tcpcl4" else s.close())
+
+        peer.call(send())
+        assert _wait(lambda: gw.counters["received"] == 2)
+        assert gw.take_received() == data
+    finally:
+        gw.close()
+        peer.close()
+
+
+@pytest.mark.parametrize("cl", ["tcpcl4", "tcpcl3"])
+def test_an_unreachable_peer_is_one_line_at_start(cl):
+    with pytest.raises(ClError, match="cannot connect") as e:
+        Gateway(GatewaySpec(cl, "127.0.0.1", _free(), 2)).start()
+    assert "\n" not in str(e.value)
+
+
+@pytest.mark.parametrize("extra,words", [
+    (["--ground-gateway", "tcpcl5://127.0.0.1:4556?node=2"], "scheme must be one of"),
+    (["--ground-gateway", "tcpcl4://127.0.0.1:4556"], "node=N"),
+    (["--ground-gateway", "udp://127.0.0.1:4556?node=2", "--mode", "distributed"],
+     "needs --mode centralized"),
+    (["--ground-gateway", "udp://127.0.0.1:4556?node=2", "--engine", "ros"], "--engine local"),
+    (["--ground-gateway", "tcpcl4://127.0.0.1:{free}?node=2"], "cannot connect"),
+    (["--ground-gateway", "tcpcl3://127.0.0.1:{free}?node=2"], "cannot connect"),
+])
+def test_the_run_refuses_a_bad_gateway_up_front(extra, words, tmp_path, capsys):
+    from bringup.cli.main import main
+
+    argv = ["run", "--mode", "centralized", "--engine", "local", "--sats", "6", "--hours", "1", "--no-plots",
+            "--no-progress", "--out", str(tmp_path / "r")]
+    argv += [a.replace("{free}", str(_free())) for a in extra]
+    if "--mode" in extra:
+        argv[1:3] = []
+    if "--engine" in extra:
+        argv[argv.index("--engine"):argv.index("--engine") + 2] = []
+    assert main(argv) == 2
+    err = [ln for ln in capsys.readouterr().err.splitlines() if ln.strip()]
+    assert len(err) == 1 and err[0].startswith("constellation run: error: --ground-gateway"), err
+    assert words in err[0]
+    assert not (tmp_path / "r").exists()  # refused before the run folder or the world
