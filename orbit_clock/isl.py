@@ -38,7 +38,6 @@ shorter range alone, and every contact runs at the lower rate of its two ends.
 from __future__ import annotations
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from orbit_clock.contact_plan import Contact, ContactPlan
 from orbit_clock.frames import C_KM_S, WGS84_A_KM, WGS84_B_KM
@@ -163,6 +162,9 @@ def _candidate_segments(constellation: Constellation, t: np.ndarray, r: np.ndarr
     reach = max_range_km + v_rel * half_span_s
     if reach >= 2.0 * float(np.max(np.linalg.norm(r[:, ends], axis=-1))):
         return None  # every pair is always a candidate
+    # imported here: the processes that never compute ISL windows (a ROS run's nodes) skip scipy.spatial
+    from scipy.spatial import cKDTree
+
     cand = np.zeros((n * (n - 1) // 2, n_blocks), dtype=bool)
     for k, e in enumerate(ends):
         ij = cKDTree(r[:, e, :]).query_pairs(reach, output_type="ndarray")

@@ -24,12 +24,8 @@ import sys
 import time
 from pathlib import Path
 
-from bringup.analysis.report import report_from_bag
-from bringup.analysis.report_md import report_md
-from bringup.cli.run_folder import json_text, write_text_atomic
-from bringup.engine.ros.clock_node import run_clock
-from bringup.engine.ros.host import run_host
 from bringup.engine.ros.lifeline import hold
+from bringup.engine.ros.profiling import start as start_profile
 from bringup.engine.ros.run_spec import CLOCK_ROLE, RunSpec, load_factory
 from bringup.errors import UserError
 
@@ -46,7 +42,9 @@ def _write_report(spec: RunSpec, rc: int) -> None:
     report BAG` does) into the spec's ``extra.report_dir`` (a container's run folder)."""
     if rc != 0 or not spec.bag_dir:
         return
-
+    from bringup.analysis.report import report_from_bag
+    from bringup.analysis.report_md import report_md
+    from bringup.cli.run_folder import json_text, write_text_atomic
 
     out = Path(spec.extra["report_dir"])
     rep = report_from_bag(Path(spec.bag_dir), warn=lambda line: print(f"clock: warning: {line}", file=sys.stderr))
@@ -65,11 +63,17 @@ def run(args: argparse.Namespace) -> int:
         return 0
     if args.role is None:
         raise UserError("give --role (or --prepare)")
+    start_profile(args.role)  # only with AGILE_DTN_PROFILE_DIR set (bringup/engine/ros/profiling.py)
+    # each process imports only its side (a host never loads the recorder, the clock no participant)
     if args.role == CLOCK_ROLE:
+        from bringup.engine.ros.clock_node import run_clock
+
         report = spec.extra.get("report_dir")
         return run_clock(spec, on_closed=(lambda rc: _write_report(spec, rc)) if report else None)
     if args.role not in spec.roles:
         raise UserError(f"--role {args.role!r} is not in the run spec's roles {spec.roles}")
+    from bringup.engine.ros.host import run_host
+
     participants = load_factory(spec.factory)(spec, args.role)
     if not participants:
         raise UserError(f"participant factory {spec.factory} returned no participants for role {args.role}")

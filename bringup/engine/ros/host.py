@@ -112,6 +112,7 @@ from bringup.engine.lockstep import (
 )
 from bringup.engine.ros.live import HostLive, declare_run_parameters
 from bringup.engine.ros.naming import node_name_and_namespace, ros_topic_name
+from bringup.engine.ros.profiling import dump as dump_profile
 from bringup.stop_signals import STOP_SIGNALS
 from msgs_json.envelope import Envelope, Participant, StepResult
 
@@ -541,7 +542,9 @@ def exit_now(code: int) -> None:
     spins waiting for that listener call to end, forever (gdb stacks of a host and of the clock,
     under load, about 1 host in 30 runs), with the GIL held, so SIGTERM goes unhandled. The
     participant only frees memory and tells peers it left; peers of a finished run do not need it
-    (they drop it at lease expiry), so the process skips it: stdout/stderr flushed, ``os._exit``."""
+    (they drop it at lease expiry), so the process skips it: stdout/stderr flushed, ``os._exit``.
+    A profile started with ``AGILE_DTN_PROFILE_DIR`` (bringup/engine/ros/profiling.py) is written first."""
+    dump_profile()
     for stream in (sys.stdout, sys.stderr):
         try:
             stream.flush()
