@@ -14,6 +14,11 @@ MCAP bag records, with log time = ``t_ns``, so a bag can be turned back into env
 
 Oracle: round trip tests (encode -> decode is identity for str and bytes payloads) and rejection
 tests (every malformed wire text raises WireError with one line saying what is wrong);
+On DDS the String goes as its CDR bytes (:func:`string_cdr`, :func:`string_from_cdr`: OMG CDR
+with the 4-byte encapsulation header, as rclpy serializes std_msgs/msg/String); the ROS engine
+publishes and reads them raw, and the bag records the same bytes. ``without_mac`` gives the
+recorded form of a received text whose MAC verified (its ``mac`` field cut off).
+
 ``WireEncoder`` (the bag writer's cached encoder) gives the bytes of ``encode_envelope_bytes`` on
 random envelopes with escapes, non-ASCII text and a small cache (tests/unit/test_speed_paths.py).
 """
@@ -22,13 +27,14 @@ from __future__ import annotations
 
 import base64
 import binascii
+import struct
 
 import msgspec
 
 from msgs_json.envelope import Envelope
 
-__all__ = ["WireEncoder", "WireError", "encode_envelope", "encode_envelope_bytes", "decode_envelope",
-           "decode_envelope_mac"]
+__all__ = ["WireEncoder", "WireError", "decode_envelope", "decode_envelope_mac", "encode_envelope",
+           "encode_envelope_bytes", "string_cdr", "string_from_cdr", "without_mac"]
 
 
 class WireError(ValueError):
@@ -133,3 +139,38 @@ def decode_envelope_mac(text: str | bytes, topic: str) -> tuple[Envelope, str | 
     else:
         data = w.body  # type: ignore[assignment]
     return Envelope(t_ns=w.t_ns, source=w.src, seq=w.seq, topic=topic, data=data), w.mac
+
+
+_CDR_LE = b"\x00\x01\x00\x00"  # CDR little-endian encapsulation header
+_U32 = struct.Struct("<I")
+
+
+def string_cdr(text: str) -> bytes:
+    """CDR (little endian) of std_msgs/msg/String(data=text), as rclpy serializes it."""
+    b = text.encode("utf-8")
+    return b"".join((_CDR_LE, _U32.pack(len(b) + 1), b, b"\x00"))
+
+
+def string_from_cdr(cdr: bytes | memoryview) -> str:
+    """Inverse of :func:`string_cdr` (little- or big-endian encapsulation); ValueError (one line)
+    when ``cdr`` is not a std_msgs/String's CDR (UnicodeDecodeError is a ValueError)."""
+    cdr = bytes(cdr)
+    if len(cdr) < 9 or cdr[0] != 0 or cdr[1] not in (0, 1):
+        raise ValueError("not a CDR std_msgs/String")
+    n = struct.unpack("<I" if cdr[1] == 1 else ">I", cdr[4:8])[0]
+    if n < 1 or 8 + n > len(cdr) or cdr[8 + n - 1] != 0:
+        raise ValueError("CDR std_msgs/String length out of range")
+    return cdr[8:8 + n - 1].decode("utf-8")
+
+
+def without_mac(text: str, mac: str | None) -> str | None:
+    """``text`` without its ``"mac"`` field when it ends with ``,"mac":"<mac>"}``, the field last as
+    :func:`encode_envelope` writes it: ``without_mac(encode_envelope(env, mac), mac) ==
+    encode_envelope(env)``. None when the text has no such tail (the caller encodes the decoded
+    envelope again)."""
+    if mac is None:
+        return None
+    tail = f',"mac":"{mac}"}}'
+    if not text.endswith(tail) or len(text) <= len(tail):
+        return None
+    return text[:-len(tail)] + "}"

@@ -44,7 +44,7 @@ import msgspec
 from msgs_json.auth import AuthError, RunAuth
 from msgs_json.envelope import Envelope
 from msgs_json.schemas import SimAck, SimStep
-from msgs_json.wire import WireError, decode_envelope_mac, encode_envelope
+from msgs_json.wire import WireError, decode_envelope_mac, encode_envelope, string_from_cdr, without_mac
 
 __all__ = [
     "ACK_TOPIC",
@@ -227,6 +227,28 @@ class Gate:
             self.reject(topic, exc.reason, str(exc))
             return None
         return env
+
+    def cdr_text(self, topic: str, raw: bytes) -> str | None:
+        """The text of a std_msgs/String received serialized (CDR), else None (counted malformed)."""
+        try:
+            return string_from_cdr(raw)
+        except ValueError as exc:
+            self.reject(topic, "malformed", f"{topic}: {exc}")
+            return None
+
+    def envelope_wire(self, text: str, topic: str) -> tuple[Envelope, str] | None:
+        """:meth:`envelope` and the envelope's wire text without its MAC (what a bag records):
+        ``text`` less its mac field when it was written by :meth:`wire`, else encoded again."""
+        try:
+            env, mac = decode_envelope_mac(text, topic)
+            self.auth.verify(env, mac)
+        except WireError as exc:
+            self.reject(topic, "malformed", str(exc))
+            return None
+        except AuthError as exc:
+            self.reject(topic, exc.reason, str(exc))
+            return None
+        return env, without_mac(text, mac) or encode_envelope(env)
 
     def text(self, topic: str, text: str) -> str | None:
         """A lockstep message's JSON text (its MAC checked and taken off), else None (counted)."""

@@ -17,6 +17,9 @@ from typing import NamedTuple
 
 from rosbags.typesys import Stores, get_typestore
 
+# the String CDR is the wire form's (the ROS engine publishes and reads it raw too)
+from msgs_json.wire import string_cdr, string_from_cdr
+
 __all__ = ["CLOCK_TYPE", "LEADING_METADATA", "STRING", "TYPESTORE", "RawMessage", "TopicStats", "clock_cdr",
            "epoch_custom_data", "string_cdr", "string_from_cdr"]
 
@@ -27,23 +30,6 @@ CDR_LE = b"\x00\x01\x00\x00"  # CDR little-endian encapsulation header
 U32 = struct.Struct("<I")
 _CLOCK = struct.Struct("<4siI")
 LEADING_METADATA = "constellation"  # the MCAP Metadata record right after the header (epoch, custom data)
-
-
-def string_cdr(text: str) -> bytes:
-    """CDR (little endian) of std_msgs/msg/String(data=text), as rclpy serializes it."""
-    b = text.encode("utf-8")
-    return CDR_LE + U32.pack(len(b) + 1) + b + b"\x00"
-
-
-def string_from_cdr(cdr: bytes | memoryview) -> str:
-    """Inverse of :func:`string_cdr` (little- or big-endian encapsulation)."""
-    cdr = bytes(cdr)
-    if len(cdr) < 9 or cdr[0] != 0 or cdr[1] not in (0, 1):
-        raise ValueError("not a CDR std_msgs/String")
-    n = struct.unpack("<I" if cdr[1] == 1 else ">I", cdr[4:8])[0]
-    if n < 1 or 8 + n > len(cdr) or cdr[8 + n - 1] != 0:
-        raise ValueError("CDR std_msgs/String length out of range")
-    return cdr[8:8 + n - 1].decode("utf-8")
 
 
 def clock_cdr(t_ns: int) -> bytes:

@@ -24,6 +24,7 @@ import pytest
 
 rclpy = pytest.importorskip("rclpy")
 
+from rclpy.serialization import serialize_message
 from std_msgs.msg import String
 
 from bringup.engine.lockstep import STEP_TOPIC, Gate, StepMsg
@@ -58,8 +59,8 @@ def test_replayed_step_flood_is_dropped_and_answered_once(monkeypatch):
     clock = Gate(key, lambda _line: None)
     h = _host(key)
 
-    def wire(**kw) -> String:
-        return String(data=clock.sealed(STEP_TOPIC, StepMsg(**kw)))
+    def wire(**kw) -> bytes:  # what the raw step subscription hands the host: rclpy's serialized String
+        return serialize_message(String(data=clock.sealed(STEP_TOPIC, StepMsg(**kw))))
 
     for i in range(1000):
         h._on_step(wire(k=i % 10, t_ns=i % 10))

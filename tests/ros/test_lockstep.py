@@ -12,10 +12,10 @@ import time
 
 import pytest
 
-from bringup.engine.ros.launcher import launch
 from bringup.engine.local import run_local
-from bringup.recording.bag import BagReader
+from bringup.engine.ros.launcher import launch
 from bringup.engine.ros.run_spec import RunSpec
+from bringup.recording.bag import BagReader
 from tests.ros import toy_participants as toy
 from tests.unit.test_contract import AT, EXPECTED, local_error
 
@@ -93,15 +93,17 @@ def test_slow_first_step_is_waited_for(tmp_path):
 
 
 def test_bad_message_is_counted_not_fatal(monkeypatch):
-    """A subscription callback fed junk, envelopes without a MAC or with a wrong one counts each by
-    reason and keeps going (no exception escapes); only the run's own envelope is buffered."""
-    from std_msgs.msg import String
-
+    """A subscription callback (it gets the String's CDR bytes: a raw subscription) fed junk bytes,
+    junk text, envelopes without a MAC or with a wrong one counts each by reason and keeps going (no
+    exception escapes); only the run's own envelope is buffered."""
     from bringup.engine.ros.host import ParticipantHost
     from bringup.engine.ros.launcher import lease_domain_id
     from msgs_json.auth import RunAuth
     from msgs_json.envelope import Envelope
-    from msgs_json.wire import encode_envelope
+    from msgs_json.wire import encode_envelope, string_cdr
+
+    def String(data: str) -> bytes:  # what the raw subscription hands the callback
+        return string_cdr(data)
 
     good = Envelope(5, "ping", 0, "/toy/ping", "{}")
     with lease_domain_id() as lease:
@@ -110,13 +112,14 @@ def test_bad_message_is_counted_not_fatal(monkeypatch):
         try:
             box = host.slots[1].inboxes[0]  # pong's /toy/ping inbox
             cb = host._make_cb(box)
+            cb(b"\x00\x01\x00\x00\xff\xff\x00\x00junk")  # not a String's CDR
             cb(String(data="not json"))
             cb(String(data='{"t_ns": -1, "src": "x", "seq": 0, "body": "{}"}'))
             cb(String(data=encode_envelope(good)))  # no MAC
             cb(String(data=encode_envelope(good, RunAuth(b"another run's key").mac(good))))
             cb(String(data=encode_envelope(good._replace(seq=1), RunAuth(KEY).mac(good))))  # MAC of another one
             cb(String(data=encode_envelope(good, RunAuth(KEY).mac(good))))
-            assert host.gate.rejections.counts() == {"/toy/ping": {"bad_mac": 2, "malformed": 2, "unauthenticated": 1}}
+            assert host.gate.rejections.counts() == {"/toy/ping": {"bad_mac": 2, "malformed": 3, "unauthenticated": 1}}
             assert [e.seq for e in box.pending] == [0]
             assert box.ready({"ping": 0}) is True and box.expected == 0  # a later step's envelope is held
             box.expected = 1

@@ -92,7 +92,6 @@ from rclpy.context import Context
 from rclpy.duration import Duration
 from rclpy.experimental import EventsExecutor
 from rclpy.qos import QoSProfile, ReliabilityPolicy
-from rclpy.serialization import deserialize_message, serialize_message
 from rclpy.signals import SignalHandlerOptions
 from rosgraph_msgs.msg import Clock
 from std_msgs.msg import String
@@ -117,6 +116,7 @@ from bringup.engine.ros.lifeline import ENV_RESTARTED
 from bringup.engine.ros.live import ClockLive
 from bringup.engine.ros.run_spec import CLOCK_ROLE, RunSpec
 from bringup.recording.bag import BagWriter, string_cdr, string_from_cdr
+from bringup.recording.bag_format import clock_cdr
 from bringup.recording.journal import BagJournal
 from bringup.recording.metrics_feed import MetricsFeed
 from bringup.recording.viz_feed import VizFeed
@@ -124,7 +124,7 @@ from bringup.scenario.world import World
 from bringup.stop_signals import STOP_SIGNALS
 from msgs_json.envelope import Envelope
 from msgs_json.topics import design_topic
-from msgs_json.wire import decode_envelope, encode_envelope
+from msgs_json.wire import decode_envelope
 
 __all__ = ["ClockError", "LockstepClock", "run_clock"]
 
@@ -223,7 +223,8 @@ class LockstepClock:
     # -- callbacks ----------------------------------------------------------------------------------
     def _on_ack(self, raw: bytes) -> None:
         reject = self.gate.reject
-        text = self.gate.text(ACK_TOPIC, deserialize_message(raw, String).data)
+        text = self.gate.cdr_text(ACK_TOPIC, raw)
+        text = None if text is None else self.gate.text(ACK_TOPIC, text)
         if text is None:
             return
         try:
@@ -259,13 +260,17 @@ class LockstepClock:
                 self.bag.write_raw(ACK_TOPIC, _STRING, string_cdr(text), ack.t_ns)
 
     def _make_rec_cb(self, topic: str):
+        # senders seal the participants' own names (docs/design.md's): a per-satellite topic moved by
+        # a namespace push or remap is checked under that name and recorded under its own
+        checked = design_topic(topic)
+        gate = self.gate
+
         def cb(raw: bytes) -> None:
-            text = deserialize_message(raw, String).data
-            # senders seal the participants' own names (docs/design.md's): a per-satellite topic moved by
-            # a namespace push or remap is checked under that name and recorded under its own
-            env = self.gate.envelope(text, design_topic(topic))
-            if env is None:
+            text = gate.cdr_text(topic, raw)
+            got = None if text is None else gate.envelope_wire(text, checked)
+            if got is None:
                 return
+            env, wire = got
             key = (topic, env.source, env.seq)
             if key in self._rec_keys:
                 self.rec_duplicates += 1
@@ -277,7 +282,7 @@ class LockstepClock:
             if self.metrics is not None:
                 self.metrics.observe(env)
             # recorded without its MAC: the bag holds the envelope's wire form (msgs_json/wire.py)
-            cdr = string_cdr(encode_envelope(env))
+            cdr = string_cdr(wire)
             if self.journal is not None:
                 self.journal.write_keyed(topic, _STRING, cdr, env.t_ns, env.source, env.seq)
             elif self.bag is not None:
@@ -398,11 +403,10 @@ class LockstepClock:
 
     def _publish_step(self, msg: StepMsg) -> None:
         if not msg.start and not msg.stop:
-            c = Clock()
-            c.clock.sec, c.clock.nanosec = divmod(self.epoch_ns + msg.t_ns, 1_000_000_000)
+            c = clock_cdr(self.epoch_ns + msg.t_ns)  # rosgraph_msgs/Clock serialized (bringup/recording/bag_format.py)
             self.clock_pub.publish(c)
             if self.bag is not None:
-                self.bag.write_raw("/clock", _CLOCK, serialize_message(c), msg.t_ns)
+                self.bag.write_raw("/clock", _CLOCK, c, msg.t_ns)
                 if self.viz is not None:
                     for topic, msgtype, cdr in self.viz.frame(msg.t_ns, self.epoch_ns + msg.t_ns):
                         self.bag.write_raw(topic, msgtype, cdr, msg.t_ns)
@@ -410,7 +414,7 @@ class LockstepClock:
                     self.metrics.write(self.bag, msg.t_ns, in_flight=self.in_flight,
                                        complete=self._observations_recorded())
         text = encode_msg(msg)
-        self.step_pub.publish(String(data=self.gate.auth.seal(STEP_TOPIC, text)))
+        self.step_pub.publish(string_cdr(self.gate.auth.seal(STEP_TOPIC, text)))
         if self.bag is not None:
             self.bag.write_raw(STEP_TOPIC, _STRING, string_cdr(text), msg.t_ns)
 

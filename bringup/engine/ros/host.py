@@ -115,6 +115,7 @@ from bringup.engine.ros.naming import node_name_and_namespace, ros_topic_name
 from bringup.engine.ros.profiling import dump as dump_profile
 from bringup.stop_signals import STOP_SIGNALS
 from msgs_json.envelope import Envelope, Participant, StepResult
+from msgs_json.wire import string_cdr
 
 __all__ = ["QOS_DATA", "QOS_SYNC_PUB", "QOS_SYNC_SUB", "HostError", "ParticipantHost", "exit_now", "run_host"]
 
@@ -185,7 +186,7 @@ class ParticipantHost:
         # only the run's messages get in (MAC under the run key); the rest is counted
         self.gate = Gate(run_key, self.host_node.get_logger().warning)
         self._steps: deque[StepMsg] = deque()
-        self.host_node.create_subscription(String, STEP_TOPIC, self._on_step, QOS_SYNC_SUB)
+        self.host_node.create_subscription(String, STEP_TOPIC, self._on_step, QOS_SYNC_SUB, raw=True)
         self.ack_pub = self.host_node.create_publisher(String, ACK_TOPIC, QOS_SYNC_PUB)
         self.executor.add_node(self.host_node)
         self.slots: list[_Slot] = []
@@ -201,7 +202,7 @@ class ParticipantHost:
             slot = _Slot(p, node)
             for topic in topics:
                 box = TopicInbox(topic)
-                node.create_subscription(String, ros_topic_name(topic, p.name), self._make_cb(box), QOS_DATA)
+                node.create_subscription(String, ros_topic_name(topic, p.name), self._make_cb(box), QOS_DATA, raw=True)
                 slot.inboxes.append(box)
                 self.inboxes_by_topic.setdefault(self._resolved(slot, topic), []).append(box)
             self.executor.add_node(node)
@@ -210,7 +211,7 @@ class ParticipantHost:
         self.subs: dict[str, int] = {}
         self.subs_default = 0
         self.rejoin_period_s = rejoin_period_s
-        self.host_node.create_subscription(String, RESEND_TOPIC, self._on_resend, QOS_DATA)
+        self.host_node.create_subscription(String, RESEND_TOPIC, self._on_resend, QOS_DATA, raw=True)
         # crash/restart: last wire step done (-1 = none), the ack sent for it, the checkpoint store
         self.done_k = -1
         self.resume_k = -1
@@ -276,14 +277,18 @@ class ParticipantHost:
 
     # -- callbacks: check, then buffer only -----------------------------------------------------------
     def _make_cb(self, box: TopicInbox):
-        def cb(msg: String) -> None:
-            env = self.gate.envelope(msg.data, box.topic)
-            if env is not None and not box.add(env):
+        gate, topic, add = self.gate, box.topic, box.add
+
+        def cb(raw: bytes) -> None:
+            text = gate.cdr_text(topic, raw)
+            env = None if text is None else gate.envelope(text, topic)
+            if env is not None and not add(env):
                 self.duplicates += 1
         return cb
 
-    def _on_resend(self, msg: String) -> None:
-        text = self.gate.text(RESEND_TOPIC, msg.data)
+    def _on_resend(self, raw: bytes) -> None:
+        text = self.gate.cdr_text(RESEND_TOPIC, raw)
+        text = None if text is None else self.gate.text(RESEND_TOPIC, text)
         if text is None:
             return
         try:
@@ -299,8 +304,9 @@ class ParticipantHost:
                 if env is not None and not box.add(env):
                     self.duplicates += 1
 
-    def _on_step(self, msg: String) -> None:
-        text = self.gate.text(STEP_TOPIC, msg.data)
+    def _on_step(self, raw: bytes) -> None:
+        text = self.gate.cdr_text(STEP_TOPIC, raw)
+        text = None if text is None else self.gate.text(STEP_TOPIC, text)
         if text is None:
             return
         try:
@@ -367,7 +373,7 @@ class ParticipantHost:
         wire = self.gate.wire
         for e in emits:
             text = wire(Envelope(e.t_ns, slot.name, slot.seq, e.topic, e.data))
-            self._publisher(slot, e.topic).publish(String(data=text))
+            self._publisher(slot, e.topic).publish(string_cdr(text))  # serialized: no String round trip
             self._step_wires.append((slot.name, e.topic, text))
             slot.seq += 1
             resolved = slot.ros.get(e.topic) or self._resolved(slot, e.topic)
@@ -377,7 +383,7 @@ class ParticipantHost:
         rej = self.gate.rejections.counts()
         if rej:  # what this host rejected so far (the clock puts the last count in /run/meta)
             kw = {**kw, "rejected": rej}
-        self.ack_pub.publish(String(data=self.gate.sealed(ACK_TOPIC, AckMsg(participant=self.role, **kw))))
+        self.ack_pub.publish(string_cdr(self.gate.sealed(ACK_TOPIC, AckMsg(participant=self.role, **kw))))
 
     # -- one wire step ------------------------------------------------------------------------------
     def _run_step(self, m: StepMsg) -> None:
@@ -506,7 +512,7 @@ class ParticipantHost:
         """Publish again the envelopes of step ``done_k`` (same source and seq)."""
         slots = {s.name: s for s in self.slots}
         for name, topic, text in self.last_wires:
-            self._publisher(slots[name], topic).publish(String(data=text))
+            self._publisher(slots[name], topic).publish(string_cdr(text))
         self.republished += len(self.last_wires)
 
     def _flush_acks(self) -> None:
