@@ -316,8 +316,22 @@ class RegionPrefilter:
     central angle between the sub-satellite point and the region centre (the mean of its GP unit
     vectors) is within the FOR's central angle (:func:`for_central_angle_rad` from the highest
     orbit radius and the polar Earth radius) plus the region's angular radius plus the satellite's
-    ground motion over one sample (8 km/s upper bound) plus 1 deg. The ephemeris is computed on the
-    first query and not pickled.
+    ground motion over one sample (8 km/s upper bound) plus 1 deg.
+
+    The test is made once per run for every (region, satellite, sample) from the orbits, which
+    every satellite knows (they are public, not observations of the field), and kept as a pass
+    index: per region, per satellite, the running count of the samples at which it passes, so
+    that whether a satellite passes a region in an interval is one subtraction.
+    :meth:`candidate_gp_ids` answers for one satellite, :meth:`passing` for many satellites and the
+    regions of a set of GPs at once, and :meth:`first_pass_s` when each of them first passes those
+    regions (the joint planner's partner choice, sat_node/scheduler/planner.py ``Planner.group``). The ephemeris and the index are computed on
+    the first query and not pickled.
+
+    How we know it is right (tests/unit/test_region_passes.py): the index gives, for random
+    satellites and intervals, the regions the angle test on that interval's samples alone keeps
+    (the pre-filter as first written), :meth:`passing` equals ``candidate_gp_ids`` intersected
+    with the GPs, satellite by satellite, and :meth:`first_pass_s` less one step is never after the
+    first time of the exact FOR mask over the GPs on a 1-s grid.
     """
 
     def __init__(self, constellation: Constellation, gps: GroundPoints, horizon_s: float,
@@ -332,18 +346,63 @@ class RegionPrefilter:
     def __getstate__(self):
         return {k: v for k, v in self.__dict__.items() if k != "_coarse"} | {"_coarse": None}
 
+    def _samples(self, c: dict, t0_s, t1_s) -> tuple:
+        """The first and one past the last sample index of [t0_s, t1_s] (arrays or floats)."""
+        k0 = np.clip(np.floor(np.asarray(t0_s, np.float64) / self.step_s).astype(np.int64), 0, c["n_samples"])
+        k1 = np.minimum(c["n_samples"] - 1, np.ceil(np.asarray(t1_s, np.float64) / self.step_s).astype(np.int64))
+        return k0, np.maximum(k0, k1 + 1)
+
     def candidate_gp_ids(self, sat: str, t0_s: float, t1_s: float) -> np.ndarray:
         """GP ids (int64, by region in region order) that may be in ``sat``'s FOR in [t0_s, t1_s]."""
         c = self._coarse if self._coarse is not None else self._build()
         i = self.constellation.index(sat)
-        k0 = max(0, int(math.floor(t0_s / self.step_s)))
-        k1 = min(c["unit"].shape[1] - 1, int(math.ceil(t1_s / self.step_s)))
-        u = c["unit"][i, k0:k1 + 1]  # (n, 3)
-        cosang = u @ c["region_unit"].T  # (n, R)
-        keep = np.flatnonzero((cosang >= c["cos_limit"][None, :]).any(axis=0))
+        k0, k1 = self._samples(c, t0_s, t1_s)
+        cum = c["passes"][:, i]  # (R, K + 1)
+        keep = np.flatnonzero(cum[:, k1] > cum[:, k0])
         if len(keep) == 0:
             return np.zeros(0, dtype=np.int64)
         return np.concatenate([c["region_gps"][r] for r in keep])
+
+    def passing(self, gp_ids: np.ndarray, sat_idx: np.ndarray, t0_s: np.ndarray, t1_s: float) -> np.ndarray:
+        """(len(sat_idx),) True where satellite ``sat_idx[j]`` may have one of the GPs ``gp_ids`` in
+        its FOR in [t0_s[j], t1_s]: where ``candidate_gp_ids`` over that interval holds one of them."""
+        c = self._coarse if self._coarse is not None else self._build()
+        sat_idx = np.asarray(sat_idx, dtype=np.int64)
+        regions = np.unique(self.gps.region_index[np.asarray(gp_ids, dtype=np.int64)])
+        regions = regions[(regions >= 0) & (regions < len(c["region_gps"]))]
+        out = np.zeros(len(sat_idx), dtype=bool)
+        if len(sat_idx) == 0:
+            return out
+        k0, k1 = self._samples(c, t0_s, t1_s)
+        k0 = np.broadcast_to(k0, sat_idx.shape)
+        k1 = np.maximum(k0, k1)
+        for r in regions:
+            cum = c["passes"][r]  # (S, K + 1)
+            out |= cum[sat_idx, k1] > cum[sat_idx, k0]
+        return out
+
+    def first_pass_s(self, gp_ids: np.ndarray, sat_idx: np.ndarray, t0_s: np.ndarray, t1_s: float) -> np.ndarray:
+        """(len(sat_idx),) the first sample time [s] in [t0_s[j], t1_s] (the samples ``passing`` reads)
+        at which satellite ``sat_idx[j]`` passes a region of the GPs ``gp_ids``; inf where none.
+        A GP of those regions in the satellite's FOR at a time t between two samples flags both (the
+        margin holds the motion over a sample), so no such t from the first of those samples on is
+        earlier than this time less one step."""
+        c = self._coarse if self._coarse is not None else self._build()
+        sat_idx = np.asarray(sat_idx, dtype=np.int64)
+        regions = np.unique(self.gps.region_index[np.asarray(gp_ids, dtype=np.int64)])
+        regions = regions[(regions >= 0) & (regions < len(c["region_gps"]))]
+        k0, k1 = self._samples(c, t0_s, t1_s)
+        k0 = np.broadcast_to(k0, sat_idx.shape)
+        k1 = np.broadcast_to(np.maximum(k0, k1), sat_idx.shape)
+        out = np.full(len(sat_idx), np.inf)
+        for j, i in enumerate(sat_idx.tolist()):
+            a, b = int(k0[j]), int(k1[j])
+            for r in regions:
+                row = c["passes"][r, i]
+                if row[b] > row[a]:  # passes at a sample in [a, b): the first is where the count rises
+                    m = int(np.searchsorted(row[a:b + 1], row[a] + 1, side="left")) + a
+                    out[j] = min(out[j], (m - 1) * self.step_s)
+        return out
 
     def _build(self) -> dict:
         t = np.arange(0.0, self.horizon_s + self.step_s, self.step_s)
@@ -365,8 +424,14 @@ class RegionPrefilter:
         lam = for_central_angle_rad(float(r.max()), WGS84_B_KM, self.max_off_nadir_deg)
         v_ang = 8.0 * self.step_s / WGS84_B_KM  # ground motion over one sample [rad], 8 km/s upper bound
         lim = lam + half_ang + v_ang + math.radians(1.0)
-        self._coarse = {"unit": unit, "region_unit": region_unit, "region_gps": region_gps,
-                        "cos_limit": np.cos(np.minimum(lim, math.pi))}
+        cos_limit = np.cos(np.minimum(lim, math.pi))
+        n_sat, n_t = unit.shape[:2]
+        # the pass index: passes[r, i, k] = samples before k at which satellite i passes region r
+        passes = np.zeros((n_reg, n_sat, n_t + 1), dtype=np.uint16 if n_t < 2**16 - 1 else np.int64)
+        for i in range(n_sat):
+            hit = (unit[i] @ region_unit.T) >= cos_limit[None, :]  # (K, R): one satellite's samples
+            np.cumsum(hit.T, axis=1, out=passes[:, i, 1:])
+        self._coarse = {"region_gps": region_gps, "passes": passes, "n_samples": n_t}
         return self._coarse
 
 

@@ -74,6 +74,7 @@ class Constellation:
     def __init__(self, elements: list[WalkerElements | ElementSet], epoch: _dt.datetime):
         self.elements = list(elements)
         self.names = [e.name for e in self.elements]
+        self._index = {n: i for i, n in reversed(list(enumerate(self.names)))}  # the first of a name, as list.index
         self.epoch = epoch
         self.satrecs = [_satrec_from(e, i + 1) for i, e in enumerate(self.elements)]
         self._array = SatrecArray(self.satrecs)
@@ -87,8 +88,8 @@ class Constellation:
 
     def index(self, name: str) -> int:
         try:
-            return self.names.index(name)
-        except ValueError:
+            return self._index[name]
+        except KeyError:
             raise ValueError(f"satellite {name!r}: not in the constellation ({self.names[0]}..{self.names[-1]})") from None
 
     # ---- time ----------------------------------------------------------------------------

@@ -85,7 +85,8 @@ class OrbitContext:
         sc = self.scenario
         prefilter = RegionPrefilter(self.constellation, self.gps, sc.scenario.horizon_s, for_deg_per_sat(sc))
         return Planner(self.constellation, self.gps.ecef_km, self.slew, PlannerSettings.from_scenario(sc),
-                       candidates=prefilter.candidate_gp_ids, own=own_payloads(sc))
+                       candidates=prefilter.candidate_gp_ids, own=own_payloads(sc),
+                       passes=prefilter)
 
 
 def for_deg_per_sat(sc: Scenario) -> np.ndarray:

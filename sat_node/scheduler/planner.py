@@ -56,6 +56,7 @@ and its own slew model, and the non-agile baseline its own footprint.
 
 from __future__ import annotations
 
+import heapq
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 from typing import Protocol
@@ -64,11 +65,11 @@ import numpy as np
 
 from orbit_clock.access import for_mask
 from sat_node.acs import SlewModel
+from sat_node.diversity import diversity_factor, recent_observed_gps
 from sat_node.scheduler.dp import Plan, solve_dp
 from sat_node.scheduler.joint import solve_joint
 from sat_node.scheduler.nonagile import solve_nonagile
 from sat_node.scheduler.problem import SchedulingProblem, build_problem
-from sat_node.diversity import diversity_factor, recent_observed_gps
 from sat_node.value import Belief, KnownObservation, prior_state
 
 __all__ = ["SOLVERS", "Knowledge", "PersistenceView", "Planner", "PlannerSettings", "SatPayload", "ValueSource"]
@@ -162,6 +163,21 @@ class SatPayload:
     slew: SlewModel
 
 
+class PassIndex(Protocol):
+    """Which satellites may have some of a set of GPs in their field of regard in an interval, from
+    the orbits alone (:class:`orbit_clock.access.RegionPrefilter`)."""
+
+    step_s: float  # the index's sampling step [s]
+
+    def passing(self, gp_ids, sat_idx, t0_s, t1_s: float) -> np.ndarray:
+        """(len(sat_idx),) True where ``candidates`` of satellite ``sat_idx[j]`` over [t0_s[j], t1_s]
+        holds one of ``gp_ids``."""
+
+    def first_pass_s(self, gp_ids, sat_idx, t0_s, t1_s: float) -> np.ndarray:
+        """The first sample time in [t0_s[j], t1_s] at which satellite ``sat_idx[j]`` passes a region
+        of ``gp_ids``: a GP in its FOR at time t from t0_s[j] on flags a sample within ``step_s`` of t."""
+
+
 #: name -> solver(instance, settings) -> Plan (settings: the planned satellite's footprint)
 SOLVERS: dict[str, Callable[[SchedulingProblem, PlannerSettings], Plan]] = {
     "dp": lambda p, st: solve_dp(p, check=True),
@@ -172,16 +188,20 @@ SOLVERS: dict[str, Callable[[SchedulingProblem, PlannerSettings], Plan]] = {
 class Planner:
     """Plans for any satellite of ``constellation`` (``track_ecef_km(name, t_s)``, orbit_clock)
     over the GPs ``gp_ecef_km`` [km, ECEF, row = GP id]; ``candidates(sat, t0_s, t1_s)`` is the GP
-    pre-filter (None: the exact FOR mask over every GP picks the columns)."""
+    pre-filter (None: the exact FOR mask over every GP picks the columns); ``passes`` the same
+    pre-filter's pass index (:class:`PassIndex`), which the partner choice of joint planning asks
+    for every partner at once instead of ``candidates`` partner by partner, and which orders the
+    partners a bounded group looks at (None: every partner, one by one)."""
 
     def __init__(self, constellation, gp_ecef_km: np.ndarray, slew: SlewModel, settings: PlannerSettings,
                  candidates: Callable[[str, float, float], np.ndarray] | None = None,
-                 own: dict[str, SatPayload] | None = None):
+                 own: dict[str, SatPayload] | None = None, passes: PassIndex | None = None):
         self.constellation = constellation
         self.gp_ecef_km = gp_ecef_km
         self.slew = slew
         self.settings = settings
         self.candidates = candidates
+        self.passes = passes
         self.own = dict(own or {})
 
     def for_deg(self, sat: str) -> float:
@@ -250,32 +270,96 @@ class Planner:
             return []
         mine_gps = set(mine_ids.tolist())
         mine_km = self.gp_ecef_km[mine_ids]
+        rows = self._passing(partners, t0_s, end, mine_ids)
+        if k and self.passes is not None:
+            out = self._earliest(rows, k, end, knowledge, mine_ids, mine_gps, mine_km)
+            return [q for _order, q in sorted(out, key=lambda m: m[0])]
         cands = []  # (first time its FOR reaches one of my GPs [s] (K >= 1 only), name, order, start, ids)
-        for order, (name, free_s) in enumerate(partners):
-            start = max(t0_s, float(free_s))
-            if start >= end - st.dp_step_s:
-                continue
+        for order, name, start, _lb in rows:
             ids = self.candidates(name, start, end) if self.candidates is not None else None
             if ids is not None and not mine_gps.intersection(ids.tolist()):
                 continue
-            # a coarse look first (every 10 s, the FOR over my GPs): most candidates pass far off
-            coarse = np.append(np.arange(start, end, 10.0), end - st.dp_step_s)
-            seen = for_mask(self.constellation.track_ecef_km(name, coarse), mine_km, self.for_deg(name)).any(axis=1)
-            if not seen.any():
-                continue
-            first_s = self._first_in_for_s(name, coarse, int(np.argmax(seen)), mine_km) if k else 0.0
-            cands.append((first_s, name, order, start, ids))
+            first_s = self._first_look_s(name, start, end, mine_km, exact=bool(k))
+            if first_s is not None:
+                cands.append((first_s, name, order, start, ids))
         if k:
             cands.sort(key=lambda c: (c[0], c[1]))
         out = []  # (order, instance)
         for _first, name, order, start, ids in cands:
-            # a partner's part: its first revisit_zero_s once free (a GP counts once over it)
-            q = self.instance(name, start, knowledge, window_s=min(end, start + st.revisit_zero_s) - start, gp_ids=ids)
+            q = self._partner_instance(name, start, end, knowledge, ids)
             if mine_gps.intersection(q.gp_ids[q.v_first.any(axis=0)].tolist()):
                 out.append((order, q))
                 if len(out) == k:
                     break
         return [q for _order, q in sorted(out, key=lambda m: m[0])]
+
+    def _partner_instance(self, name: str, start: float, end: float, knowledge: Knowledge, ids) -> SchedulingProblem:
+        """A partner's part: its first revisit_zero_s once free (a GP counts once over it)."""
+        st = self.settings
+        return self.instance(name, start, knowledge, window_s=min(end, start + st.revisit_zero_s) - start, gp_ids=ids)
+
+    def _first_look_s(self, name: str, start: float, end: float, mine_km: np.ndarray, exact: bool) -> float | None:
+        """None when the 10-s look (the FOR over my GPs from ``start`` to the group's end) sees none
+        of them, else the first time it does on the DP grid (``exact``; else 0.0)."""
+        coarse = np.append(np.arange(start, end, 10.0), end - self.settings.dp_step_s)
+        seen = for_mask(self.constellation.track_ecef_km(name, coarse), mine_km, self.for_deg(name)).any(axis=1)
+        if not seen.any():
+            return None
+        return self._first_in_for_s(name, coarse, int(np.argmax(seen)), mine_km) if exact else 0.0
+
+    def _earliest(self, rows, k: int, end: float, knowledge: Knowledge, mine_ids, mine_gps: set, mine_km):
+        """The bounded group of :meth:`group` - the first K partners in the order of (the first time
+        their FOR reaches one of my GPs, name) whose instance shares a GP worth something with mine -
+        looking only at as many partners as that order needs.
+
+        The pass index gives each partner a lower bound of that time (``lb``, :meth:`_passing`).
+        Partners are looked at in the order of their bounds; the one with the earliest time among
+        those looked at is taken next once every partner not yet looked at has a bound after its
+        time (on a tie of time and bound, the tied one is looked at first, so names decide as in
+        the full sort). The order, and so the group, is the full sort's; the partners whose bounds
+        come after the K-th member's time are never looked at."""
+        rows = sorted(rows, key=lambda r: (r[3], r[1]))
+        heap: list = []  # (first time, name, order, start)
+        out: list = []
+        i = 0
+        while True:
+            while i < len(rows) and (not heap or rows[i][3] <= heap[0][0]):
+                order, name, start, _lb = rows[i]
+                i += 1
+                first_s = self._first_look_s(name, start, end, mine_km, exact=True)
+                if first_s is not None:
+                    heapq.heappush(heap, (first_s, name, order, start))
+            if not heap:
+                return out
+            _first, name, order, start = heapq.heappop(heap)
+            ids = self.candidates(name, start, end) if self.candidates is not None else None
+            q = self._partner_instance(name, start, end, knowledge, ids)
+            if mine_gps.intersection(q.gp_ids[q.v_first.any(axis=0)].tolist()):
+                out.append((order, q))
+                if len(out) == k:
+                    return out
+
+    def _passing(self, partners: Sequence[tuple[str, float]], t0_s: float, end_s: float,
+                 mine_ids: np.ndarray) -> list[tuple[int, str, float, float]]:
+        """[(order, name, start, lb)] of the ``partners`` free before ``end_s - dp_step_s`` (start:
+        the later of ``t0_s`` and their free time) and, with a pass index (``passes``), whose
+        regions in [start, end_s] include one of the GPs ``mine_ids`` - the same test as the GP
+        pre-filter intersected with them, made for every partner at once. ``lb``: with the index, a
+        time no later than the first at which the partner's FOR may reach one of those GPs (the
+        sample before its first pass of their regions from ``start``, at least ``start``: the pass
+        test's margin holds the satellite's motion over a sample, so a GP in the FOR between two
+        samples flags both); without it, ``start``."""
+        step = self.settings.dp_step_s
+        rows = [(order, name, max(t0_s, float(free_s))) for order, (name, free_s) in enumerate(partners)]
+        rows = [r for r in rows if r[2] < end_s - step]
+        if self.passes is None or not rows:
+            return [(*r, r[2]) for r in rows]
+        idx = np.fromiter((self.constellation.index(r[1]) for r in rows), dtype=np.int64, count=len(rows))
+        starts = np.fromiter((r[2] for r in rows), dtype=np.float64, count=len(rows))
+        keep = np.flatnonzero(self.passes.passing(mine_ids, idx, starts, end_s))
+        first = self.passes.first_pass_s(mine_ids, idx[keep], starts[keep], end_s)
+        lb = np.maximum(starts[keep], first - self.passes.step_s)
+        return [(*rows[j], float(b)) for j, b in zip(keep.tolist(), lb.tolist())]
 
     def _first_in_for_s(self, name: str, coarse_s: np.ndarray, j: int, gp_km: np.ndarray) -> float:
         """The first time [s] on the DP grid from ``coarse_s[0]`` at which satellite ``name``'s FOR
