@@ -426,8 +426,10 @@ class RegionPrefilter:
         lim = lam + half_ang + v_ang + math.radians(1.0)
         cos_limit = np.cos(np.minimum(lim, math.pi))
         n_sat, n_t = unit.shape[:2]
-        # the pass index: passes[r, i, k] = samples before k at which satellite i passes region r
-        passes = np.zeros((n_reg, n_sat, n_t + 1), dtype=np.uint16 if n_t < 2**16 - 1 else np.int64)
+        # the pass index: passes[r, i, k] = samples before k at which satellite i passes region r; 2 bytes
+        # each up to 65535 samples (22 days at 30 s), 4 beyond (bringup/scenario/limits.py counts more
+        # for the access search's angles)
+        passes = np.zeros((n_reg, n_sat, n_t + 1), dtype=np.uint16 if n_t < 2**16 - 1 else np.uint32)
         for i in range(n_sat):
             hit = (unit[i] @ region_unit.T) >= cos_limit[None, :]  # (K, R): one satellite's samples
             np.cumsum(hit.T, axis=1, out=passes[:, i, 1:])

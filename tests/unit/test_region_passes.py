@@ -73,6 +73,15 @@ def test_the_index_keeps_what_the_angle_test_on_the_interval_keeps(paper):
     assert kept > 20 and empty > 20  # both answers are exercised
 
 
+def test_an_index_of_more_than_65535_samples_keeps_the_same(paper):
+    """Past 65535 samples the counts are 4 bytes wide (here 2 h at 0.1 s: 72001 samples)."""
+    c, g, _pf = paper
+    pf = RegionPrefilter(c, g, 7200.0, 55.0, step_s=0.1)
+    assert pf.candidate_gp_ids(c.names[0], 0.0, 1.0) is not None and pf._coarse["passes"].dtype == np.uint32
+    for sat, t0, t1 in ((c.names[0], 0.0, 7200.0), (c.names[5], 3000.0, 3600.0), (c.names[9], 7000.0, 7300.0)):
+        assert np.array_equal(pf.candidate_gp_ids(sat, t0, t1), _first_written(c, g, 7200.0, 55.0, 0.1, sat, t0, t1))
+
+
 def test_passing_is_the_candidates_holding_one_of_the_gps(paper):
     c, g, pf = paper
     rng = np.random.default_rng(11)
