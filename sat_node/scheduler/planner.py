@@ -32,7 +32,9 @@ all plan here, with the same steps:
    committed plans end (``partners``). ``PlannerSettings.joint_max_partners`` = K >= 1 (scenario
    key ``scheduler.joint_max_partners``; beyond the study, which plans with every overlapping
    satellite) keeps the K partners that may first see one of the planned satellite's GPs
-   earliest (:meth:`Planner.group`); 0 keeps them all.
+   earliest (:meth:`Planner.group`); 0 keeps them all. Which satellites pass the planned
+   satellite's regions in the window, and from when, the planner asks the pre-filter's pass index
+   (``passes``, from the orbits alone) for every satellite at once.
 
 A mixed fleet (bringup/scenario/fleet.py) gives satellites their own field of regard, footprint
 and slew model: ``Planner(own=...)`` maps a satellite's name to its :class:`SatPayload`; the
@@ -50,6 +52,10 @@ view reads every later time at the cut-off; the paper run's report and traces ar
 satellite and ground plan as before (tests/system/test_engines_equal.py for both engines).
 tests/unit/test_joint_bound.py: a bounded group is never larger than K, keeps the partners the rule
 names on a hand-drawn case, and with K at least the unbounded group's size plans exactly as unbounded.
+tests/unit/test_region_passes.py: the partner choice that asks the pre-filter's pass index
+(``passes``; best-first when bounded) chooses the same partners with the same instances as the one
+that looks at every partner; tests/system/test_partner_choice_run.py: a whole run with it equals one
+without it, message by message.
 tests/unit/test_fleet.py: in a mixed fleet each satellite's instance has the FOR mask of its own angle
 and its own slew model, and the non-agile baseline its own footprint.
 """
@@ -272,7 +278,7 @@ class Planner:
         mine_km = self.gp_ecef_km[mine_ids]
         rows = self._passing(partners, t0_s, end, mine_ids)
         if k and self.passes is not None:
-            out = self._earliest(rows, k, end, knowledge, mine_ids, mine_gps, mine_km)
+            out = self._earliest(rows, k, end, knowledge, mine_gps, mine_km)
             return [q for _order, q in sorted(out, key=lambda m: m[0])]
         cands = []  # (first time its FOR reaches one of my GPs [s] (K >= 1 only), name, order, start, ids)
         for order, name, start, _lb in rows:
@@ -307,7 +313,7 @@ class Planner:
             return None
         return self._first_in_for_s(name, coarse, int(np.argmax(seen)), mine_km) if exact else 0.0
 
-    def _earliest(self, rows, k: int, end: float, knowledge: Knowledge, mine_ids, mine_gps: set, mine_km):
+    def _earliest(self, rows, k: int, end: float, knowledge: Knowledge, mine_gps: set, mine_km):
         """The bounded group of :meth:`group` - the first K partners in the order of (the first time
         their FOR reaches one of my GPs, name) whose instance shares a GP worth something with mine -
         looking only at as many partners as that order needs.
