@@ -11,6 +11,9 @@ written. Oracles:
   report's science sections equal the host run's;
 * the container run's report.json has a local run's keys, and its bag's globe view (constellation czml)
   the local run's entities;
+* the globe page on a container run's bag, in headless Chromium (also marker ``browser``: .ci/run
+  installs chromium before the container tests): Cesium counts the bag's entities on the bag's UTC
+  clock (tests/globe_page.py), screenshot kept as build/test-artifacts/globe-container-run.png;
 * nothing labelled with the test's projects is left afterwards (the ``lab`` fixture), nor when a
   run cannot even start (a missing image).
 """
@@ -24,7 +27,8 @@ import time
 from pathlib import Path
 
 import pytest
-from conftest import REPO, traces
+from conftest import REPO, SATS, traces
+from globe_page import check_globe_page
 
 pytestmark = [pytest.mark.containers, pytest.mark.system, pytest.mark.timeout(1800)]
 
@@ -90,6 +94,23 @@ def test_containers_up_equals_local_engine_and_bag_reads_as_host(lab, local_ref,
     from bringup.cli.czml import write_globe
 
     assert write_globe(out / "bag", tmp_path / "globe") == write_globe(local_ref / "bag", tmp_path / "globe-ref")
+
+
+@pytest.mark.browser
+def test_globe_page_shows_a_container_runs_bag(lab, tmp_path, chromium, cesium_modules):
+    compose = lab.compose("czml")  # its folder: tmp_path/czml; the page goes to tmp_path/globe
+    out = tmp_path / "run"
+    t0 = time.monotonic()
+    r = _cli("containers", "up", str(compose), "--out", str(out), "--no-progress")
+    run_s = time.monotonic() - t0
+    assert r.returncode == 0, r.stderr[-3000:]
+    t0 = time.monotonic()
+    counts, status = check_globe_page(out / "bag", tmp_path, chromium, cesium_modules, "globe-container-run.png")
+    rep = json.loads((out / "report.json").read_text())
+    print(f"GLOBE container counts={json.dumps(counts)} entities={status['entities']} span={status['start']}.."
+          f"{status['stop']} webgl={status['webgl']} run_wall_s={run_s:.1f} page_s={time.monotonic() - t0:.1f}")
+    assert counts["looks"] == rep["observations"]["count"] > 50 and counts["satellites"] == SATS
+    assert counts["stations"] > 0 and counts["links"] > 0 and counts["transfers"] > 0
 
 
 def test_podman_compose_runs_the_file_as_written(lab, local_ref, tmp_path):
