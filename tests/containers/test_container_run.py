@@ -97,6 +97,7 @@ def test_containers_up_equals_local_engine_and_bag_reads_as_host(lab, local_ref,
 
 
 @pytest.mark.browser
+@pytest.mark.timeout(3600)  # a container run, `npm ci` of CesiumJS and two page loads in software WebGL
 def test_globe_page_shows_a_container_runs_bag(lab, tmp_path, chromium, cesium_modules):
     compose = lab.compose("czml")  # its folder: tmp_path/czml; the page goes to tmp_path/globe
     out = tmp_path / "run"
