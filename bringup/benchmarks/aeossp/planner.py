@@ -6,8 +6,8 @@ geometry sample (the same samples as :mod:`.check`), inside the task window; at 
 ``MAX_STARTS`` starts per run of feasible starts (evenly spread, the earliest always kept). Each
 candidate carries its inertial look directions at start and end.
 
-DP (the idea of sat_node/scheduler/dp.py: a longest path over the satellite's time-ordered
-choices, each transition feasible under the slew law). Over the satellite's candidates sorted by
+DP (the idea of sat_node/scheduler/dp.py, compiled in :mod:`.dp_kernel`: a longest path over the
+satellite's time-ordered choices, each transition feasible under the slew law). Over the satellite's candidates sorted by
 start, ``V[i] = w_i - lambda E_i + max(0, max_j V[j])`` over predecessors ``j`` that end early
 enough for the bang-coast-bang slew plus settle (+ ``MARGIN_S``) from ``j``'s end look to ``i``'s
 start look, and observe another task; a predecessor ending more than the longest possible slew
@@ -21,9 +21,11 @@ Planning:
 - ``onboard``: satellites plan one after another in rank order (the project's rank rule: a plan
   announced by a higher-ranked satellite outranks, so a satellite drops the tasks its higher-ranked
   neighbours announced); each knows only its own candidates and those announcements.
-- ``central``: the joint planner's greedy dive (sat_node/scheduler/joint.py): every satellite plans
-  alone, each contested task goes to the satellite that completes it first and is forbidden to the
-  others, who replan; until nothing is contested or the time limit.
+- ``central``: one planner with the whole picture: the onboard pass as a start, then the joint
+  assignment search of :mod:`.search` (steal and insert moves between satellites, each
+  satellite's part an exact DP, for up to ``SEARCH_S`` seconds), then every satellite's
+  battery-priced DP over the tasks it was assigned, and a last pass in which any satellite may
+  take up a task the battery let go.
 - ``greedy`` (the baseline): tasks by weight (then earliest due), each inserted at the first
   candidate whose slew gaps to the neighbours on its satellite's timeline hold; battery repair last.
 
@@ -31,8 +33,9 @@ Every plan is repaired until :func:`.check.check` finds it valid (the command as
 
 How we know it is right: tests/unit/test_aeossp_planner.py (every mode's plan passes the check
 with no task twice; the DP's value equals a brute force over all subsets of a small satellite's
-candidates; onboard does not peek: a higher-ranked satellite's plan is the same with or without its
-lower-ranked neighbour, who never takes a task the higher one announced; the battery price makes a
+candidates; the joint search moves a task to free a satellite and is near the brute-force
+optimum of the assignment on small instances; onboard does not peek: a higher-ranked satellite's
+plan is the same with or without its lower-ranked neighbour, who never takes a task the higher one announced; the battery price makes a
 poor satellite's plan feasible where the unpriced plan would deplete it).
 """
 
@@ -44,6 +47,7 @@ import numpy as np
 
 from bringup.benchmarks.aeossp.case import Action, Case
 from bringup.benchmarks.aeossp.check import battery, check, satellite_sequence, target_ecef_km_many
+from bringup.benchmarks.aeossp.dp_kernel import longest_path
 from bringup.benchmarks.aeossp.geometry import (
     Orbits,
     ecef_to_teme,
@@ -51,12 +55,14 @@ from bringup.benchmarks.aeossp.geometry import (
     slew_time_s,
     visible,
 )
+from bringup.benchmarks.aeossp.search import assign
 
 __all__ = ["Candidates", "plan"]
 
 MARGIN_DEG = 0.02       # off-nadir margin against our frames vs the verifier's (GMST vs full IAU)
 MARGIN_S = 0.1          # slew-gap margin [s]
-MAX_STARTS = 16
+MAX_STARTS = 64
+SEARCH_S = 20.0         # the joint assignment search's share of the time limit [s]
 BATTERY_RESERVE_WH = 2.0
 LAMBDAS = (0.0, 0.003, 0.01, 0.03, 0.1, 0.3, 1.0)
 
@@ -119,6 +125,7 @@ class Candidates:
             self.u0 = self.u1 = self.nadir0 = np.zeros((0, 3))
         self.energy = (sat.imaging_w * (self.end - self.start) + sat.slew_w * (sat.settle_s + 10.0)) / 3600.0
         self.sat = sat
+        self.by_end = np.argsort(self.end, kind="stable")
 
     @staticmethod
     def _unit(v):
@@ -139,54 +146,28 @@ def _angles(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 def dp(cand: Candidates, allowed: np.ndarray, lam: float) -> list[int]:
     """The best path (indices into ``cand``) over allowed candidates; value w - lam * energy."""
-    idx = np.flatnonzero(allowed)
-    if not idx.size:
+    return dp_gain(cand, np.where(allowed, cand.weight - lam * cand.energy, 0.0))
+
+
+def dp_gain(cand: Candidates, gain: np.ndarray) -> list[int]:
+    """The best path (indices into ``cand``) by candidate gains (a gain <= 0 is never used)."""
+    if not len(cand):
         return []
-    gain = cand.weight[idx] - lam * cand.energy[idx]
-    keep = gain > 0
-    idx, gain = idx[keep], gain[keep]
-    n = len(idx)
-    if not n:
-        return []
-    start, end, task = cand.start[idx], cand.end[idx], cand.task[idx]
-    u0, u1 = cand.u0[idx], cand.u1[idx]
-    t_far = float(cand.need_s(180.0))
-    by_end = np.argsort(end, kind="stable")
-    ends_sorted = end[by_end]
-    V = np.full(n, -np.inf)
-    P = np.full(n, -1)
-    best_v, best_j, ptr = 0.0, -1, 0          # running max over predecessors ending <= start - t_far
-    first_ok = start >= cand.need_s(_angles_rows(cand.nadir0[idx], u0))
-    for i in range(n):
-        lim = start[i] - t_far
-        while ptr < n and ends_sorted[ptr] <= lim:
-            j = by_end[ptr]
-            if V[j] > best_v:
-                best_v, best_j = V[j], j
-            ptr += 1
-        v, p = (0.0, -1) if first_ok[i] else (-np.inf, -1)
-        if best_v > v and best_j >= 0:
-            v, p = best_v, best_j
-        lo = np.searchsorted(ends_sorted, lim, side="right")
-        hi = np.searchsorted(ends_sorted, start[i], side="right")
-        if hi > lo:
-            js = by_end[lo:hi]
-            js = js[(task[js] != task[i]) & np.isfinite(V[js])]
-            if js.size:
-                ok = start[i] - end[js] >= cand.need_s(_angles(u1[js], u0[i]))
-                js = js[ok]
-                if js.size:
-                    jb = js[np.argmax(V[js])]
-                    if V[jb] > v:
-                        v, p = V[jb], jb
-        if np.isfinite(v):
-            V[i], P[i] = v + gain[i], p
+    if cand.slew:
+        t_far = float(cand.need_s(180.0))
+        first_ok = cand.start >= cand.need_s(_angles_rows(cand.nadir0, cand.u0))
+    else:
+        t_far, first_ok = 0.0, np.ones(len(cand), bool)
+    s = cand.sat
+    V, P = longest_path(cand.start.astype(np.float64), cand.end.astype(np.float64), cand.task, cand.u0,
+                        cand.u1, gain, first_ok, cand.by_end, s.max_rate_deg_s, s.max_acc_deg_s2,
+                        s.settle_s, MARGIN_S, t_far, cand.slew)
     i = int(np.argmax(V))
     if not np.isfinite(V[i]) or V[i] <= 0:
         return []
     path = []
     while i >= 0:
-        path.append(int(idx[i]))
+        path.append(i)
         i = int(P[i])
     return path[::-1]
 
@@ -275,35 +256,30 @@ def _tindex(case):
 
 
 def _central(case, orbits, cands, deadline, rules):
-    forbid: dict[str, set[int]] = {sid: set() for sid in cands}
-    plans = {sid: plan_satellite(case, orbits, c, np.ones(len(c), bool), rules) for sid, c in cands.items()}
+    """The onboard pass, the joint assignment search, then each satellite's priced DP over its tasks."""
     ti = _tindex(case)
-    while time.monotonic() < deadline:
-        holders: dict[int, list[tuple[int, str]]] = {}
-        for sid, acts in plans.items():
-            for a in acts:
-                holders.setdefault(ti[a.task_id], []).append((a.end_s, sid))
-        contested = {k: sorted(h) for k, h in holders.items() if len(h) > 1}
-        if not contested:
-            break
-        dirty = set()
-        for k, h in contested.items():
-            for _end, sid in h[1:]:          # the first to complete it keeps it
-                forbid[sid].add(k)
-                dirty.add(sid)
-        for sid in sorted(dirty):
-            c = cands[sid]
-            plans[sid] = plan_satellite(case, orbits, c, ~np.isin(c.task, list(forbid[sid])), rules)
-    # anything still contested at the deadline: drop the later copies (the check allows duplicates,
-    # but they earn nothing and cost energy)
-    seen: dict[int, tuple[int, str]] = {}
-    for sid, acts in plans.items():
-        for a in acts:
-            k = ti[a.task_id]
-            if k not in seen or a.end_s < seen[k][0]:
-                seen[k] = (a.end_s, sid)
-    return {sid: repair(case, orbits, sid, [a for a in acts if seen[ti[a.task_id]][1] == sid], rules)
-            for sid, acts in plans.items()}
+    plans = _onboard(case, orbits, cands, deadline, rules)
+    w = np.array([t.weight for t in case.tasks], dtype=float)
+    order = sorted(cands)
+    holder = np.full(len(case.tasks), -1)
+    for q, sid in enumerate(order):
+        for a in plans[sid]:
+            holder[ti[a.task_id]] = q
+    holder = assign(cands, w, holder, dp_gain, min(deadline, time.monotonic() + SEARCH_S))
+    new = {}
+    for q, sid in enumerate(order):
+        c = cands[sid]
+        new[sid] = plan_satellite(case, orbits, c, holder[c.task] == q, rules)
+        holder[holder == q] = -1
+        holder[[ti[a.task_id] for a in new[sid]]] = q
+    for q, sid in enumerate(order):       # tasks the battery let go: anyone may take them up
+        c = cands[sid]
+        acts = plan_satellite(case, orbits, c, (holder[c.task] < 0) | (holder[c.task] == q), rules)
+        if _weight(case, acts) > _weight(case, new[sid]):
+            holder[holder == q] = -1
+            holder[[ti[a.task_id] for a in acts]] = q
+            new[sid] = acts
+    return new
 
 
 def _greedy(case, orbits, cands, deadline, rules):
