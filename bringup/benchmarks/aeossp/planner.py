@@ -23,7 +23,7 @@ Planning:
   neighbours announced); each knows only its own candidates and those announcements.
 - ``central``: one planner with the whole picture: the onboard pass as a start, then the joint
   assignment search of :mod:`.search` (steal and insert moves between satellites, each
-  satellite's part an exact DP, for up to ``SEARCH_S`` seconds), then every satellite's
+  satellite's part an exact DP, until no move gains or the time limit), then every satellite's
   battery-priced DP over the tasks it was assigned, and a last pass in which any satellite may
   take up a task the battery let go.
 - ``greedy`` (the baseline): tasks by weight (then earliest due), each inserted at the first
@@ -62,7 +62,7 @@ __all__ = ["Candidates", "plan"]
 MARGIN_DEG = 0.02       # off-nadir margin against our frames vs the verifier's (GMST vs full IAU)
 MARGIN_S = 0.1          # slew-gap margin [s]
 MAX_STARTS = 64
-SEARCH_S = 20.0         # the joint assignment search's share of the time limit [s]
+DUP_RETRIES = 3
 BATTERY_RESERVE_WH = 2.0
 LAMBDAS = (0.0, 0.003, 0.01, 0.03, 0.1, 0.3, 1.0)
 
@@ -126,6 +126,12 @@ class Candidates:
         self.energy = (sat.imaging_w * (self.end - self.start) + sat.slew_w * (sat.settle_s + 10.0)) / 3600.0
         self.sat = sat
         self.by_end = np.argsort(self.end, kind="stable")
+        self.startf, self.endf = self.start.astype(np.float64), self.end.astype(np.float64)
+        if slew and rows:
+            self.t_far = float(self.need_s(180.0))
+            self.first_ok = self.start >= self.need_s(_angles_rows(self.nadir0, self.u0))
+        else:
+            self.t_far, self.first_ok = 0.0, np.ones(len(rows), bool)
 
     @staticmethod
     def _unit(v):
@@ -150,18 +156,34 @@ def dp(cand: Candidates, allowed: np.ndarray, lam: float) -> list[int]:
 
 
 def dp_gain(cand: Candidates, gain: np.ndarray) -> list[int]:
-    """The best path (indices into ``cand``) by candidate gains (a gain <= 0 is never used)."""
+    """The best path (indices into ``cand``) by candidate gains (a gain <= 0 is never used).
+
+    The DP only keeps a task from following itself; when a path still visits a task twice, the
+    later visits' candidates are struck and the DP runs again (``DUP_RETRIES`` times at most)."""
     if not len(cand):
         return []
-    if cand.slew:
-        t_far = float(cand.need_s(180.0))
-        first_ok = cand.start >= cand.need_s(_angles_rows(cand.nadir0, cand.u0))
-    else:
-        t_far, first_ok = 0.0, np.ones(len(cand), bool)
+    gain = np.asarray(gain, dtype=float)
+    for _ in range(DUP_RETRIES + 1):
+        path = _dp_path(cand, gain)
+        tasks = cand.task[path]
+        if len(np.unique(tasks)) == len(path):
+            return path
+        seen: dict[int, int] = {}
+        strike = np.zeros(len(cand), bool)
+        for i, k in zip(path, tasks.tolist(), strict=True):
+            if k in seen:
+                strike |= (cand.task == k)
+                strike[seen[k]] = False
+            else:
+                seen[k] = i
+        gain = np.where(strike, 0.0, gain)
+    return path
+
+
+def _dp_path(cand: Candidates, gain: np.ndarray) -> list[int]:
     s = cand.sat
-    V, P = longest_path(cand.start.astype(np.float64), cand.end.astype(np.float64), cand.task, cand.u0,
-                        cand.u1, gain, first_ok, cand.by_end, s.max_rate_deg_s, s.max_acc_deg_s2,
-                        s.settle_s, MARGIN_S, t_far, cand.slew)
+    V, P = longest_path(cand.startf, cand.endf, cand.task, cand.u0, cand.u1, gain, cand.first_ok, cand.by_end,
+                        s.max_rate_deg_s, s.max_acc_deg_s2, s.settle_s, MARGIN_S, cand.t_far, cand.slew)
     i = int(np.argmax(V))
     if not np.isfinite(V[i]) or V[i] <= 0:
         return []
@@ -265,7 +287,7 @@ def _central(case, orbits, cands, deadline, rules):
     for q, sid in enumerate(order):
         for a in plans[sid]:
             holder[ti[a.task_id]] = q
-    holder = assign(cands, w, holder, dp_gain, min(deadline, time.monotonic() + SEARCH_S))
+    holder = assign(cands, w, holder, dp_gain, deadline)
     new = {}
     for q, sid in enumerate(order):
         c = cands[sid]

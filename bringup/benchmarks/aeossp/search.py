@@ -9,8 +9,12 @@ Moves, satellite by satellite in a seeded random order, until no move gains or t
 - *replan*: satellite ``A`` replans over the free tasks and its own (block coordinate ascent: never
   loses weight);
 - *steal*: ``A`` also may take tasks other satellites hold, at ``alpha`` times their weight
-  (``alpha`` drawn from ``ALPHAS``); every satellite that lost a task replans without it, over the
-  free tasks (including those ``A`` let go). The move is kept only when the total weight rises.
+  (each ``alpha`` of ``ALPHAS`` in turn); every satellite that lost a task replans without it, over
+  the free tasks (including those ``A`` let go). The move is kept only when the total weight rises;
+- *insert*: each task nobody holds, heaviest first, is forced onto each satellite that can see it
+  (a steal at ``alpha = 1`` with that task first); kept only when the total weight rises.
+
+Each DP path visits a task at most once (the caller's ``dp`` strikes repeated visits).
 
 The battery is left to the caller (the planner's priced DP and repair per satellite over the
 assignment), which is why this search works on weights alone.
@@ -29,7 +33,7 @@ import numpy as np
 
 __all__ = ["ALPHAS", "STATS", "assign"]
 
-STATS: dict = {}   # the last search: rounds started
+STATS: dict = {}   # the last search: rounds started (for the benchmark's log)
 
 ALPHAS = (0.0, 0.5, 0.8, 0.95, 1.0)
 
@@ -47,6 +51,7 @@ def assign(cands: dict, weights: np.ndarray, holder: np.ndarray, dp, deadline: f
 
     ``dp(cand, gain)`` is the per-satellite longest path over candidate gains (a list of indices)."""
     order = sorted(cands)
+    STATS.clear()
     holder = holder.copy()
     rng = np.random.default_rng(seed)
     n_sat = len(order)
