@@ -4,6 +4,7 @@ Usage::
 
     nice .venv/bin/python bench/bench_aeossp.py CASES_ROOT [--split train] [--modes greedy,onboard,central]
         [--cases case_0001,...] [--time-limit 300] [--ablate] [--json OUT.json]
+        [--external NAME --external-cmd 'CMD {case} {out}' --external-solution solution.json]
 
 ``CASES_ROOT`` is the benchmark's ``dataset/cases`` folder (a checkout of github.com/Mtrya/astro-reason,
 not part of this repository). Develop on ``train`` only: the ``test*`` splits are held out.
@@ -17,6 +18,12 @@ seconds of planning (reading the case not included), and the load average before
 checked without it): the WCR each rule costs. Means per mode at the end; ``onboard/central`` is
 the mean ratio of WCR case by case.
 
+With ``--external``: before our modes on each case, another solver (e.g. the benchmark's own MWIS
+baseline in its own virtual environment) runs as a subprocess, ``{case}`` and ``{out}`` (a fresh
+folder) substituted in ``--external-cmd``; its solution (``{out}/<--external-solution>``) is scored
+by the same check, its wall and CPU seconds (the subprocess and its children) measured the same way:
+the two solvers alternate case by case in one session.
+
 Nothing is asserted here; wall times on a shared machine are read with the load column.
 """
 
@@ -25,18 +32,39 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import resource
+import shlex
 import statistics
+import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from bringup.benchmarks.aeossp.case import read_case
+from bringup.benchmarks.aeossp.case import read_case, read_solution
 from bringup.benchmarks.aeossp.check import check
 from bringup.benchmarks.aeossp.geometry import Orbits
 from bringup.benchmarks.aeossp.planner import plan
+
+
+def _external(a, case_dir: Path):
+    """Run the external solver on one case: (its actions, wall s, CPU s of it and its children)."""
+    case = read_case(case_dir)
+    with tempfile.TemporaryDirectory(prefix="bench_aeossp_") as out:
+        cmd = [part.format(case=str(case_dir), out=out) for part in shlex.split(a.external_cmd)]
+        r0 = resource.getrusage(resource.RUSAGE_CHILDREN)
+        t0 = time.monotonic()
+        done = subprocess.run(cmd, check=False, capture_output=True, text=True)
+        wall = time.monotonic() - t0
+        r1 = resource.getrusage(resource.RUSAGE_CHILDREN)
+        if done.returncode != 0:
+            raise SystemExit(f"bench_aeossp: {a.external} failed on {case_dir} (exit {done.returncode}): "
+                             f"{done.stderr.strip().splitlines()[-1:] or ''}")
+        acts = read_solution(Path(out) / a.external_solution, case)
+    return acts, wall, (r1.ru_utime - r0.ru_utime) + (r1.ru_stime - r0.ru_stime)
 
 
 def main(argv=None) -> int:
@@ -48,13 +76,19 @@ def main(argv=None) -> int:
     ap.add_argument("--time-limit", type=float, default=300.0)
     ap.add_argument("--ablate", action="store_true", help="also central without the slew rule, without the battery")
     ap.add_argument("--json", default="", help="write every row as JSON here")
+    ap.add_argument("--external", default="", help="name of another solver to run side by side")
+    ap.add_argument("--external-cmd", default="", help="its command line, with {case} and {out}")
+    ap.add_argument("--external-solution", default="solution.json", help="its solution file inside {out}")
     a = ap.parse_args(argv)
     split = Path(a.root) / a.split
     if not split.is_dir():
         print(f"bench_aeossp: {split}: no such split folder", file=sys.stderr)
         return 2
     names = a.cases.split(",") if a.cases else sorted(p.name for p in split.iterdir() if p.is_dir())
-    runs = [(m, True, True) for m in a.modes.split(",")]
+    if bool(a.external) != bool(a.external_cmd):
+        print("bench_aeossp: --external and --external-cmd go together", file=sys.stderr)
+        return 2
+    runs = [(m, True, True) for m in a.modes.split(",") if m]
     if a.ablate:
         runs += [("central", False, True), ("central", True, False)]
     rows = []
@@ -63,12 +97,15 @@ def main(argv=None) -> int:
     for name in names:
         case = read_case(split / name)
         orbits = Orbits(case.satellites, case.mission.start)
-        for mode, slew, batt in runs:
+        for mode, slew, batt in ([(a.external, True, True)] if a.external else []) + runs:
             label = mode + ("" if slew else "-noslew") + ("" if batt else "-nobatt")
             load = os.getloadavg()[0]
-            t0, c0 = time.monotonic(), time.process_time()
-            acts = plan(case, mode, a.time_limit, orbits, slew=slew, battery_rule=batt)
-            wall, cpu = time.monotonic() - t0, time.process_time() - c0
+            if mode == a.external:
+                acts, wall, cpu = _external(a, split / name)
+            else:
+                t0, c0 = time.monotonic(), time.process_time()
+                acts = plan(case, mode, a.time_limit, orbits, slew=slew, battery_rule=batt)
+                wall, cpu = time.monotonic() - t0, time.process_time() - c0
             r = check(case, acts, orbits, slew=slew, battery_rule=batt)
             m = r.metrics
             row = {"case": name, "mode": label, "sats": len(case.satellites), "tasks": len(case.tasks),
