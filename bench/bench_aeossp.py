@@ -10,8 +10,8 @@ Usage::
 not part of this repository). Develop on ``train`` only: the ``test*`` splits are held out.
 
 For every case of the split and every mode (``greedy``: the greedy-by-weight baseline; ``onboard``:
-the DP per satellite by rank with its neighbours' announced plans; ``central``: the DP with the
-joint planner's dive), one plan in this process (bringup/benchmarks/aeossp/planner.py), then our
+the DP per satellite by rank with its neighbours' announced plans; ``central``: the onboard plans
+improved by the joint assignment search, each satellite's part its DP), one plan in this process (bringup/benchmarks/aeossp/planner.py), then our
 check (bringup/benchmarks/aeossp/check.py): validity, WCR, CR, TAT [s], PC [Wh], wall and CPU
 seconds of planning (reading the case not included), and the load average before the plan. With
 ``--ablate``: ``central`` again with the slew rule off and with the battery rule off (planned and

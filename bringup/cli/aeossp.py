@@ -31,10 +31,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     s.add_argument("case_dir", help="the case folder (mission.yaml, satellites.yaml, tasks.yaml)")
     s.add_argument("--out", required=True, help="where to write the solution JSON")
     s.add_argument("--time-limit", type=float, default=300.0,
-                   help="seconds the central planner may spend resolving contested tasks (default 300)")
+                   help="seconds the central planner may spend on its joint search (default 300)")
     s.add_argument("--planning", choices=("onboard", "central", "greedy"), default="central",
                    help="onboard: each satellite by rank with its neighbours' announced plans; central: one "
-                        "planner for all (the joint dive); greedy: the greedy-by-weight baseline")
+                        "planner for all (the joint assignment search); greedy: the greedy-by-weight baseline")
     c = sub.add_parser("check", help="check a solution with our own rules; print validity and metrics")
     c.add_argument("case_dir", help="the case folder")
     c.add_argument("solution", help="the solution JSON")
