@@ -22,11 +22,11 @@ import time
 from pathlib import Path
 
 
-def hdtn_prefix() -> Path:
+def hdtn_prefix(program: str = "hdtn-one-process") -> Path:
     prefix = Path(os.environ.get("HDTN_PREFIX", Path.home() / ".cache" / "constellation" / "hdtn"))
-    if not (prefix / "bin" / "hdtn-one-process").exists():
-        raise FileNotFoundError(f"HDTN not found in {prefix} (build it: scripts/build_hdtn.sh SRC {prefix}, "
-                                "or set HDTN_PREFIX)")
+    if not (prefix / "bin" / program).exists():
+        raise FileNotFoundError(f"HDTN's {program} not found in {prefix}/bin (build it: scripts/build_hdtn.sh SRC "
+                                f"{prefix}, or set HDTN_PREFIX)")
     return prefix
 
 
@@ -129,7 +129,7 @@ class HdtnProc:
     """One HDTN program in the namespace, its console log in ``home/<name>.log``."""
 
     def __init__(self, ns: NetNs, home: Path, name: str, *args: str) -> None:
-        self.prefix = hdtn_prefix()
+        self.prefix = hdtn_prefix(name)
         home.mkdir(parents=True, exist_ok=True)
         self.log_path = home / f"{name}.log"
         self._log = open(self.log_path, "w")  # noqa: SIM115 - closed in stop()

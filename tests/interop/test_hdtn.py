@@ -90,7 +90,6 @@ def _finish(p: subprocess.Popen) -> str:
 
 @pytest.fixture
 def ns():
-    hn.hdtn_prefix()  # a clear error first when HDTN is not built
     n = hn.NetNs()
     try:
         yield n
@@ -102,6 +101,7 @@ def test_hdtn_forwards_our_bundles_to_us(ns, tmp_path):
     """Our active side -> HDTN's induct; HDTN's router and egress -> its outduct (active) -> our
     passive side: every bundle arrives once, payload byte-identical, primary block unchanged."""
     home = tmp_path / "hdtn"
+    hn.hdtn_prefix("hdtn-one-process")  # a clear error first when it is not built
     cfg = hn.write_json(home / "hdtn.json", hn.hdtn_config(
         HDTN_NODE, [hn.tcpcl4_induct("from_us", IN_PORT, HDTN_MRU)],
         [hn.tcpcl4_outduct("to_us", US_DST, OUT_PORT)], home))
@@ -135,6 +135,7 @@ def test_hdtn_bpgen_sends_to_our_listener(ns, tmp_path):
     """HDTN's bpgen-async (active side, its outduct) -> our passive side: every bundle it generated
     arrives, BPv7, its payload the size bpgen was told and its sequence numbers 0, 1, 2... in order."""
     home = tmp_path / "bpgen"
+    hn.hdtn_prefix("bpgen-async")
     outducts = hn.write_json(home / "outducts.json", {"outductConfigName": "ours", "outductVector": [
         hn.tcpcl4_outduct("bpgen", US_DST, OUT_PORT, segment_mru=200000)]})
     size = 20000  # > our segment MRU
