@@ -99,7 +99,8 @@ def ns():
 
 def test_hdtn_forwards_our_bundles_to_us(ns, tmp_path):
     """Our active side -> HDTN's induct; HDTN's router and egress -> its outduct (active) -> our
-    passive side: every bundle arrives once, payload byte-identical, primary block unchanged."""
+    passive side: every bundle arrives once, payload byte-identical, primary block unchanged, hop
+    count one more, HDTN named as previous node."""
     home = tmp_path / "hdtn"
     hn.hdtn_prefix("hdtn-one-process")  # a clear error first when it is not built
     cfg = hn.write_json(home / "hdtn.json", hn.hdtn_config(
@@ -124,8 +125,10 @@ def test_hdtn_forwards_our_bundles_to_us(ns, tmp_path):
         assert b.payload == want.payload
         assert (b.src, b.dest, b.creation_ms, b.seq, b.lifetime_ms) == \
             (want.src, want.dest, want.creation_ms, want.seq, want.lifetime_ms)
+    # RFC 9171 4.4.3 and 4.4.1: a forwarder adds one to the hop count and names itself as previous node
     hops = {b.hop_count for b in got}
     prev = {b.previous_node for b in got}
+    assert hops == {(16, 1)} and prev == {ipn(HDTN_NODE, 0)}
     print(f"HDTN {hn.hdtn_version(hdtn.prefix)}: {N} bundles ({sum(len(b.payload) for _, b in ours)} B of payload) "
           f"forwarded ipn:1.1 -> ipn:10 -> ipn:2.1, payloads byte-identical; hop count {hops}, "
           f"previous node {prev}", file=sys.stderr)
