@@ -19,7 +19,8 @@
 # bpgen-async and bpsink-async (HDTN_TARGETS to change), with HDTN's own config files in
 # PREFIX/share/HDTN/config_files. Off: the web interface (it would download CivetWeb or pull
 # Boost.Beast), BPSec, stats logging, video streaming. LTP, STCP and UDP stay in: HDTN's induct and
-# outduct managers link them unconditionally.
+# outduct managers link them unconditionally. An interrupted build goes on where it stopped with
+# HDTN_BUILD_DIR=<its build folder>.
 set -euo pipefail
 
 src=${1:-}
@@ -66,7 +67,9 @@ for tool in cmake make g++; do
     command -v "$tool" >/dev/null || { echo "build_hdtn.sh: $tool missing" >&2; exit 2; }
 done
 
-build=$(mktemp -d "${TMPDIR:-/tmp}/hdtn-build.XXXXXX")
+# HDTN_BUILD_DIR: a build folder of an earlier run to go on with (make rebuilds only what is missing)
+build=${HDTN_BUILD_DIR:-$(mktemp -d "${TMPDIR:-/tmp}/hdtn-build.XXXXXX")}
+mkdir -p "$build"
 cd "$build"
 start=$(date +%s)
 nice -n "$niceness" cmake "$src" -DCMAKE_BUILD_TYPE=Release -DCMAKE_INSTALL_PREFIX="$prefix" \
