@@ -2,7 +2,7 @@
 interop tests (tests/interop/test_hdtn.py), configured the way HDTN's own test scripts configure it: an
 HDTN config JSON (``hdtnConfigName``, ``inductsConfig``/``outductsConfig`` with ``tcpcl_v4`` ducts,
 ``storageConfig``) and a contact plan JSON for ``hdtn-one-process``; an inducts or outducts JSON for
-its ``bpsink-async`` / ``bpgen-async`` apps (HDTN config_files/ and tests/test_scripts_linux/).
+its ``bpsink-async`` / ``bpgen-async`` apps (HDTN_SRC/config_files/ and HDTN_SRC/tests/test_scripts_linux/ in its source tree).
 
 HDTN's TCP inducts bind the wildcard address (``tcp::v4()``, no option to bind one address), so every
 HDTN process, and every project process that talks to it, runs in a network namespace of its own
