@@ -512,6 +512,15 @@ class SatelliteLogic(OnboardOperations):
         digest = hashlib.sha256(b.payload).hexdigest()
         self.delivered_from_ground.append((b.bundle_id, len(b.payload), digest, t_ns))
 
+    def ground_deliveries(self) -> dict | None:
+        """What became of the bundles the ground uplinked to this satellite (its counters, and each
+        one delivered: id, payload bytes, payload SHA-256, t_ns); None when none came."""
+        if not (self.from_ground or self.delivered_from_ground):
+            return None
+        return {"counters": dict(sorted(self.from_ground.items())),
+                "bundles": [{"bundle": b, "payload_bytes": n, "payload_sha256": h, "t_ns": t}
+                            for b, n, h, t in self.delivered_from_ground]}
+
     def _station_at(self, pass_ns: int) -> str:
         for c in self.world.ground_plan.contacts:
             if c.src == self.name and int(round(c.start_s * _NS)) == pass_ns:

@@ -1,5 +1,5 @@
 """Helpers for the tests that run the constellation with a ground gateway (ground_station/gateway.py):
-the run as a subprocess of the CLI (centralized, local engine, six satellites, one hour, ``--epoch
+the run as a subprocess of the CLI (centralized, local or ROS engine, six satellites, one hour, ``--epoch
 now``, polar regions beside the paper's so that observations precede the passes), bundles for the
 satellites made by pyD3TN (an independent BPv7 implementation), and what a run should have done,
 recomputed from its folder (its scenario.toml, with the epoch it ran at, and the world built anew)."""
@@ -39,8 +39,8 @@ def cli(*argv: str, **kw) -> subprocess.Popen:
                             stderr=subprocess.PIPE, text=True, env=env(), cwd=REPO, **kw)
 
 
-def start_run(out: Path, url: str) -> subprocess.Popen:
-    return cli("run", "--mode", "centralized", "--engine", "local", "--sats", "6", "--hours", "1",
+def start_run(out: Path, url: str, engine: str = "local") -> subprocess.Popen:
+    return cli("run", "--mode", "centralized", "--engine", engine, "--sats", "6", "--hours", "1",
                "--epoch", "now", "--no-plots", "--no-progress", "--set", POLAR, "--out", str(out),
                "--ground-gateway", url)
 

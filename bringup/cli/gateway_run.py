@@ -1,23 +1,29 @@
 """``constellation run --ground-gateway URL``: the ground gateway's part of a run (ground_station/gateway.py):
 the URL checked and the peer reached before anything else is made (one line, exit 2, otherwise), the
 gateway closed when the run ends, and what it did written to the run folder (gateway.json) and to
-report.json (``gateway``). Checked by tests/unit/test_gateway.py (the refusals) and
+report.json (``gateway``). On the local engine the gateway runs in this process; on the ROS engine in
+the ground's process (bringup/engine/ros/ground_gateway.py), which with the satellites' processes
+writes what gateway.json needs at the run's end. Checked by tests/unit/test_gateway.py (the refusals) and
 tests/system/test_ground_gateway.py (a whole run).
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
+import json
 from pathlib import Path
 
 from bringup.cli.run_folder import json_text, write_text_atomic
+from bringup.engine.ros.ground_gateway import GATEWAY_DIR, GROUND_FILE
 from bringup.errors import UserError
 from ground_station.gateway import Gateway, parse_gateway
 from ground_station.ground_segment import GroundLogic
 from sat_node.dtn.cl import ClError
 from sat_node.satellite import SatelliteLogic
 
-__all__ = ["closing", "gateway_spec", "start_gateway", "write_gateway_report"]
+__all__ = ["closing", "gateway_spec", "start_gateway", "write_gateway_report", "write_gateway_report_ros",
+           "write_report"]
 
 
 def gateway_spec(args: argparse.Namespace):
@@ -33,19 +39,28 @@ def gateway_spec(args: argparse.Namespace):
     if args.mode != "centralized":
         raise UserError(f"--ground-gateway needs --mode centralized (the ground segment's bundle agent), "
                         f"not {args.mode}")
-    if args.engine != "local":
-        raise UserError("--ground-gateway runs on --engine local (the ROS engine's ground process has no "
-                        "gateway yet)")
+    if args.engine == "ros" and getattr(args, "restart", 0):
+        raise UserError("--ground-gateway with --restart: a restarted ground process would lose the "
+                        "gateway's session and what it had not yet handed over; run without --restart")
     return spec
 
 
-def start_gateway(spec):
+def start_gateway(spec, engine: str = "local"):
+    """The started gateway (local engine), None on the ROS engine, whose ground process starts its
+    own (bringup/engine/ros/ground_gateway.py): there the peer is reached once here and left again,
+    so an unreachable one still stops the run before anything is made."""
     if spec is None:
         return None
+    if engine == "ros":  # (the probe takes no bundle: it does not open the listen address)
+        spec = dataclasses.replace(spec, listen=None)
     try:
-        return Gateway(spec).start()
+        gw = Gateway(spec).start()
     except ClError as exc:
         raise UserError(f"--ground-gateway {spec.cl}://{spec.host}:{spec.port}: {exc}") from None
+    if engine == "ros":
+        gw.close()
+        return None
+    return gw
 
 
 class closing:
@@ -62,21 +77,34 @@ class closing:
 
 
 def write_gateway_report(out: Path, parts: list, say) -> dict | None:
-    """gateway.json: the ground agent's and the gateway's counters and what reached each satellite;
-    returns its summary for report.json (``gateway``: the counters, without the per-bundle lists)."""
+    """gateway.json of a local run (its participants in this process): see :func:`write_report`."""
     ground = next((p for p in parts if isinstance(p, GroundLogic)), None)
     if ground is None or ground.gateway is None:
         return None
-    rep = ground.gateway_report()
-    rep["delivered_at_satellites"] = {
-        p.name: {"counters": dict(sorted(p.from_ground.items())),
-                 "bundles": [{"bundle": b, "payload_bytes": n, "payload_sha256": h, "t_ns": t}
-                             for b, n, h, t in p.delivered_from_ground]}
-        for p in parts if isinstance(p, SatelliteLogic) and (p.from_ground or p.delivered_from_ground)}
+    sats = {p.name: d for p in parts if isinstance(p, SatelliteLogic) and (d := p.ground_deliveries())}
+    return write_report(out, ground.gateway_report(), sats, say)
+
+
+def write_gateway_report_ros(out: Path, say) -> dict | None:
+    """gateway.json of a ROS run, from what its ground and satellite processes wrote at their finish
+    (bringup/engine/ros/ground_gateway.py): see :func:`write_report`."""
+    folder = out / GATEWAY_DIR
+    ground_file = folder / GROUND_FILE
+    if not ground_file.exists():
+        raise UserError(f"--ground-gateway: the ground process wrote no {ground_file} (its log in {out / 'logs'})")
+    sats = {f.stem: json.loads(f.read_text()) for f in sorted(folder.glob("*.json")) if f != ground_file}
+    return write_report(out, json.loads(ground_file.read_text()), sats, say)
+
+
+def write_report(out: Path, rep: dict, sats: dict, say) -> dict:
+    """gateway.json: the ground agent's and the gateway's counters (``rep``: GroundLogic.gateway_report)
+    and what reached each satellite (``sats``: SatelliteLogic.ground_deliveries by name); returns its
+    summary for report.json (``gateway``: the counters, without the per-bundle lists)."""
+    rep["delivered_at_satellites"] = dict(sorted(sats.items()))
     write_text_atomic(out / "gateway.json", json_text(rep, indent=2, sort_keys=True) + "\n")
     g = rep["gateway"]["counters"]
     n_sat = sum(len(v["bundles"]) for v in rep["delivered_at_satellites"].values())
-    say(f"run: ground gateway {ground.gateway.spec.url}: {g.get('sent', 0)} bundles sent to the peer "
+    say(f"run: ground gateway {rep['gateway']['url']}: {g.get('sent', 0)} bundles sent to the peer "
         f"({g.get('bytes_sent', 0)} B, "
         f"{'acknowledged' if rep['gateway']['acknowledged'] else 'unacknowledged: UDP'}), "
         f"{g.get('received', 0)} received from it, {n_sat} delivered at satellites, "
@@ -84,5 +112,3 @@ def write_gateway_report(out: Path, parts: list, say) -> dict | None:
     return {"url": rep["gateway"]["url"], "acknowledged": rep["gateway"]["acknowledged"], "counters": g,
             "ground_agent": rep["agent"], "rx_policy": rep["rx_policy"], "held_at_end": rep["held_at_end"],
             "delivered_at_satellites": n_sat}
-
-

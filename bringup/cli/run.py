@@ -43,6 +43,7 @@ from bringup.cli.common import (
 from bringup.cli.run_folder import RunFolder, json_text, write_text_atomic
 from bringup.engine.local import run_local
 from bringup.engine.ros.factory import FACTORY, PREPARE
+from bringup.engine.ros.ground_gateway import GATEWAY_DIR
 from bringup.engine.ros.launcher import launch, lease_domain_id
 from bringup.engine.ros.run_spec import MAX_DOMAIN_ID, RunSpec
 from bringup.engine.store_batches import StoreBatches
@@ -63,6 +64,7 @@ from bringup.scenario.work import describe as describe_work
 from bringup.scenario.world import World
 from bringup.stop_signals import STOP_SIGNALS, Interrupted, stop_on_signals
 from dtn_router.router import ROUTER_NAME
+from ground_station.gateway import FLUSH_S
 from ground_station.operator_requests import OPERATOR_DIR
 from msgs_json.envelope import Envelope
 
@@ -89,7 +91,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                         "loopback; local: the same logic in one process, identical results (default: ros)")
     p.add_argument("--out", type=Path, default=None, help="run folder (default runs/<scenario>-<mode>)")
     p.add_argument("--ground-gateway", default=None, metavar="URL",
-                   help="centralized, local engine: the ground's bundle agent exchanges bundles with a DTN "
+                   help="centralized mode: the ground's bundle agent exchanges bundles with a DTN "
                         "node: tcpcl4|tcpcl3|udp://HOST:PORT?node=N[&listen=HOST:PORT]"
                         "[&foreign=accept|refuse]; "
                         "the downlinks go to ipn:N.1, the node's bundles up to their satellite "
@@ -194,7 +196,8 @@ def run(args: argparse.Namespace) -> int:
     # SIGTERM, SIGHUP, SIGQUIT as Ctrl-C: the folder says "interrupted" with the signal, a partial
     # report of what the bag holds, the keys removed (bringup/stop_signals.py)
     # the gateway's peer is reached before anything else is made: an unreachable one is one line, exit 2
-    args._gateway = cli_gateway.start_gateway(gateway_spec)
+    args._gateway = cli_gateway.start_gateway(gateway_spec, args.engine)
+    args._gateway_url = gateway_spec.url if gateway_spec is not None else None
     with cli_gateway.closing(args._gateway), stop_on_signals(), \
             RunFolder(args.out or Path("runs") / f"{sc.name}-{args.mode}") as folder:
         out = folder.path
@@ -257,6 +260,8 @@ def _run(sc, cuts, out: Path, bag_dir: Path, args, folder: RunFolder, per_proces
     else:
         runtime = _run_ros(world, world_path, args, meta, bag_dir, out, router_kw, keys, say,
                            show=not args.no_progress, per_process=per_process)
+        if getattr(args, "_gateway_url", None):  # what the ground's and satellites' processes wrote
+            runtime["_gateway"] = cli_gateway.write_gateway_report_ros(out, say)
     seal_bag(bag_dir)  # (the bag is closed: every process that wrote it has ended)
     code = _finish(out, bag_dir, runtime, world, args, say, rep=rep)
     folder.done()
@@ -441,12 +446,22 @@ def _run_ros(world, world_path: Path, args, meta, bag_dir: Path, out: Path, rout
     if store_dir.exists():
         shutil.rmtree(store_dir)
     store_dir.mkdir()
+    # --ground-gateway: the ground's process runs the gateway, every process writes its part of
+    # gateway.json into gateway_dir at its finish (bringup/engine/ros/ground_gateway.py); the final
+    # step may wait for the peer's last acknowledgments (up to FLUSH_S) and the session's end
+    extra_gateway, ack_extra_s = {}, 0.0
+    if getattr(args, "_gateway_url", None):
+        gw_dir = out / GATEWAY_DIR
+        if gw_dir.exists():
+            shutil.rmtree(gw_dir)
+        extra_gateway = {"ground_gateway": args._gateway_url, "gateway_dir": str(gw_dir.resolve())}
+        ack_extra_s = FLUSH_S + 20.0
     # the satellites' numba kernels compiled once before the processes start (prepare), and no bound
     # on the start: a slow one (cold caches, a loaded machine) is waited for and named, never fatal
     spec = RunSpec(factory=FACTORY, prepare=PREPARE, startup_timeout_s=None,
                    roles=list(groups), groups={g: m for g, m in groups.items() if m != [g]},
                    # a process steps its K satellites one after the other: K times the one-satellite deadline
-                   ack_timeout_s=ACK_TIMEOUT_S * per_process,
+                   ack_timeout_s=ACK_TIMEOUT_S * per_process + ack_extra_s,
                    scenario=str(Path(sc.source_path).resolve()),
                    overrides=spec_overrides(args), mode=args.mode,
                    namespace=args.namespace, ros_args=[a for a in args.ros_args if a != "--"],
@@ -455,7 +470,7 @@ def _run_ros(world, world_path: Path, args, meta, bag_dir: Path, out: Path, rout
                    state_dir=str((out / "state").resolve()) if args.restart else None,
                    extra={"world": str(world_path.resolve()), "world_key": world.key,
                           "store_dir": str(store_dir.resolve()), "meta": meta.__dict__,
-                          "router": router_kw, **extra_live})
+                          "router": router_kw, **extra_live, **extra_gateway})
     prog, update = _progress_display(show, sc.horizon_ns)
 
     last_status = [""]
@@ -508,6 +523,9 @@ def _finish(out: Path, bag_dir: Path, runtime: dict, world, args, say, *, rep: d
         rep = report_from_bag(bag_dir, warn=lambda line: say(f"run: warning: {line}"))
     else:
         rep["integrity"] = check_bag(bag_dir).as_dict()
+    gateway = runtime.pop("_gateway", None)
+    if gateway is not None:  # (ROS engine: the ground gateway's counters, each policy decision per reason)
+        rep["gateway"] = gateway
     rep["runtime"].update({k: v for k, v in runtime.items() if k not in rep["runtime"]})
     rep["runtime"].update({"wall_s": runtime.get("wall_s"), "real_time_factor": runtime.get("real_time_factor")})
     plots = []

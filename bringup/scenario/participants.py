@@ -112,14 +112,18 @@ def kernels_for(mode: str, role: str | None) -> tuple[str, ...]:
 
 def make_participant(world: World, role: str, mode: str, *, store_dir: Path | None, router_kw: dict | None,
                      bpsec_key: bytes, command_key: bytes | None = None, live: tuple[Path, bytes] | None = None,
-                     gateway=None):
+                     gateway=None, gateway_spec=None):
     """Participant ``role``. ``command_key``: the ground's command key (bringup/engine/keys.py), needed
     when the scenario scripts commands or the run takes live ones: the commander holds it, each
     satellite only the key derived from it for its name (sat_node/operations/commands.py
     satellite_command_key). ``live``: (the run's operator folder, the run key) when the run takes live
     operator requests (ground_station/operator_requests.py; ``constellation run --live-commands``).
-    ``gateway``: a started ground_station.gateway.Gateway (local runs with ``--ground-gateway``): the
-    ground forwards to its peer, and the satellites address their downlinks to the peer's node."""
+    ``gateway``: a started ground_station.gateway.Gateway (runs with ``--ground-gateway``): the
+    ground forwards to its peer, and the satellites address their downlinks to the peer's node;
+    ``gateway_spec``: its GatewaySpec alone, enough for the satellites (a ROS-engine satellite process,
+    which holds no gateway: bringup/engine/ros/ground_gateway.py)."""
+    if gateway is not None:
+        gateway_spec = gateway.spec
     scripted = getattr(world.scenario, "commands", None)
     commands = bool(scripted) or live is not None
     if commands and command_key is None:
@@ -132,6 +136,8 @@ def make_participant(world: World, role: str, mode: str, *, store_dir: Path | No
     if role == CONTACTS_ROLE:
         return ContactAnnouncer(truth_plan(world.isl_plan, **(router_kw or {})), world.ground_plan)
     if role == GROUND_ROLE:
+        if gateway_spec is not None and gateway is None:
+            raise UserError(f"role {role!r}: the ground of a --ground-gateway run needs its started gateway")
         # the ground's store is a file when it can hold bundles across steps: with a gateway (bundles for
         # the peer until acknowledged, bundles from it until their pass); without one every downlink is
         # delivered at once and the store stays empty (kept in memory)
@@ -146,10 +152,10 @@ def make_participant(world: World, role: str, mode: str, *, store_dir: Path | No
     if role in world.sat_names:
         store = str(store_path(store_dir, role)) if store_dir is not None and mode == "distributed" else None
         own = satellite_command_key(command_key, role) if commands else None
-        if gateway is None:
+        if gateway_spec is None:
             return SatelliteLogic(world, role, mode, store_path=store, bpsec_key=bpsec_key, command_key=own)
         return SatelliteLogic(world, role, mode, store_path=store, bpsec_key=bpsec_key, command_key=own,
-                              downlink_node=gateway.spec.node, ground_bundles=True)
+                              downlink_node=gateway_spec.node, ground_bundles=True)
     raise UserError(f"role {role!r}: not a satellite of the scenario, nor "
                     f"'{ROUTER_ROLE}'/'{GROUND_ROLE}'/'{CONTACTS_ROLE}' "
                     f"(or '{COMMANDER_ROLE}' with [[commands]])")

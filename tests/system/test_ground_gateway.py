@@ -1,6 +1,7 @@
 """A centralized run with a ground gateway (ground_station/gateway.py, ground_station/ground_agent.py),
 the project's own listener (``constellation bundles listen``) as the gateway's peer: a 6-satellite,
-1-h run at ``--epoch now`` (local engine) whose downlinks go to the peer's node over TCPCLv4, and
+1-h run at ``--epoch now`` (local engine, and ROS engine: the gateway in the ground's process,
+bringup/engine/ros/ground_gateway.py) whose downlinks go to the peer's node over TCPCLv4, and
 bundles that ``constellation bundles send`` delivers to the gateway's listen address reach their
 satellites at their next passes.
 
@@ -14,6 +15,8 @@ from __future__ import annotations
 import json
 import socket
 import time
+
+import pytest
 
 from msgs_json import schemas as S
 from sat_node.dtn.bpv7 import decode_bundle
@@ -41,7 +44,8 @@ def _free_port() -> int:
     return p
 
 
-def test_downlinks_reach_the_listener_and_peer_bundles_reach_their_satellites(tmp_path):
+@pytest.mark.parametrize("engine", ["local", pytest.param("ros", marks=pytest.mark.ros)])
+def test_downlinks_reach_the_listener_and_peer_bundles_reach_their_satellites(tmp_path, engine):
     rx = tmp_path / "peer"
     lst = cli("bundles", "listen", "--cl", "tcpcl4", "--at", "127.0.0.1:0", "--out", str(rx),
               "--duration", "300", "--node-id", "ipn:2.0")
@@ -53,7 +57,7 @@ def test_downlinks_reach_the_listener_and_peer_bundles_reach_their_satellites(tm
         ours = peer_bundles(tmp_path / "to_sats", 2)
         out = tmp_path / "run"
         t0 = time.time()
-        run = start_run(out, f"tcpcl4://127.0.0.1:{port}?node=2&listen=127.0.0.1:{gport}")
+        run = start_run(out, f"tcpcl4://127.0.0.1:{port}?node=2&listen=127.0.0.1:{gport}", engine)
 
         def sent() -> bool:  # the gateway's listen address opens when the run starts: retry until it does
             p = cli("bundles", "send", "--cl", "tcpcl4", "--to", f"127.0.0.1:{gport}", "--node-id", "ipn:2.0",
@@ -61,7 +65,7 @@ def test_downlinks_reach_the_listener_and_peer_bundles_reach_their_satellites(tm
             p.communicate(timeout=60)
             return p.returncode == 0
 
-        assert wait_for(sent, 60, 0.2)
+        assert wait_for(sent, 180, 0.2)  # (the ROS engine's processes start in tens of seconds)
         _o, err = finish(run)
         wall = time.time() - t0
         gj = gateway_json(out)
@@ -115,5 +119,8 @@ def test_downlinks_reach_the_listener_and_peer_bundles_reach_their_satellites(tm
     rep = json.loads((out / "report.json").read_text())["gateway"]  # the summary in the run's report
     assert rep["counters"]["sent"] == len(got) and rep["rx_policy"]["rx.foreign_accepted"] == len(ours)
     assert rep["delivered_at_satellites"] == n_expected
-    print(f"gateway tcpcl4 (own listener): {len(got)} downlinked bundles, {sum(map(len, got))} B, "
+    if engine == "ros":  # the gateway ran in the ground's process, which wrote its part at its finish
+        assert (out / "gateway" / "ground.json").exists()
+        assert json.loads((out / "report.json").read_text())["runtime"].get("domain_id") is not None
+    print(f"gateway tcpcl4 (own listener, {engine} engine): {len(got)} downlinked bundles, {sum(map(len, got))} B, "
           f"{len(ours)} from it, {n_expected} delivered at satellites, run wall {wall:.1f} s")

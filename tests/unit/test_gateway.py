@@ -194,9 +194,12 @@ def test_an_unreachable_peer_is_one_line_at_start(cl):
     (["--ground-gateway", "tcpcl4://127.0.0.1:4556"], "node=N"),
     (["--ground-gateway", "udp://127.0.0.1:4556?node=2", "--mode", "distributed"],
      "needs --mode centralized"),
-    (["--ground-gateway", "udp://127.0.0.1:4556?node=2", "--engine", "ros"], "--engine local"),
+    (["--ground-gateway", "udp://127.0.0.1:4556?node=2", "--engine", "ros", "--restart", "1"],
+     "with --restart"),
     (["--ground-gateway", "tcpcl4://127.0.0.1:{free}?node=2"], "cannot connect"),
     (["--ground-gateway", "tcpcl3://127.0.0.1:{free}?node=2"], "cannot connect"),
+    # the ROS engine: its ground process runs the gateway, but the peer is reached here first
+    (["--ground-gateway", "tcpcl4://127.0.0.1:{free}?node=2", "--engine", "ros"], "cannot connect"),
 ])
 def test_the_run_refuses_a_bad_gateway_up_front(extra, words, tmp_path, capsys):
     from bringup.cli.main import main

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from bringup.engine.ros.ground_gateway import gateway_for, report_at_finish
 from bringup.engine.ros.run_spec import RunSpec
 from bringup.errors import UserError
 from bringup.scenario.participants import kernels_for, make_participant
@@ -42,9 +43,12 @@ def build(spec: RunSpec, role: str) -> list:
     keys = spec.keys()
     op_dir = spec.extra.get("operator_dir")  # live operator requests (constellation run --live-commands)
     live = (Path(op_dir), keys.run) if op_dir else None
-    return [make_participant(world, r, spec.mode, store_dir=Path(store_dir) if store_dir else None,
-                             router_kw=spec.extra.get("router"), bpsec_key=keys.bpsec,
-                             command_key=keys.command or None, live=live) for r in spec.members(role)]
+    gw = gateway_for(spec.extra, spec.members(role))  # --ground-gateway (bringup/engine/ros/ground_gateway.py)
+    parts = [make_participant(world, r, spec.mode, store_dir=Path(store_dir) if store_dir else None,
+                              router_kw=spec.extra.get("router"), bpsec_key=keys.bpsec,
+                              command_key=keys.command or None, live=live, **gw) for r in spec.members(role)]
+    report_at_finish(parts, spec.extra)
+    return parts
 
 
 def prepare(spec: RunSpec, role: str | None) -> dict[str, float]:
