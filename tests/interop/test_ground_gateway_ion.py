@@ -1,6 +1,6 @@
 """The ground gateway (ground_station/gateway.py) into an ION-DTN node (built from its source by
 scripts/build_ion.sh) over TCPCLv3 and UDP: a 6-satellite, 1-h centralized run at ``--epoch now``
-(local engine) forwards every downlinked bundle to ION node 2, and bundles that ION's bpsendfile
+(local engine; and over TCPCLv3 the ROS engine, whose ground process runs the gateway) forwards every downlinked bundle to ION node 2, and bundles that ION's bpsendfile
 sends to the satellites reach the named satellite at its next pass.
 
 The ION node is configured by its own rc files (tests/interop/ion_node.py): a plan for the ground's
@@ -51,8 +51,8 @@ def _listening(cl: str, port: int) -> bool:
         return s.connect_ex(("127.0.0.1", port)) == 0
 
 
-@pytest.mark.parametrize("cl", ["tcpcl3", "udp"])
-def test_downlinks_into_ion_and_ion_bundles_to_the_satellites(cl, tmp_path):
+@pytest.mark.parametrize("cl,engine", [("tcpcl3", "local"), ("udp", "local"), ("tcpcl3", "ros")])
+def test_downlinks_into_ion_and_ion_bundles_to_the_satellites(cl, engine, tmp_path):
     duct = "tcp" if cl == "tcpcl3" else "udp"
     gport = free_port(socket.SOCK_STREAM if cl == "tcpcl3" else socket.SOCK_DGRAM)
     ion = IonNode(tmp_path / "ion", 2, {100: f"{duct}/127.0.0.1:{gport}"}, exits="a exit 11 99 ipn:100.0\n")
@@ -62,8 +62,9 @@ def test_downlinks_into_ion_and_ion_bundles_to_the_satellites(cl, tmp_path):
         ion_port = ion.tcp_port if cl == "tcpcl3" else ion.udp_port
         out = tmp_path / "run"
         t0 = time.time()
-        run = start_run(out, f"{cl}://127.0.0.1:{ion_port}?node=2&listen=127.0.0.1:{gport}")
-        assert wait_for(lambda: _listening(cl, gport), 60, 0.05)  # the gateway is up; the run is starting
+        run = start_run(out, f"{cl}://127.0.0.1:{ion_port}?node=2&listen=127.0.0.1:{gport}", engine)
+        # (the ROS engine's ground process opens it once its kernels are loaded: tens of seconds)
+        assert wait_for(lambda: _listening(cl, gport), 60 if engine == "local" else 300, 0.05)  # the gateway is up; the run is starting
         payloads = {}
         for i, sat in enumerate(SATS):  # ION -> the constellation: one bundle per satellite, 2 h to live
             f = tmp_path / f"to_{sat}.bin"
@@ -108,7 +109,7 @@ def test_downlinks_into_ion_and_ion_bundles_to_the_satellites(cl, tmp_path):
         n_sat += 1
     assert n_sat >= 1 and gj["held_at_end"] == len(arrived) - n_sat
     acked = "acknowledged" if cl == "tcpcl3" else "unacknowledged (UDP)"
-    print(f"gateway {cl} -> ION: {n} downlinked bundles, {g.get('bytes_sent', 0)} B, {acked}, all delivered "
+    print(f"gateway {cl} -> ION ({engine} engine): {n} downlinked bundles, {g.get('bytes_sent', 0)} B, {acked}, all delivered "
           f"by ION byte-identical (bprecvfile {rx_s:.1f} s); ION -> gateway: {len(arrived)} bundles, {n_sat} "
           f"delivered at their satellites; run wall {wall:.1f} s, gateway sending "
           f"{gj['gateway'].get('send_wall_s')} s", file=sys.stderr)
