@@ -216,3 +216,59 @@ def test_the_run_refuses_a_bad_gateway_up_front(extra, words, tmp_path, capsys):
     assert len(err) == 1 and err[0].startswith("constellation run: error: --ground-gateway"), err
     assert words in err[0]
     assert not (tmp_path / "r").exists()  # refused before the run folder or the world
+
+
+def test_the_ros_engine_processes_get_what_they_need(tmp_path):
+    """bringup/engine/ros/ground_gateway.py: a satellite process gets the spec alone (no session), the
+    ground's process a started gateway (a session the peer sees) that the ground's finish closes after
+    writing its part of gateway.json; bad URLs and unreachable peers are one line."""
+    from bringup.cli.gateway_run import write_gateway_report_ros
+    from bringup.engine.ros.ground_gateway import gateway_for, report_at_finish
+    from bringup.errors import UserError
+
+    assert gateway_for({}, ["sat_11"]) == {}
+    with pytest.raises(UserError, match="extra.ground_gateway: .*node=N") as e:
+        gateway_for({"ground_gateway": "tcpcl4://127.0.0.1:4556"}, ["sat_11"])
+    assert "\n" not in str(e.value)
+    with pytest.raises(UserError, match="cannot connect"):
+        gateway_for({"ground_gateway": f"tcpcl4://127.0.0.1:{_free()}?node=2"}, ["ground"])
+    peer = Peer("tcpcl4")
+    url = f"tcpcl4://127.0.0.1:{peer.port}?node=2"
+    try:
+        assert gateway_for({"ground_gateway": url}, ["sat_11", "sat_12"]) == {"gateway_spec": parse_gateway(url)}
+        assert peer.sessions == []  # a satellite's process opens no session
+        gw = gateway_for({"ground_gateway": url}, ["ground"])["gateway"]
+        assert _wait(lambda: len(peer.sessions) == 1)
+
+        class Ground:  # what report_at_finish needs of GroundLogic
+            name, gateway, finished = "ground_station", gw, []
+
+            def finish(self, t_ns):
+                self.finished.append(t_ns)
+                return ["emit"]
+
+            def gateway_report(self):
+                return {"gateway": self.gateway.report(), "agent": {}, "rx_policy": {}, "held_at_end": 0}
+
+        class Sat:
+            name = "sat_11"
+
+            def finish(self, t_ns):
+                return []
+
+            def ground_deliveries(self):
+                return {"counters": {"delivered": 1}, "bundles": [{"bundle": "b"}]}
+
+        g, s = Ground(), Sat()
+        extra = {"ground_gateway": url, "gateway_dir": str(tmp_path / "gateway")}
+        with pytest.raises(UserError, match="wrote no"):
+            write_gateway_report_ros(tmp_path, print)
+        report_at_finish([g, s], extra)
+        assert g.finish(7) == ["emit"] and g.finished == [7] and s.finish(7) == []
+        assert gw._thread is not None and not gw._thread.is_alive()  # closed after the finish
+        said = []
+        summary = write_gateway_report_ros(tmp_path, said.append)
+        assert summary["delivered_at_satellites"] == 1 and summary["url"] == parse_gateway(url).url
+        assert "ground gateway tcpcl4://" in said[0]
+    finally:
+        peer.close()
