@@ -33,8 +33,6 @@ from pathlib import Path
 
 from bringup.errors import UserError
 from bringup.scenario.participants import GROUND_ROLE
-from ground_station.gateway import Gateway, parse_gateway
-from sat_node.dtn.cl import ClError
 
 __all__ = ["GATEWAY_DIR", "GROUND_FILE", "gateway_for", "report_at_finish"]
 
@@ -48,6 +46,10 @@ def gateway_for(extra: dict, roles: list[str]) -> dict:
     url = extra.get("ground_gateway")
     if not url:
         return {}
+    # imported here: the processes of runs without a gateway never load the convergence layers
+    from ground_station.gateway import Gateway, parse_gateway
+    from sat_node.dtn.cl import ClError
+
     try:
         spec = parse_gateway(url)
     except ValueError as exc:
