@@ -10,16 +10,17 @@ tests/system/test_ground_gateway.py (a whole run).
 from __future__ import annotations
 
 import argparse
-import dataclasses
+import asyncio
 import json
+import socket
 from pathlib import Path
 
 from bringup.cli.run_folder import json_text, write_text_atomic
 from bringup.engine.ros.ground_gateway import GATEWAY_DIR, GROUND_FILE
 from bringup.errors import UserError
-from ground_station.gateway import Gateway, parse_gateway
+from ground_station.gateway import CONNECT_S, Gateway, parse_gateway
 from ground_station.ground_segment import GroundLogic
-from sat_node.dtn.cl import ClError
+from sat_node.dtn.cl import ClError, udp
 from sat_node.satellite import SatelliteLogic
 
 __all__ = ["closing", "gateway_spec", "start_gateway", "write_gateway_report", "write_gateway_report_ros",
@@ -47,20 +48,29 @@ def gateway_spec(args: argparse.Namespace):
 
 def start_gateway(spec, engine: str = "local"):
     """The started gateway (local engine), None on the ROS engine, whose ground process starts its
-    own (bringup/engine/ros/ground_gateway.py): there the peer is reached once here and left again,
-    so an unreachable one still stops the run before anything is made."""
+    own (bringup/engine/ros/ground_gateway.py): there the peer is only reached here - a TCP connection
+    opened and closed, no TCPCL session (a node such as ION ties sessions to the node ID and ends its
+    own when one from that node ends), the UDP address checked - so an unreachable one still stops
+    the run before anything is made."""
     if spec is None:
         return None
-    if engine == "ros":  # (the probe takes no bundle: it does not open the listen address)
-        spec = dataclasses.replace(spec, listen=None)
+    if engine == "ros":
+        if spec.cl == "udp":  # (no listen address: the check takes no datagram)
+            try:
+                asyncio.run(udp.send(spec.host, spec.port, []))
+            except ClError as exc:
+                raise UserError(f"--ground-gateway {spec.cl}://{spec.host}:{spec.port}: {exc}") from None
+            return None
+        try:
+            socket.create_connection((spec.host, spec.port), timeout=CONNECT_S).close()
+        except OSError as exc:
+            raise UserError(f"--ground-gateway {spec.cl}://{spec.host}:{spec.port}: cannot connect "
+                            f"({exc.strerror or exc})") from None
+        return None
     try:
-        gw = Gateway(spec).start()
+        return Gateway(spec).start()
     except ClError as exc:
         raise UserError(f"--ground-gateway {spec.cl}://{spec.host}:{spec.port}: {exc}") from None
-    if engine == "ros":
-        gw.close()
-        return None
-    return gw
 
 
 class closing:
