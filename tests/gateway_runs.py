@@ -27,6 +27,11 @@ POLAR = ('regions.list=[{name="Dhaka",lat_deg=23.8103,lon_deg=90.4125,size_km=80
          '{name="Ross",lat_deg=-72.0,lon_deg=170.0,size_km=150.0},'
          '{name="Greenland",lat_deg=72.0,lon_deg=-40.0,size_km=150.0},'
          '{name="Peninsula",lat_deg=-65.0,lon_deg=-62.0,size_km=150.0}]')
+# how much later than its pass (or its arrival in an open pass) a peer's bundle may leave the ground:
+# the ground's one agent sends one bundle at a time, so the peer's bundles that leave together (six, one
+# per satellite, at most ~450 B each once the ground signed them) queue: 6 x 450 x 8 bit / 1 Mbit/s
+# = 22 ms at most (measured: 2.57 ms behind one 321-B bundle, a ROS run into ION)
+UPLINK_QUEUE_S = 0.025
 SATS = ("sat_11", "sat_12", "sat_21", "sat_22", "sat_31", "sat_32")  # the 6-satellite Walker pattern
 
 
@@ -39,10 +44,10 @@ def cli(*argv: str, **kw) -> subprocess.Popen:
                             stderr=subprocess.PIPE, text=True, env=env(), cwd=REPO, **kw)
 
 
-def start_run(out: Path, url: str, engine: str = "local") -> subprocess.Popen:
+def start_run(out: Path, url: str, engine: str = "local", *extra: str) -> subprocess.Popen:
     return cli("run", "--mode", "centralized", "--engine", engine, "--sats", "6", "--hours", "1",
                "--epoch", "now", "--no-plots", "--no-progress", "--set", POLAR, "--out", str(out),
-               "--ground-gateway", url)
+               "--ground-gateway", url, *extra)
 
 
 def peer_bundles(folder: Path, src_node: int, lifetime_s: int = 7200) -> dict[str, tuple[Path, bytes, str]]:

@@ -23,6 +23,7 @@ from ion_node import IonNode, free_port
 from sat_node.dtn.bpv7 import decode_bundle
 from tests.gateway_runs import (
     SATS,
+    UPLINK_QUEUE_S,
     downlinked,
     finish,
     gateway_json,
@@ -62,7 +63,10 @@ def test_downlinks_into_ion_and_ion_bundles_to_the_satellites(cl, engine, tmp_pa
         ion_port = ion.tcp_port if cl == "tcpcl3" else ion.udp_port
         out = tmp_path / "run"
         t0 = time.time()
-        run = start_run(out, f"{cl}://127.0.0.1:{ion_port}?node=2&listen=127.0.0.1:{gport}", engine)
+        # paced (1 h in 24 s): ION's outduct takes seconds to open its session to the ground (measured
+        # ~4 s), and an unloaded machine runs the hour in 5-20 s - its bundles would come after the end
+        run = start_run(out, f"{cl}://127.0.0.1:{ion_port}?node=2&listen=127.0.0.1:{gport}", engine,
+                        "--real-time-factor", "150")
         # (the ROS engine's ground process opens it once its kernels are loaded: tens of seconds)
         assert wait_for(lambda: _listening(cl, gport), 60 if engine == "local" else 300, 0.05)  # the gateway is up; the run is starting
         payloads = {}
@@ -104,7 +108,10 @@ def test_downlinks_into_ion_and_ion_bundles_to_the_satellites(cl, engine, tmp_pa
             assert e["bundle"] not in up and not mine
             continue
         assert up[e["bundle"]]["sat"] == sat
-        assert abs(up[e["bundle"]]["t_ns"] / 1e9 - max(e["t_ns"] / 1e9, c.start_s)) < 1e-3
+        # the pass that is open at its arrival, or the next one; the ground node sends one bundle at a
+        # time, so bundles leaving together queue behind each other (each size x 8 / the uplink rate,
+        # ~2.6 ms at 1 Mbit/s; tests/gateway_runs.py UPLINK_QUEUE_S)
+        assert 0 <= up[e["bundle"]]["t_ns"] / 1e9 - max(e["t_ns"] / 1e9, c.start_s) < UPLINK_QUEUE_S
         assert [b["payload_sha256"] for b in mine] == [sha256(payloads[sat])]  # ION's payload, there
         n_sat += 1
     assert n_sat >= 1 and gj["held_at_end"] == len(arrived) - n_sat
