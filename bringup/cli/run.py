@@ -23,7 +23,6 @@ import shutil
 import sqlite3
 import sys
 import time
-from concurrent.futures import ThreadPoolExecutor
 from contextlib import nullcontext
 from pathlib import Path
 from types import SimpleNamespace
@@ -41,7 +40,7 @@ from bringup.cli.common import (
     scenario_from_args,
 )
 from bringup.cli.run_folder import RunFolder, json_text, write_text_atomic
-from bringup.engine.local import run_local
+from bringup.engine.local import LocalEngine
 from bringup.engine.ros.factory import FACTORY, PREPARE
 from bringup.engine.ros.ground_gateway import GATEWAY_DIR
 from bringup.engine.ros.launcher import launch, lease_domain_id
@@ -379,9 +378,13 @@ def _run_local(world, args, meta, bag_dir: Path, out: Path, router_kw, keys, *, 
             prog.start()
         batches.start()
         try:
-            res = run_local(parts, horizon_ns=sc.horizon_ns, max_step_ns=int(round(sc.scenario.lockstep_max_step_s * _NS)),
-                            sink=rec.write_envelope, sink_many=rec.write_envelopes, on_step=on_step,
-                            progress=progress, progress_interval_s=0.25)
+            # every participant configured and activated before its start, deactivated after its
+            # finish; cleaned up (stores closed) and shut down below (bringup/engine/lifecycle.py)
+            engine = LocalEngine(parts, horizon_ns=sc.horizon_ns,
+                                 max_step_ns=round(sc.scenario.lockstep_max_step_s * _NS),
+                                 sink=rec.write_envelope, sink_many=rec.write_envelopes, on_step=on_step,
+                                 progress=progress, progress_interval_s=0.25)
+            res = engine.run(release=False)
         except BaseException:
             batches.abandon()
             raise
@@ -401,7 +404,8 @@ def _run_local(world, args, meta, bag_dir: Path, out: Path, router_kw, keys, *, 
         # checkpoints each WAL into its file and syncs it, mostly waiting on the disk, so the 24
         # closes run side by side (~1 s one after the other on the paper run)
         gateway = cli_gateway.write_gateway_report(out, parts, lambda *a: print(*a, file=sys.stderr))
-        rep = rec.finish(meta, json.loads(json.dumps(runtime)), meanwhile=lambda: _close_all(parts))
+        # (the life cycle's cleanup closes them, 8 at a time; then every participant is shut down)
+        rep = rec.finish(meta, json.loads(json.dumps(runtime)), meanwhile=lambda: engine.release(workers=8))
         if gateway is not None:  # the ground gateway's counters, each policy decision per reason
             rep["gateway"] = gateway
     return runtime, rep
@@ -420,13 +424,6 @@ def _fresh_store_dir(store_dir: Path, sats: list[str]):
         shutil.rmtree(store_dir)
     store_dir.mkdir()
     return create_stores(store_dir, sats)
-
-
-def _close_all(parts: list) -> None:
-    closes = [p.close for p in parts if callable(getattr(p, "close", None))]
-    with ThreadPoolExecutor(max_workers=8, thread_name_prefix="close") as ex:
-        for f in [ex.submit(c) for c in closes]:
-            f.result()
 
 
 def _run_ros(world, world_path: Path, args, meta, bag_dir: Path, out: Path, router_kw, keys, say, *,

@@ -15,6 +15,16 @@ ROS run must match:
    recorded (delivered to no one).
 4. ``seq`` is a per-source counter from 0 in emission order.
 
+Every participant is a managed node (bringup/engine/lifecycle.py, the ROS 2 life cycle the ROS
+engine's nodes have): the engine configures (the participant's ``configure()``, if it has one) and
+activates each one, in list order, before any ``start``; deactivates each after ``finish``; and,
+with ``release`` (the default of :meth:`LocalEngine.run`), cleans each up (its ``close()``, if it
+has one: e.g. a satellite's bundle store) and shuts it down, so a run ends with every participant
+``finalized``. A caller that still needs the participants' resources after the run (the
+`constellation run` command closes the stores side by side while the recorder finishes) passes
+``release=False`` and calls :meth:`LocalEngine.release` itself. A transition that fails is an
+:class:`EngineError` naming the participant and the transition.
+
 What a participant returns and emits is checked by the contract module (the ROS host uses the same
 checks): a violation, or an exception in a participant, is an :class:`EngineError` that names the
 participant and the call.
@@ -62,6 +72,7 @@ from bringup.engine.contract import (
     must_step,
     next_step_ns,
 )
+from bringup.engine.lifecycle import Lifecycle, LifecycleError
 from msgs_json.envelope import Envelope, Participant
 
 __all__ = ["ContractError", "EngineError", "LocalEngine", "Progress", "RunResult", "run_local"]
@@ -144,6 +155,29 @@ class LocalEngine:
                 self._subs.setdefault(topic, []).append(i)
         self._seq: dict[str, int] = {n: 0 for n in names}
         self.counts_by_topic: dict[str, int] = {}
+        # each participant's managed-node state machine (bringup/engine/lifecycle.py)
+        self.lifecycles = [Lifecycle(p.name, _hooks(p)) for p in self.participants]
+
+    def _transition(self, label: str, lifecycles=None) -> None:
+        for lc in self.lifecycles if lifecycles is None else lifecycles:
+            try:
+                lc.change(label)
+            except LifecycleError as exc:
+                raise EngineError(f"local engine: {exc}") from None
+
+    def release(self, workers: int = 1) -> None:
+        """Clean up (the participants' ``close()``) and shut down every participant: each ends
+        ``finalized``. ``workers`` > 1: that many participants at a time (their stores close side by side)."""
+        if workers <= 1:
+            self._transition("cleanup")
+            self._transition("shutdown")
+            return
+        from concurrent.futures import ThreadPoolExecutor
+
+        with ThreadPoolExecutor(max_workers=workers, thread_name_prefix="release") as ex:
+            for f in [ex.submit(self._transition, "cleanup", [lc]) for lc in self.lifecycles]:
+                f.result()
+        self._transition("shutdown")
 
     # -- helpers -----------------------------------------------------------------------------------
     def _stamp(self, name: str, emits, t_max_ns: int, where: str) -> list[Envelope]:
@@ -163,7 +197,18 @@ class LocalEngine:
         return out
 
     # -- the loop ----------------------------------------------------------------------------------
-    def run(self) -> RunResult:
+    def run(self, release: bool = True) -> RunResult:
+        """Configure and activate every participant, run the steps, deactivate them; with
+        ``release`` also clean them up and shut them down (:meth:`release`)."""
+        self._transition("configure")
+        self._transition("activate")
+        res = self._run_gc()
+        self._transition("deactivate")
+        if release:
+            self.release()
+        return res
+
+    def _run_gc(self) -> RunResult:
         # The loop allocates millions of short-lived objects (envelopes, events, bundles) next to a
         # large long-lived heap (world, numba, participants): with the default thresholds the cyclic
         # collector keeps re-scanning that heap. Freeze what exists now and collect the young
@@ -308,6 +353,16 @@ class LocalEngine:
         if progress is not None:
             progress(Progress(horizon, horizon, steps, n_env, wall, _sum(flight)))
         return RunResult(steps, self.t0_ns, horizon, wall, keep, dict(self.counts_by_topic))
+
+
+def _hooks(p) -> dict:
+    """A participant's own life-cycle hooks: ``configure()`` and ``close()`` (cleanup), when it has them."""
+    hooks = {}
+    if callable(getattr(p, "configure", None)):
+        hooks["configure"] = p.configure
+    if callable(getattr(p, "close", None)):
+        hooks["cleanup"] = p.close
+    return hooks
 
 
 def _sum(values: list[int | None]) -> int | None:

@@ -27,18 +27,18 @@ from pathlib import Path
 
 from bringup.errors import UserError
 from bringup.scenario.world import World
-from dtn_router.router import RouterLogic
+from dtn_router.router import ROUTER_NAME, RouterLogic
 from ground_station.commander import COMMANDER_NAME, CommanderLogic
-from ground_station.ground_segment import GroundLogic
+from ground_station.ground_segment import GROUND_NAME, GroundLogic
 from ground_station.operator_requests import RequestInbox, operator_key
-from orbit_clock.contact_announcer import ContactAnnouncer
+from orbit_clock.contact_announcer import ANNOUNCER_NAME, ContactAnnouncer
 from orbit_clock.contact_faults import truth_plan
 from sat_node.dtn.store import BundleStore
 from sat_node.operations.commands import satellite_command_key
 from sat_node.satellite import SatelliteLogic
 
-__all__ = ["AUTO_SAT_PROCESSES", "MODES", "all_participants", "kernels_for", "make_participant", "process_groups",
-           "roles_for", "sats_per_process_auto"]
+__all__ = ["AUTO_SAT_PROCESSES", "MODES", "all_participants", "kernels_for", "make_participant", "participant_name",
+           "process_groups", "roles_for", "sats_per_process_auto"]
 
 MODES = ("distributed", "centralized", "nonagile")
 ROUTER_ROLE = "router"
@@ -108,6 +108,13 @@ def kernels_for(mode: str, role: str | None) -> tuple[str, ...]:
     if mode == "centralized" and role in (None, GROUND_ROLE):
         return ("dp",)
     return ()
+
+
+def participant_name(role: str) -> str:
+    """The name of the participant ``role`` makes (its node's name), known before it is built: a
+    satellite's is the role, the others' their module's constant."""
+    return {ROUTER_ROLE: ROUTER_NAME, CONTACTS_ROLE: ANNOUNCER_NAME, GROUND_ROLE: GROUND_NAME,
+            COMMANDER_ROLE: COMMANDER_NAME}.get(role, role)
 
 
 def make_participant(world: World, role: str, mode: str, *, store_dir: Path | None, router_kw: dict | None,

@@ -92,6 +92,16 @@ def test_slow_first_step_is_waited_for(tmp_path):
     assert not later.ok and "c1" in later.message and "no ack" in later.message, later.message
 
 
+def _activate(host) -> None:
+    """Configure and activate the host's nodes (what the run's lifecycle manager does through their
+    services, bringup/engine/ros/lifecycle_manager.py): their subscriptions exist from configure on."""
+    from rclpy.lifecycle import TransitionCallbackReturn
+
+    for slot in host.slots:
+        assert slot.node.trigger_configure() == TransitionCallbackReturn.SUCCESS
+        assert slot.node.trigger_activate() == TransitionCallbackReturn.SUCCESS
+
+
 def test_bad_message_is_counted_not_fatal(monkeypatch):
     """A subscription callback (it gets the String's CDR bytes: a raw subscription) fed junk bytes,
     junk text, envelopes without a MAC or with a wrong one counts each by reason and keeps going (no
@@ -110,6 +120,7 @@ def test_bad_message_is_counted_not_fatal(monkeypatch):
         monkeypatch.setenv("ROS_DOMAIN_ID", str(lease.domain_id))
         host = ParticipantHost("pingpong", [toy.Ping(), toy.Pong()], run_key=KEY)
         try:
+            _activate(host)
             box = host.slots[1].inboxes[0]  # pong's /toy/ping inbox
             cb = host._make_cb(box)
             cb(b"\x00\x01\x00\x00\xff\xff\x00\x00junk")  # not a String's CDR
@@ -140,6 +151,7 @@ def test_contract_break_is_the_same_line_in_the_host_as_in_the_local_engine(monk
         monkeypatch.setenv("ROS_DOMAIN_ID", str(lease.domain_id))
         host = ParticipantHost("c1", [toy.Breaker(1, 3, kind, AT)], run_key=bytes(32))
         try:
+            _activate(host)
             host._run_step(StepMsg(k=0, t_ns=0, start=True))
             host._run_step(StepMsg(k=1, t_ns=10 * S))
             with pytest.raises(HostError) as info:

@@ -241,3 +241,17 @@ def slow_prepare(spec, role: str | None) -> None:
 
 def all_participants(spec) -> list:
     return [p for r in spec.roles for p in make(spec, r, host=False)]
+
+
+def make_deferred(spec, role: str) -> list:
+    """The counter roles as managed entries built when their node is configured
+    (bringup/engine/lifecycle.py Deferred), as the scenario's factory gives them;
+    ``spec.extra["fail_configure"] == role``: building it raises (a node that cannot configure)."""
+    from bringup.engine.lifecycle import Deferred
+
+    def build():
+        if spec.extra.get("fail_configure") == role:
+            raise OSError(f"toy: {role} cannot open its store")
+        return make(spec, role)[0]
+
+    return [Deferred(role, build)]

@@ -60,11 +60,14 @@ def test_run_spec_groups_checked_and_built(tmp_path, paper_scenario):
                    groups={g: m for g, m in groups.items() if m != [g]}, keys_file=str(keys),
                    extra={"world": str(path), "world_key": world.key})
     spec.check()
-    parts = build(spec, "sats_1")
+    deferred = build(spec, "sats_1")  # built when their nodes are configured (bringup/engine/lifecycle.py)
+    assert [d.name for d in deferred] == world.sat_names[:4]
+    parts = [d.build() for d in deferred]
     assert [p.name for p in parts] == world.sat_names[:4]
     assert parts[0].agent.graph is parts[3].agent.graph  # one contact graph per process
     assert all(p.agent.config.key == TEST_BPSEC_KEY for p in parts)  # the run's BPSec key
-    assert [p.name for p in build(spec, "router")] == ["dtn_router"]
+    assert [d.name for d in build(spec, "router")] == [d.build().name for d in build(spec, "router")] == ["dtn_router"]
+    assert [d.name for d in build(spec, "contacts")] == [d.build().name for d in build(spec, "contacts")]
     assert set(prepare(spec, "contacts")) == set()
     for bad in ({"nope": ["sat_11"]}, {"sats_1": ["sat_11"], "sats_2": ["sat_11"]}, {"sats_1": []}):
         with pytest.raises(UserError):

@@ -11,8 +11,16 @@ holds after that step, summed from the acks; bringup/engine/ros/launcher.py read
 ack within ``ack_timeout_s`` wall seconds is reported by name (with its participants) and the run
 stops; so does a host that acks an error.
 
+Managed nodes: the clock process also runs the run's lifecycle manager
+(bringup/engine/ros/lifecycle_manager.py). While it waits for the hellos it brings every participant
+node through configure -> activate by calling its lifecycle services (a host says hello once all its
+nodes are active); a node that fails a transition stops the run, named with its process and the
+transition (stderr, and a ``lifecycle_failed`` record on stdout for the launcher). After the last
+step (the bag complete) it takes every node through deactivate -> cleanup -> shutdown before it
+tells the hosts to stop.
+
 Ready is not a step: before step 0 the clock waits for every host's hello (sent once its
-participants are built and their numba kernels loaded, bringup/cli/node.py), as long as it takes
+participants are built and their numba kernels loaded and its nodes active, bringup/cli/node.py), as long as it takes
 unless the spec bounds it (``startup_timeout_s``), naming every ``_READY_REPORT_S`` the hosts not
 ready yet and how long it has waited (stderr, and a ``waiting`` record on stdout for the launcher's
 progress display). Step 0 (the start step) is where the hosts' data publishers wait until the
@@ -112,6 +120,7 @@ from bringup.engine.lockstep import (
     encode_msg,
 )
 from bringup.engine.ros.host import QOS_DATA, QOS_SYNC_PUB, QOS_SYNC_SUB, exit_now
+from bringup.engine.ros.lifecycle_manager import LifecycleManager
 from bringup.engine.ros.lifeline import ENV_RESTARTED
 from bringup.engine.ros.live import ClockLive
 from bringup.engine.ros.run_spec import CLOCK_ROLE, RunSpec
@@ -120,6 +129,7 @@ from bringup.recording.bag_format import clock_cdr
 from bringup.recording.journal import BagJournal
 from bringup.recording.metrics_feed import MetricsFeed
 from bringup.recording.viz_feed import VizFeed
+from bringup.scenario.participants import participant_name
 from bringup.scenario.world import World
 from bringup.stop_signals import STOP_SIGNALS
 from msgs_json.envelope import Envelope
@@ -141,6 +151,10 @@ _READY_REPORT_S = 5.0
 
 class ClockError(RuntimeError):
     """The run cannot go on; the message names the host/participants and the step."""
+
+
+class LifecycleFailed(ClockError):
+    """A node refused or failed a lifecycle transition (never waited out)."""
 
 
 class LostStateError(ClockError):
@@ -166,6 +180,13 @@ class LockstepClock:
         self.gate = Gate(run_key, self.node.get_logger().warning)
         self.executor = EventsExecutor(context=self.ctx)
         self.executor.add_node(self.node)
+        # the run's lifecycle manager (bringup/engine/ros/lifecycle_manager.py), polled while the
+        # clock waits for the hosts to come up and, after the run, to go down
+        self.mgr_node = rclpy.create_node("lifecycle_manager", namespace=spec.namespace or "/", context=self.ctx,
+                                          start_parameter_services=False, enable_rosout=False)
+        self.executor.add_node(self.mgr_node)
+        self.lifecycle = LifecycleManager(self.mgr_node, process_of=self._process_of)
+        self._lifecycle_busy = False
         self.clock_pub = self.node.create_publisher(Clock, "/clock", _QOS_CLOCK)
         self.step_pub = self.node.create_publisher(String, STEP_TOPIC, QOS_SYNC_PUB)
         self.acks: dict[str, AckMsg] = {}
@@ -335,6 +356,39 @@ class LockstepClock:
     def request_stop(self, *_args) -> None:
         self._stop_requested = True
 
+    # -- the nodes' life cycle (bringup/engine/ros/lifecycle_manager.py) -----------------------------------
+    def _process_of(self, node_name: str) -> str:
+        """The process role hosting the participant node ``node_name`` ("" when the spec cannot tell)."""
+        for r in self.roles:
+            if any(participant_name(m) == node_name for m in self.spec.members(r)):
+                return r
+        return ""
+
+    def _lifecycle_check(self) -> None:
+        """LifecycleFailed once the manager saw a transition fail (its record goes to the launcher)."""
+        if self.lifecycle.failure:
+            self._out({"lifecycle_failed": self.lifecycle.failed})
+            raise LifecycleFailed(self.lifecycle.failure)
+
+    def _shut_down_nodes(self) -> None:
+        """Every participant node through deactivate -> cleanup -> shutdown (bounded wait, named)."""
+        self.lifecycle.shut_down()
+        self._lifecycle_busy = True
+        n = sum(len(h.participants) for h in self.hellos.values())
+        bound = max(30.0, self.spec.ack_timeout_s)
+
+        def down() -> bool:
+            self._lifecycle_check()
+            return self.lifecycle.at_goal(n)
+
+        def late() -> str:
+            left = [f"{m.fqn} ({m.state})" for m in self.lifecycle.nodes.values() if m.state != "finalized"]
+            return f"lifecycle: nodes not shut down within {bound:g} s: {', '.join(left) or '(not found)'}"
+        try:
+            self._spin_until(down, bound, late)
+        finally:
+            self._lifecycle_busy = False
+
     # -- waiting ------------------------------------------------------------------------------------
     def _spin_until(self, cond, timeout_s: float, on_timeout) -> None:
         deadline = time.monotonic() + timeout_s
@@ -346,6 +400,8 @@ class LockstepClock:
                 raise ClockError(on_timeout())
             if self.bag is not None:
                 self._poll_graph()
+            if self._lifecycle_busy:
+                self.lifecycle.poll()
             if self.rejoins:
                 self._serve_rejoins()
             spin(timeout_sec=0.02)
@@ -370,12 +426,16 @@ class LockstepClock:
         bound = float("inf") if spec.startup_timeout_s is None else spec.startup_timeout_s
 
         def ready() -> bool:
+            self._lifecycle_check()
             return len(self.hellos) == len(self.roles)
 
+        self._lifecycle_busy = True  # every node brought to active meanwhile
         while not ready():
             waited = time.monotonic() - t0
             try:
                 self._spin_until(ready, max(0.0, min(_READY_REPORT_S, bound - waited)), lambda: "")
+            except LifecycleFailed:
+                raise
             except ClockError:
                 waited = time.monotonic() - t0
                 missing = [r for r in self.roles if r not in self.hellos]
@@ -385,6 +445,7 @@ class LockstepClock:
                       f"after {waited:.0f} s: {', '.join(missing)}", file=sys.stderr, flush=True)
                 self._out({"waiting": {"not_ready": missing, "roles": len(self.roles),
                                        "wall_s": round(waited, 1), "horizon_ns": self.horizon_ns}})
+        self._lifecycle_busy = False
 
     def _alone_on_domain(self) -> None:
         """ClockError when another run's clock is on this ROS domain: two runs on one domain use the
@@ -607,6 +668,7 @@ class LockstepClock:
                 {"meta": self.meta, "runtime": runtime, "security": self.security()})))
         if self.journal is not None:
             self.journal.commit(k, pickle.dumps({"done": True}))
+        self._shut_down_nodes()
         self._progress(t, wall, done=True)
         return 0
 

@@ -56,8 +56,13 @@ Progress: each ack carries the sum of the participants' ``StepResult.in_flight``
 held to emit later, e.g. the ISL medium's bundle copies still travelling; None when none reports
 one), the figure the local engine's progress shows; the clock sums it into its progress records.
 
+Managed nodes: every participant node is an rclpy lifecycle node, brought up (configure ->
+activate) and down by the run's lifecycle manager; the host says hello once all its nodes are
+active (bringup/engine/ros/host_lifecycle.py).
+
 Oracle: tests/ros/test_lockstep.py: toy participants hosted here, driven by the clock node over
-DDS, emit exactly the envelopes the local engine (bringup/engine/local.py) emits for them.
+DDS, emit exactly the envelopes the local engine (bringup/engine/local.py) emits for them;
+tests/ros/test_lifecycle_run.py: the nodes' states read through their lifecycle services.
 """
 
 from __future__ import annotations
@@ -74,7 +79,6 @@ import rclpy
 from rclpy.context import Context
 from rclpy.duration import Duration
 from rclpy.experimental import EventsExecutor
-from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.signals import SignalHandlerOptions
@@ -92,11 +96,10 @@ from bringup.engine.contract import (
     check_emits,
     check_names,
     check_result,
-    check_subscriptions,
     failed,
-    is_event_driven,
     must_step,
 )
+from bringup.engine.lifecycle import Deferred
 from bringup.engine.lockstep import (
     ACK_TOPIC,
     INTERRUPTED,
@@ -110,7 +113,8 @@ from bringup.engine.lockstep import (
     decode_resend,
     decode_step,
 )
-from bringup.engine.ros.live import HostLive, declare_run_parameters
+from bringup.engine.ros.host_lifecycle import HostError, HostLifecycle, ManagedNode, Slot
+from bringup.engine.ros.live import HostLive
 from bringup.engine.ros.naming import node_name_and_namespace, ros_topic_name
 from bringup.engine.ros.profiling import dump as dump_profile
 from bringup.stop_signals import STOP_SIGNALS
@@ -135,30 +139,14 @@ _CLOCK_REMAP = ["--ros-args", "-r", "/clock:=/_lockstep/unused_clock"]
 _LEAN = {"start_parameter_services": False, "enable_rosout": False}
 
 
-class HostError(RuntimeError):
-    """The host cannot go on (protocol broken, participant failed, clock silent); one line."""
+class ParticipantHost(HostLifecycle):
+    """Hosts ``participants`` (built, or :class:`Deferred`: built when configured) in one rclpy
+    context, one managed node each; :meth:`run` waits until they are active, then follows the clock
+    to the end."""
 
+    QOS_DATA = QOS_DATA  # (the data topics' QoS, for the nodes' subscriptions made at configure)
 
-class _Slot:
-    """One participant with its node, inboxes, publishers and seq counter."""
-
-    def __init__(self, p: Participant, node: Node):
-        self.p = p
-        self.name = p.name
-        self.node = node
-        self.inboxes: list[TopicInbox] = []
-        self.pubs: dict[str, object] = {}
-        self.ros: dict[str, str] = {}  # logical topic -> the resolved name DDS carries
-        self.seq = 0
-        self.driven = is_event_driven(p)
-        self.wake: int | None = None  # the last StepResult's wakeup and in_flight (they stand on a skipped step)
-        self.flight: int | None = None
-
-
-class ParticipantHost:
-    """Hosts ``participants`` in one rclpy context; :meth:`run` follows the clock to the end."""
-
-    def __init__(self, role: str, participants: Sequence[Participant], *, run_key: bytes,
+    def __init__(self, role: str, participants: Sequence[Participant | Deferred], *, run_key: bytes,
                  ack_timeout_s: float = 10.0, startup_timeout_s: float = 60.0, idle_timeout_s: float = 300.0,
                  first_step_timeout_s: float | None = 300.0,
                  state_path: str | None = None, rejoin_period_s: float = 2.0,
@@ -166,10 +154,11 @@ class ParticipantHost:
                  parameters: dict | Callable[[str], dict] | None = None, live_period_s: float | None = None):
         try:
             check_names(participants)
-            subs = [check_subscriptions(p.name, p.subscriptions()) for p in participants]
         except EngineError as exc:
             raise HostError(f"host {role}: {exc}") from None
         self.role = role
+        self.namespace = namespace
+        self.parameters = parameters
         self.ack_timeout_s = ack_timeout_s
         self.startup_timeout_s = startup_timeout_s
         self.idle_timeout_s = idle_timeout_s
@@ -189,24 +178,20 @@ class ParticipantHost:
         self.host_node.create_subscription(String, STEP_TOPIC, self._on_step, QOS_SYNC_SUB, raw=True)
         self.ack_pub = self.host_node.create_publisher(String, ACK_TOPIC, QOS_SYNC_PUB)
         self.executor.add_node(self.host_node)
-        self.slots: list[_Slot] = []
+        self.slots: list[Slot] = []
         self.inboxes_by_topic: dict[str, list[TopicInbox]] = {}
         self.duplicates = 0
-        for p, topics in zip(participants, subs, strict=True):
+        for p in participants:
             name, ns = node_name_and_namespace(p.name, namespace)
-            node = rclpy.create_node(
+            node = ManagedNode(
                 name, namespace=ns, context=self.ctx, cli_args=_CLOCK_REMAP, enable_rosout=False,
                 parameter_overrides=[Parameter("use_sim_time", Parameter.Type.BOOL, True)],
             )
-            declare_run_parameters(node, parameters(p.name) if callable(parameters) else (parameters or {}))
-            slot = _Slot(p, node)
-            for topic in topics:
-                box = TopicInbox(topic)
-                node.create_subscription(String, ros_topic_name(topic, p.name), self._make_cb(box), QOS_DATA, raw=True)
-                slot.inboxes.append(box)
-                self.inboxes_by_topic.setdefault(self._resolved(slot, topic), []).append(box)
+            slot = Slot(p, node)
+            node.host, node.slot = self, slot
             self.executor.add_node(node)
             self.slots.append(slot)
+        self.n_active = 0
         self.seq_end: dict[str, int] = {}
         self.subs: dict[str, int] = {}
         self.subs_default = 0
@@ -223,12 +208,19 @@ class ParticipantHost:
         self.stale_steps = 0  # replayed steps older than the last one done, dropped on arrival
         self._answered_at = -float("inf")  # (monotonic) when the last step done was last answered again
         self.ckpt = None
-        if state_path is not None:
-            self._open_checkpoint(state_path)
-        self.live = HostLive(self, self.epoch_ns, live_period_s) if live_period_s else None
+        self.state_path = state_path
+        self.live_period_s = live_period_s
+        self.live = None
+
+    def _ready(self) -> None:
+        """Every node active: the checkpoint opened (restored: a restarted host), the live state set up."""
+        if self.state_path is not None and self.ckpt is None:
+            self._open_checkpoint(self.state_path)
+        if self.live_period_s and self.live is None:
+            self.live = HostLive(self, self.epoch_ns, self.live_period_s)
 
     @staticmethod
-    def _resolved(slot: _Slot, topic: str) -> str:
+    def _resolved(slot: Slot, topic: str) -> str:
         """The name DDS carries for ``slot``'s logical ``topic`` (its node's remaps and namespace)."""
         r = slot.ros.get(topic)
         if r is None:
@@ -354,10 +346,12 @@ class ParticipantHost:
         self._ack(k=0, t_ns=0, hello=True, participants=[s.name for s in self.slots], subscriptions=subs_count,
                   resume_k=self.resume_k)
 
-    def _publisher(self, slot: _Slot, topic: str):
+    def _publisher(self, slot: Slot, topic: str):
         pub = slot.pubs.get(topic)
         if pub is None:
-            pub = slot.node.create_publisher(String, ros_topic_name(topic, slot.name), QOS_DATA)
+            pub = slot.node.create_lifecycle_publisher(String, ros_topic_name(topic, slot.name), QOS_DATA)
+            if slot.active:  # (made after the activation, which enabled the node's publishers then)
+                pub.on_activate(None)
             resolved = self._resolved(slot, topic)
             need = self.subs.get(resolved, self.subs_default)
             self._spin_until(lambda: pub.get_subscription_count() >= need, self.startup_timeout_s,
@@ -365,7 +359,7 @@ class ParticipantHost:
             slot.pubs[topic] = pub
         return pub
 
-    def _emit(self, slot: _Slot, emits, t_max_ns: int, where: str, sent: dict[str, int]) -> None:
+    def _emit(self, slot: Slot, emits, t_max_ns: int, where: str, sent: dict[str, int]) -> None:
         try:
             emits = check_emits(slot.name, emits, t_max_ns, where)
         except EngineError as exc:
@@ -387,6 +381,9 @@ class ParticipantHost:
 
     # -- one wire step ------------------------------------------------------------------------------
     def _run_step(self, m: StepMsg) -> None:
+        if self.n_active < len(self.slots):
+            raise HostError(f"host {self.role}: step {m.k}: node(s) not active: "
+                            + ", ".join(f"{s.name} ({self._state(s)})" for s in self.slots if not s.active))
         if self.ckpt is not None:
             self.ckpt.begin()
         self._step_wires = []
@@ -456,7 +453,7 @@ class ParticipantHost:
         self._ack(**ack)
 
     @staticmethod
-    def _call(slot: _Slot, fn, where: str, *args) -> StepResult:
+    def _call(slot: Slot, fn, where: str, *args) -> StepResult:
         try:
             r = fn(*args)
         except Exception as exc:
@@ -468,7 +465,12 @@ class ParticipantHost:
 
     # -- main loop ----------------------------------------------------------------------------------
     def run(self) -> int:
-        """Say hello, run every step the clock sends until ``stop``; 0 on a clean end."""
+        """Wait until the nodes are active, say hello, run every step the clock sends until
+        ``stop``; 0 on a clean end."""
+        rc = self._await_active()
+        if rc is not None:
+            return rc
+        self._ready()
         self._hello()
         while True:
             if not self._steps:

@@ -287,6 +287,22 @@ _HOST_EXIT_GRACE_S = 10.0
 _CLOCK_DECIDED = (0, 2, 3, 130)
 
 
+def _lifecycle_message(rec: dict, hosts: list[_Child], clock_error: str) -> tuple[str, list[str]]:
+    """The run's one-line error for a node that failed a lifecycle transition (the clock's
+    ``lifecycle_failed`` record): node, process, transition, and the cause its process logged."""
+    proc = str(rec.get("process") or "")
+    where = f" (process {proc})" if proc else ""
+    msg = (f"node {rec.get('node')}{where} failed lifecycle transition '{rec.get('transition')}' "
+           f"in state '{rec.get('state')}'; the run stopped")
+    host = next((h for h in hosts if h.role == proc), None)
+    cause = host.last_error() if host is not None else ""
+    if cause:
+        msg += f": {cause}"
+    elif clock_error:
+        msg += f" ({clock_error})"
+    return msg, ([proc] if proc else []) + [CLOCK_ROLE]
+
+
 def _partial_bag(spec: RunSpec) -> str:
     """The clock crashed for good: export what its journal committed (every step before the one it
     died in; bringup/recording/journal.py BagJournal, the same export a restarted clock ends with) into
@@ -376,6 +392,7 @@ def launch(spec: RunSpec, out_dir: Path, *, progress: Callable[[LaunchProgress],
     env = child_env(dom)
     env[ENV_KEYS_DIGEST] = digest
     last: list[LaunchProgress | None] = [None]
+    lifecycle_failed: list[dict] = []  # the clock's record of a node that failed a transition
     children: list[_Child] = []
 
     restarts: dict[str, int] = {}
@@ -400,6 +417,10 @@ def launch(spec: RunSpec, out_dir: Path, *, progress: Callable[[LaunchProgress],
             try:
                 rec = json.loads(line)
             except ValueError:
+                continue
+            lf = rec.get("lifecycle_failed")
+            if isinstance(lf, dict):
+                lifecycle_failed.append(lf)
                 continue
             w = rec.get("waiting")
             if isinstance(w, dict) and progress is not None:
@@ -484,6 +505,8 @@ def launch(spec: RunSpec, out_dir: Path, *, progress: Callable[[LaunchProgress],
                                 "" if crashed or not spec.bag_dir else
                                 f": the recorder died with it and did not close the bag {spec.bag_dir}; "
                                 "it reads up to its last closed chunk (at most 2 min of sim time lost)"))
+                        if lifecycle_failed:  # the node's process named, its cause from its log
+                            message, failed = _lifecycle_message(lifecycle_failed[0], hosts, message)
                         if crashed:
                             how = f"killed by {_signame(-crc)}" if crc < 0 else f"exited with code {crc}"
                             message = (f"clock {how} and was restarted {restarts.get(CLOCK_ROLE, 0)} of "

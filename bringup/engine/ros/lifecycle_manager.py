@@ -1,0 +1,118 @@
+"""The run's lifecycle manager: brings every participant node up and down through its services.
+
+Lives in the clock process (bringup/engine/ros/clock_node.py), as node ``lifecycle_manager`` (under
+the run's namespace), so it runs wherever the clock runs: launched by `constellation run`, in a
+container, in a network namespace. It finds the run's managed nodes on the ROS graph (every
+``<node>/change_state`` service of type lifecycle_msgs/srv/ChangeState: the participant nodes of
+bringup/engine/ros/host.py) and, as a real client of their lifecycle services, asks each for its
+state (``get_state``) and calls ``change_state`` along the shared plan (bringup/engine/lifecycle.py):
+before step 0 configure -> activate for every node (a host says hello when all its nodes are
+active, and the clock waits for every hello); after the run deactivate -> cleanup -> shutdown. The
+calls go to every node at once (a process serves its nodes' one after the other). A transition a
+node refuses or fails stops the run: :attr:`LifecycleManager.failure` names the node, the process
+hosting it (from the run spec's groups) and the transition; the node's process log holds the cause.
+
+Oracle: tests/ros/test_lifecycle_run.py (a launched run: every participant node active, read by an
+independent rclpy client through ``get_state`` while the run goes on, finalized at the end; a node
+whose configure fails is named with its process and transition, and every process ends).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+from lifecycle_msgs.srv import ChangeState, GetState
+
+from bringup.engine.lifecycle import ACTIVE, FINALIZED, TRANSITION_IDS, bring_up_path, goal_of, shut_down_path
+
+__all__ = ["LifecycleManager"]
+
+_CHANGE_STATE = "lifecycle_msgs/srv/ChangeState"
+_SUFFIX = "/change_state"
+# wall seconds between two looks at the graph for new managed nodes
+_POLL_S = 0.1
+
+
+@dataclass
+class _Managed:
+    fqn: str
+    get: object
+    change: object
+    state: str | None = None
+    pending: tuple | None = None  # ("get", future) or ("change", label, future)
+    done: list[str] = field(default_factory=list)  # transitions done, in order
+
+
+class LifecycleManager:
+    """Drives the managed nodes of the graph toward :attr:`goal` (``active``, then ``finalized``);
+    :meth:`poll` advances them without blocking (the clock calls it while it spins)."""
+
+    def __init__(self, node, process_of=lambda name: ""):
+        self.node = node
+        self.process_of = process_of  # node name -> the process role hosting it ("" unknown)
+        self.nodes: dict[str, _Managed] = {}
+        self.goal = ACTIVE
+        self.failure = ""  # one line naming the node, its process and the transition
+        self.failed: dict | None = None
+        self._next_look = 0.0
+
+    def _look(self) -> None:
+        for name, types in self.node.get_service_names_and_types():
+            if name.endswith(_SUFFIX) and _CHANGE_STATE in types:
+                fqn = name[: -len(_SUFFIX)]
+                if fqn not in self.nodes:
+                    self.nodes[fqn] = _Managed(fqn, self.node.create_client(GetState, f"{fqn}/get_state"),
+                                               self.node.create_client(ChangeState, f"{fqn}/change_state"))
+
+    def poll(self) -> None:
+        now = time.monotonic()
+        if now >= self._next_look:
+            self._next_look = now + _POLL_S
+            self._look()
+        if not self.failure:
+            for m in self.nodes.values():
+                self._advance(m)
+
+    def at_goal(self, n: int | None = None) -> bool:
+        """Every node found (at least ``n`` of them) is in :attr:`goal`."""
+        return (n is None or len(self.nodes) >= n) and all(m.state == self.goal for m in self.nodes.values())
+
+    def shut_down(self) -> None:
+        """From now on drive every node to ``finalized`` (deactivate -> cleanup -> shutdown)."""
+        self.goal = FINALIZED
+
+    def _advance(self, m: _Managed) -> None:
+        if m.pending is not None:
+            fut = m.pending[-1]
+            if not fut.done():
+                return
+            kind, *rest = m.pending
+            m.pending = None
+            res = fut.result()
+            if kind == "get":
+                m.state = res.current_state.label
+            elif res.success:
+                m.state = goal_of(m.state, rest[0])
+                m.done.append(rest[0])
+            else:
+                self._fail(m, rest[0])
+                return
+        if m.state is None:
+            if m.get.service_is_ready():
+                m.pending = ("get", m.get.call_async(GetState.Request()))
+            return
+        path = bring_up_path(m.state) if self.goal == ACTIVE else shut_down_path(m.state)
+        if not path or not m.change.service_is_ready():
+            return
+        req = ChangeState.Request()
+        req.transition.id = TRANSITION_IDS[(m.state, path[0])]
+        m.pending = ("change", path[0], m.change.call_async(req))
+
+    def _fail(self, m: _Managed, label: str) -> None:
+        name = m.fqn.rsplit("/", 1)[-1]
+        proc = self.process_of(name)
+        where = f" (process {proc})" if proc else ""
+        self.failed = {"node": m.fqn, "process": proc, "transition": label, "state": m.state}
+        self.failure = (f"lifecycle: node {m.fqn}{where} failed transition '{label}' in state '{m.state}' "
+                        f"(its cause is in {'logs/' + proc + '.log' if proc else 'its process log'})")
