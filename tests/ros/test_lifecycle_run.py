@@ -7,7 +7,8 @@ GetState / GetAvailableTransitions), and the local engine's envelopes for the sa
   available transitions are the shared table's (bringup/engine/lifecycle.py ``available``), and the
   run's bag equals the local engine's envelopes (the life cycle changes nothing in the results).
 - A node whose configure fails is named by the launcher with its process and the transition, the
-  run stops, and no process of the run is left.
+  run stops, and no process of the run is left: a toy participant whose build raises, and a real
+  satellite of the scenario factory whose bundle store cannot be opened (its path is a folder).
 """
 
 from __future__ import annotations
@@ -128,3 +129,29 @@ def test_node_that_fails_configure_is_named_and_every_process_ends(tmp_path):
     assert not _alive(_pids(tmp_path / "run")), "a process of the run outlived it"
     assert not any(p.exists() for p in [tmp_path / "run" / "run.keys"])
     assert os.path.isdir(tmp_path / "run" / "logs")
+
+
+def test_satellite_whose_store_cannot_open_fails_configure_named(tmp_path):
+    """The scenario's own factory: a satellite builds its bundle store in on_configure; a store path
+    that is a folder (SQLite cannot open it) fails that node's configure, and the run stops naming it."""
+    from bringup.engine.ros.factory import FACTORY
+    from bringup.scenario.config import load_scenario
+    from bringup.scenario.participants import roles_for
+    from bringup.scenario.world import World
+
+    sc = load_scenario("paper").with_overrides(sats=3, hours=0.1)
+    world = World.build(sc)
+    world_path = world.save(tmp_path / "world.pkl")
+    store = tmp_path / "store"
+    victim = world.sat_names[1]
+    (store / f"{victim}.sqlite").mkdir(parents=True)  # where its store file would be
+    spec = RunSpec(factory=FACTORY, roles=roles_for(world, "distributed"), scenario=str(Path(sc.source_path).resolve()),
+                   overrides={"sats": 3, "hours": 0.1}, mode="distributed", startup_timeout_s=None,
+                   extra={"world": str(world_path.resolve()), "world_key": world.key, "store_dir": str(store)})
+    res = launch(spec, tmp_path / "run")
+    assert not res.ok
+    assert res.message.startswith(f"node /{victim}/{victim} (process {victim}) failed lifecycle transition "
+                                  "'configure' in state 'unconfigured'; the run stopped: "
+                                  f"host {victim}: error: node {victim}: transition 'configure' failed: "), res.message
+    assert victim in res.failed_roles and "\n" not in res.message
+    assert not _alive(_pids(tmp_path / "run")), "a process of the run outlived it"
