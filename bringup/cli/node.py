@@ -10,7 +10,8 @@ spec's ``state_dir`` a host checkpoints every step and, started again after a cr
 its checkpoint (bringup/engine/checkpoint.py).
 A process started by a launcher ends with it (bringup/engine/ros/lifeline.py).
 Before a host says hello (ready) it runs the spec's prepare hook for its role (e.g. loads the
-numba kernels its participants use); ``--prepare`` runs the hook once for the whole run, as the
+numba kernels its participants use) and waits until the run's lifecycle manager has configured
+and activated its nodes (bringup/engine/ros/host_lifecycle.py); ``--prepare`` runs the hook once for the whole run, as the
 launcher does before it starts any process.
 
 Checked by tests/ros/test_launcher.py (launched runs of toy participants) and

@@ -40,6 +40,14 @@ cold cache), then starts the processes; each runs the hook for its role before i
 clock waits for every hello before step 0 and names the processes it still waits for; those
 reports reach ``progress`` as ``LaunchProgress.status`` / ``not_ready`` (bringup/engine/ros/clock_node.py).
 
+Managed nodes: every participant node starts ``unconfigured``; the run's lifecycle manager, started
+with the clock (bringup/engine/ros/lifecycle_manager.py; in the clock process so that it runs
+wherever the clock does: here, in a container, in a network namespace), calls every node's
+lifecycle services, configure -> activate before step 0 and deactivate -> cleanup -> shutdown after
+the last step. A node that fails a transition ends the run: the clock reports it (a
+``lifecycle_failed`` record), and the result's one-line message names the node, its process, the
+transition and the cause that process logged (tests/ros/test_lifecycle_run.py).
+
 Crash and restart: when the spec has ``max_restarts > 0`` a host process that dies
 (any exit but 0, e.g. SIGKILL) while the clock runs is started again with the same command, up to
 ``max_restarts`` times per role; it resumes from its checkpoint (bringup/engine/ros/host.py) and the clock
