@@ -12,9 +12,17 @@ calls go to every node at once (a process serves its nodes' one after the other)
 node refuses or fails stops the run: :attr:`LifecycleManager.failure` names the node, the process
 hosting it (from the run spec's groups) and the transition; the node's process log holds the cause.
 
+Lost answers: a service may drop its response when it comes before the client's response reader
+has matched its writer (rmw_fastrtps: "failed to send response (timeout)"; seen under heavy load),
+so a call still unanswered after :data:`_ANSWER_S` is given up and the node's state asked again:
+the plan goes on from the state the node reports (a transition it did make is not made twice). A
+transition asked for :data:`_TRIES` times from the same state without an answer is a failure.
+
 Oracle: tests/ros/test_lifecycle_run.py (a launched run: every participant node active, read by an
 independent rclpy client through ``get_state`` while the run goes on, finalized at the end; a node
-whose configure fails is named with its process and transition, and every process ends).
+whose configure fails is named with its process and transition, and every process ends);
+tests/ros/test_lifecycle_manager.py (answers dropped on purpose: the plan goes on from the state the
+node reports, no transition made twice; a node that never answers is named).
 """
 
 from __future__ import annotations
@@ -32,6 +40,11 @@ _CHANGE_STATE = "lifecycle_msgs/srv/ChangeState"
 _SUFFIX = "/change_state"
 # wall seconds between two looks at the graph for new managed nodes
 _POLL_S = 0.1
+# wall seconds a call may stay unanswered before the node's state is asked again (a lost response);
+# a node's process answers its nodes' calls one after the other, and a configure may take seconds
+_ANSWER_S = 10.0
+# calls of one transition from one state before it counts as failed
+_TRIES = 3
 
 
 @dataclass
@@ -41,7 +54,10 @@ class _Managed:
     change: object
     state: str | None = None
     pending: tuple | None = None  # ("get", future) or ("change", label, future)
+    since: float = 0.0  # (monotonic) when the pending call was made
     done: list[str] = field(default_factory=list)  # transitions done, in order
+    tries: dict = field(default_factory=dict)  # (state, transition) -> calls made
+    lost: int = 0  # calls given up unanswered
 
 
 class LifecycleManager:
@@ -86,7 +102,14 @@ class LifecycleManager:
         if m.pending is not None:
             fut = m.pending[-1]
             if not fut.done():
-                return
+                if time.monotonic() - m.since < _ANSWER_S:
+                    return
+                # no answer: given up, the state asked again (below)
+                (m.get if m.pending[0] == "get" else m.change).remove_pending_request(fut)
+                m.pending, m.state = None, None
+                m.lost += 1
+                fut = None
+        if m.pending is not None:
             kind, *rest = m.pending
             m.pending = None
             res = fut.result()
@@ -100,19 +123,24 @@ class LifecycleManager:
                 return
         if m.state is None:
             if m.get.service_is_ready():
-                m.pending = ("get", m.get.call_async(GetState.Request()))
+                m.pending, m.since = ("get", m.get.call_async(GetState.Request())), time.monotonic()
             return
         path = bring_up_path(m.state) if self.goal == ACTIVE else shut_down_path(m.state)
         if not path or not m.change.service_is_ready():
             return
+        key = (m.state, path[0])
+        m.tries[key] = m.tries.get(key, 0) + 1
+        if m.tries[key] > _TRIES:
+            self._fail(m, path[0], f"; no answer to {_TRIES} calls")
+            return
         req = ChangeState.Request()
-        req.transition.id = TRANSITION_IDS[(m.state, path[0])]
-        m.pending = ("change", path[0], m.change.call_async(req))
+        req.transition.id = TRANSITION_IDS[key]
+        m.pending, m.since = ("change", path[0], m.change.call_async(req)), time.monotonic()
 
-    def _fail(self, m: _Managed, label: str) -> None:
+    def _fail(self, m: _Managed, label: str, why: str = "") -> None:
         name = m.fqn.rsplit("/", 1)[-1]
         proc = self.process_of(name)
         where = f" (process {proc})" if proc else ""
         self.failed = {"node": m.fqn, "process": proc, "transition": label, "state": m.state}
-        self.failure = (f"lifecycle: node {m.fqn}{where} failed transition '{label}' in state '{m.state}' "
+        self.failure = (f"lifecycle: node {m.fqn}{where} failed transition '{label}' in state '{m.state}'{why} "
                         f"(its cause is in {'logs/' + proc + '.log' if proc else 'its process log'})")
