@@ -47,11 +47,14 @@ class _Server:
     """A managed node: a real state machine; ``drop`` = how many change answers it loses (after
     making the transition, or, with ``deaf``, without making it)."""
 
-    def __init__(self, name, drop=0, deaf=False):
+    def __init__(self, name, drop=0, deaf=False, drop_get=0):
         self.lc = Lifecycle(name)
-        self.drop, self.deaf, self.made = drop, deaf, []
+        self.drop, self.deaf, self.made, self.drop_get = drop, deaf, [], drop_get
 
     def call(self, kind, req):
+        if kind == "get" and self.drop_get > 0:
+            self.drop_get -= 1
+            return _Future()
         if kind == "get":
             resp = GetState.Response()
             resp.current_state.label = self.lc.state
@@ -90,13 +93,14 @@ def _drive(mgr, goal_n, rounds=200):
 
 
 def test_a_lost_answer_is_recovered_from_the_state_and_nothing_is_made_twice(monkeypatch):
-    monkeypatch.setattr(lm, "_ANSWER_S", 0.0)
-    servers = {"sat_11": _Server("sat_11", drop=1), "sat_12": _Server("sat_12")}
+    monkeypatch.setattr(lm, "_CHANGE_S", 0.0)
+    monkeypatch.setattr(lm, "_GET_S", 0.0)
+    servers = {"sat_11": _Server("sat_11", drop=1), "sat_12": _Server("sat_12", drop_get=2)}
     mgr = lm.LifecycleManager(_Node(servers), process_of=lambda n: n)
     _drive(mgr, 2)
     assert not mgr.failure and mgr.at_goal(2)
     assert servers["sat_11"].made == servers["sat_12"].made == ["configure", "activate"]
-    assert mgr.nodes["/sat_11/sat_11"].lost == 1 and mgr.nodes["/sat_12/sat_12"].lost == 0
+    assert mgr.nodes["/sat_11/sat_11"].lost == 1 and mgr.nodes["/sat_12/sat_12"].lost == 2
     mgr.shut_down()
     servers["sat_12"].drop = 2
     _drive(mgr, 2)
@@ -105,7 +109,8 @@ def test_a_lost_answer_is_recovered_from_the_state_and_nothing_is_made_twice(mon
 
 
 def test_a_node_that_never_answers_is_named(monkeypatch):
-    monkeypatch.setattr(lm, "_ANSWER_S", 0.0)
+    monkeypatch.setattr(lm, "_CHANGE_S", 0.0)
+    monkeypatch.setattr(lm, "_GET_S", 0.0)
     servers = {"sat_21": _Server("sat_21", deaf=True)}
     mgr = lm.LifecycleManager(_Node(servers), process_of=lambda n: "sats_1")
     _drive(mgr, 1)

@@ -384,10 +384,13 @@ class LockstepClock:
         def late() -> str:
             left = [f"{m.fqn} ({m.state})" for m in self.lifecycle.nodes.values() if m.state != "finalized"]
             return f"lifecycle: nodes not shut down within {bound:g} s: {', '.join(left) or '(not found)'}"
+        t0 = time.monotonic()
         try:
             self._spin_until(down, bound, late)
         finally:
             self._lifecycle_busy = False
+        print(f"clock: lifecycle: {len(self.lifecycle.nodes)} nodes shut down in {time.monotonic() - t0:.1f} s "
+              f"({self.lifecycle.lost_answers()} answers lost)", file=sys.stderr, flush=True)
 
     # -- waiting ------------------------------------------------------------------------------------
     def _spin_until(self, cond, timeout_s: float, on_timeout) -> None:
@@ -446,6 +449,8 @@ class LockstepClock:
                 self._out({"waiting": {"not_ready": missing, "roles": len(self.roles),
                                        "wall_s": round(waited, 1), "horizon_ns": self.horizon_ns}})
         self._lifecycle_busy = False
+        print(f"clock: lifecycle: {len(self.lifecycle.nodes)} nodes active, every process ready after "
+              f"{time.monotonic() - t0:.1f} s ({self.lifecycle.lost_answers()} answers lost)", file=sys.stderr, flush=True)
 
     def _alone_on_domain(self) -> None:
         """ClockError when another run's clock is on this ROS domain: two runs on one domain use the

@@ -14,9 +14,11 @@ hosting it (from the run spec's groups) and the transition; the node's process l
 
 Lost answers: a service may drop its response when it comes before the client's response reader
 has matched its writer (rmw_fastrtps: "failed to send response (timeout)"; seen under heavy load),
-so a call still unanswered after :data:`_ANSWER_S` is given up and the node's state asked again:
-the plan goes on from the state the node reports (a transition it did make is not made twice). A
-transition asked for :data:`_TRIES` times from the same state without an answer is a failure.
+so a call still unanswered after a while (``get_state`` :data:`_GET_S`, doubling while answers
+keep missing; ``change_state`` :data:`_CHANGE_S`) is given up and the node's state asked again: the
+plan goes on from the state the node reports (a transition it did make is not made twice; one still
+running is answered for by the next ``get_state``, which its process serves after it). A transition
+asked for :data:`_TRIES` times from the same state without an answer is a failure.
 
 Oracle: tests/ros/test_lifecycle_run.py (a launched run: every participant node active, read by an
 independent rclpy client through ``get_state`` while the run goes on, finalized at the end; a node
@@ -40,9 +42,12 @@ _CHANGE_STATE = "lifecycle_msgs/srv/ChangeState"
 _SUFFIX = "/change_state"
 # wall seconds between two looks at the graph for new managed nodes
 _POLL_S = 0.1
-# wall seconds a call may stay unanswered before the node's state is asked again (a lost response);
-# a node's process answers its nodes' calls one after the other, and a configure may take seconds
-_ANSWER_S = 10.0
+# wall seconds a call may stay unanswered before the node's state is asked again (a lost response):
+# get_state first (doubled while its answers keep missing: a process answers its nodes' calls one
+# after the other, behind a configure that may take seconds), change_state
+_GET_S = 1.0
+_GET_MAX_S = 8.0
+_CHANGE_S = 3.0
 # calls of one transition from one state before it counts as failed
 _TRIES = 3
 
@@ -58,6 +63,7 @@ class _Managed:
     done: list[str] = field(default_factory=list)  # transitions done, in order
     tries: dict = field(default_factory=dict)  # (state, transition) -> calls made
     lost: int = 0  # calls given up unanswered
+    get_s: float = field(default_factory=lambda: _GET_S)  # how long the next get_state may stay unanswered
 
 
 class LifecycleManager:
@@ -94,6 +100,10 @@ class LifecycleManager:
         """Every node found (at least ``n`` of them) is in :attr:`goal`."""
         return (n is None or len(self.nodes) >= n) and all(m.state == self.goal for m in self.nodes.values())
 
+    def lost_answers(self) -> int:
+        """Calls given up unanswered so far (all nodes)."""
+        return sum(m.lost for m in self.nodes.values())
+
     def shut_down(self) -> None:
         """From now on drive every node to ``finalized`` (deactivate -> cleanup -> shutdown)."""
         self.goal = FINALIZED
@@ -102,10 +112,13 @@ class LifecycleManager:
         if m.pending is not None:
             fut = m.pending[-1]
             if not fut.done():
-                if time.monotonic() - m.since < _ANSWER_S:
+                getting = m.pending[0] == "get"
+                if time.monotonic() - m.since < (m.get_s if getting else _CHANGE_S):
                     return
                 # no answer: given up, the state asked again (below)
-                (m.get if m.pending[0] == "get" else m.change).remove_pending_request(fut)
+                (m.get if getting else m.change).remove_pending_request(fut)
+                if getting:
+                    m.get_s = min(2 * m.get_s, _GET_MAX_S)
                 m.pending, m.state = None, None
                 m.lost += 1
                 fut = None
@@ -115,6 +128,7 @@ class LifecycleManager:
             res = fut.result()
             if kind == "get":
                 m.state = res.current_state.label
+                m.get_s = _GET_S
             elif res.success:
                 m.state = goal_of(m.state, rest[0])
                 m.done.append(rest[0])
