@@ -9,7 +9,7 @@ bundles with one terrestrial DTN node over a real convergence layer (sat_node/dt
 
 * ``HOST:PORT``: the peer's induct. The ground is the active side: it opens one session (node ID
   ``ipn:100.0``) when the run starts - a peer it cannot reach stops the run before it starts, one
-  line - and opens it again when it is lost (every :data:`RECONNECT_S` s).
+  line - and opens it again when it is lost (see "Delivery to the peer").
 * ``node=N``: the peer's ipn node number. It is routed through the ground (the ground agent's graph
   has a contact to it for the whole run), and the satellites address their downlinked observations
   to ``ipn:N.1`` (sat_node/dtn/downlink.py): the ground forwards every downlink to the peer.
@@ -22,8 +22,20 @@ bundles with one terrestrial DTN node over a real convergence layer (sat_node/dt
   drops the bundle. Every decision is counted per reason in the run's gateway.json.
 
 Delivery to the peer: a bundle stays in the ground's store until the peer acknowledged all of it
-(TCPCLv4 XFER_ACK, TCPCLv3 ACK_SEGMENT); a session lost before that sends it again on the next one
-(the peer may get a bundle twice, never none). UDP acknowledges nothing: a datagram is counted sent
+(TCPCLv4 XFER_ACK, TCPCLv3 ACK_SEGMENT), and the bundles go one at a time, in submit order. A send
+that fails - the session ended or lost, the connection refused, or the bundle not sent and
+acknowledged within :data:`ACK_S` s (a peer that stopped reading keeps the TCP connection open: only
+this bound notices it) - counts ``send_failed``; the session is ended (SESS_TERM / SHUTDOWN, bounded by :data:`END_S`
+s, then dropped), and after a backoff (:data:`RECONNECT_S` s, doubled at each failure in a row up to
+:data:`RECONNECT_MAX_S` s, back to the start after a bundle is acknowledged) a new session is opened
+(``reconnects``) and every bundle not yet acknowledged is sent again, from the oldest. No bundle is
+lost; a bundle whose acknowledgment was lost (the peer had all of it when the session ended) is sent
+again, so the peer gets it twice (no custody transfer: it delivers both). A refusal is a failed send
+when its reason asks for the bundle again (TCPCLv4 "retransmit" or "session terminating", which a
+peer ending its session sends for the transfer in flight; TCPCLv3 "retransmit"), a delivery when it
+is "completed", and otherwise final: the bundle is dropped from the queue (``refused``) and stays in
+the ground's store. A session lost while there
+is nothing to send is opened again with the next bundle. UDP acknowledges nothing: a datagram is counted sent
 when it left (``unacknowledged``), and one the peer did not take is lost. At the run's end the ground
 waits up to :data:`FLUSH_S` s for the last acknowledgments; what is still unacknowledged stays in
 the store and is counted.
@@ -58,12 +70,21 @@ from sat_node.dtn.cl import ClError, TransferRefused, tcpcl3, tcpcl4, udp
 from sat_node.dtn.downlink import GROUND_NODE
 from sat_node.dtn.rx_policy import FOREIGN_POLICIES
 
-__all__ = ["FLUSH_S", "Gateway", "GatewaySpec", "LAYERS", "RECONNECT_S", "parse_gateway"]
+__all__ = ["ACK_S", "FLUSH_S", "LAYERS", "RECONNECT_S", "Gateway", "GatewaySpec", "parse_gateway"]
 
 LAYERS = ("tcpcl4", "tcpcl3", "udp")
-RECONNECT_S = 1.0
-FLUSH_S = 30.0
+RECONNECT_S = 1.0  # the first wait after a failed send
+RECONNECT_MAX_S = 8.0  # the backoff doubles up to this
+ACK_S = 10.0  # a bundle not acknowledged within this: the session is taken as lost
+END_S = 3.0  # ending a failed session: past this it is dropped without its SESS_TERM / SHUTDOWN
+FLUSH_S = 30.0  # > ACK_S + RECONNECT_MAX_S + CONNECT_S: a stalled session is replaced within the flush
 CONNECT_S = 10.0
+# XFER_REFUSE / REFUSE_BUNDLE reasons (RFC 9174 5.2.4 table 8, RFC 7242 5.4 table 3): "completed" is
+# a delivery; "retransmit" and "session terminating" ask for the bundle again (a failed send: kept,
+# sent again on the next session); any other drops the bundle from the gateway's queue
+_COMPLETED = 1
+_RETRY = {"tcpcl4": frozenset({tcpcl4.RefuseReason.RETRANSMIT, tcpcl4.RefuseReason.SESSION_TERMINATING}),
+          "tcpcl3": frozenset({tcpcl3.RefuseReason.RETRANSMIT}), "udp": frozenset()}
 POLL_S = 10.0  # scenario seconds between the ground's looks at the gateway
 _NS = 1_000_000_000
 
@@ -129,10 +150,13 @@ class Gateway:
     :meth:`close` it."""
 
     def __init__(self, spec: GatewaySpec, *, poll_s: float = POLL_S, flush_s: float = FLUSH_S,
-                 reconnect_s: float = RECONNECT_S):
+                 reconnect_s: float = RECONNECT_S, reconnect_max_s: float = RECONNECT_MAX_S,
+                 ack_s: float = ACK_S):
         self.spec = spec
         self.poll_ns = int(poll_s * _NS)
-        self.flush_s, self.reconnect_s = flush_s, reconnect_s
+        self.flush_s, self.ack_s = flush_s, ack_s
+        self.reconnect_s, self.reconnect_max_s = reconnect_s, max(reconnect_s, reconnect_max_s)
+        self.last_error: str | None = None
         self.node_id = f"ipn:{GROUND_NODE}.0"
         self.counters: Counter[str] = Counter()
         self.sent: list[tuple[str, int, str]] = []  # (bundle id, bytes, SHA-256) in the order taken
@@ -186,7 +210,7 @@ class Gateway:
     def report(self) -> dict:
         out = {"url": self.spec.url, "cl": self.spec.cl, "peer_node": f"ipn:{self.spec.node}",
                "acknowledged": self.spec.cl != "udp", "counters": dict(sorted(self.counters.items())),
-               "pending": len(self._pending),
+               "pending": len(self._pending), "last_error": self.last_error,
                "sent": [{"bundle": b, "bytes": n, "sha256": h} for b, n, h in self.sent]}
         if self.t_first_send is not None and self.t_last_ack is not None:
             out["send_wall_s"] = round(self.t_last_ack - self.t_first_send, 3)
@@ -255,12 +279,14 @@ class Gateway:
         self._wake.set()
 
     async def _send_loop(self) -> None:
+        backoff = self.reconnect_s
         while not self._stop:
             if not self._pending:
                 self._wake.clear()
                 await self._wake.wait()
                 continue
             bid, data = self._pending[0]
+            failed = None
             if self.t_first_send is None:
                 self.t_first_send = time.monotonic()
             try:
@@ -269,24 +295,32 @@ class Gateway:
                     self.counters["unacknowledged"] += 1
                 else:
                     if self._session is None or self._session.closed:
-                        self._session = None
+                        await self._drop_session()
                         self._session = await self._connect()
                         self.counters["reconnects"] += 1
-                    await self._session.send(data, timeout_s=CONNECT_S * 3)
+                    # the whole transfer is bounded: a peer that stops reading blocks its writes too
+                    await asyncio.wait_for(self._session.send(data, timeout_s=self.ack_s), self.ack_s)
                     self.counters["acknowledged"] += 1
             except TransferRefused as exc:
-                self.counters["refused"] += 1
                 self.counters[f"refused.reason_{exc.reason}"] += 1
-                self._pending.popleft()  # the peer will not take it: it stays in the ground's store
-                continue
-            except (ClError, TimeoutError, OSError):
+                if exc.reason == _COMPLETED:  # the peer already has all of it: delivered
+                    self.counters["acknowledged"] += 1
+                elif exc.reason in _RETRY[self.spec.cl]:
+                    failed = exc
+                else:
+                    self.counters["refused"] += 1
+                    self._pending.popleft()  # the peer will not take it: it stays in the ground's store
+                    continue
+            except Exception as exc:  # noqa: BLE001 - whatever failed, the sender goes on: the bundle stays
+                failed = exc
+            if failed is not None:
                 self.counters["send_failed"] += 1
-                if self._session is not None and not self._session.closed:
-                    with contextlib.suppress(Exception):
-                        await self._end(self._session)
-                self._session = None
-                await asyncio.sleep(self.reconnect_s)
+                self.last_error = f"{type(failed).__name__}: {failed}".splitlines()[0]
+                await self._drop_session()
+                await asyncio.sleep(backoff)
+                backoff = min(2 * backoff, self.reconnect_max_s)
                 continue
+            backoff = self.reconnect_s
             self._pending.popleft()
             self.counters["sent"] += 1
             self.counters["bytes_sent"] += len(data)
@@ -305,15 +339,25 @@ class Gateway:
         else:
             await session.close(timeout_s=2.0)
 
+    async def _drop_session(self) -> None:
+        """End the session, if open; one whose end does not finish in END_S s (a peer that does not
+        read: the SESS_TERM / SHUTDOWN cannot be written) is aborted."""
+        s, self._session = self._session, None
+        if s is None or s.closed:
+            return
+        try:
+            await asyncio.wait_for(self._end(s), END_S)
+        except Exception:  # noqa: BLE001 - time-out or a failed end: drop the connection
+            self.counters["sessions_aborted"] += 1
+            s.abort()
+
     async def _close(self) -> None:
         self._stop = True
         if self._sender is not None:
             self._sender.cancel()
             with contextlib.suppress(asyncio.CancelledError, Exception):
                 await self._sender
-        if self._session is not None and not self._session.closed:
-            with contextlib.suppress(Exception):
-                await self._end(self._session)
+        await self._drop_session()
         if self._listener is not None:
             with contextlib.suppress(Exception):
                 await self._listener.close()

@@ -50,8 +50,8 @@ def test_bad_urls_are_one_line_errors(url, words):
 class Peer:
     """The project's listener for one layer, in an event loop on its own thread; it can also send."""
 
-    def __init__(self, cl: str, port: int = 0):
-        self.cl, self.got, self.sessions = cl, [], []
+    def __init__(self, cl: str, port: int = 0, on_take=None):
+        self.cl, self.got, self.sessions, self.on_take = cl, [], [], on_take
         self.loop = asyncio.new_event_loop()
         threading.Thread(target=self.loop.run_forever, daemon=True).start()
         self.lst = self.call(self._serve(port))
@@ -61,8 +61,10 @@ class Peer:
         return asyncio.run_coroutine_threadsafe(coro, self.loop).result(timeout)
 
     async def _serve(self, port):
-        def take(data, _s):
+        def take(data, session):
             self.got.append(bytes(data))
+            if self.on_take is not None:
+                self.on_take(self, session)
 
         if self.cl == "udp":
             return await udp.serve("127.0.0.1", port, take)
@@ -130,6 +132,97 @@ def test_a_lost_session_is_opened_again_and_unacknowledged_bundles_sent_again(cl
         peer2.close()
     finally:
         gw.close()
+
+
+def _check_all_delivered_once_acknowledged(gw, data, got):
+    """Every bundle reached the peer(s) and was acknowledged exactly once, in order; a bundle the
+    peer got twice is one whose acknowledgment was lost when its session ended (got once on each side
+    of the loss); the counters add up."""
+    ids = [f"b{i}" for i in range(len(data))]
+    assert gw.take_acks() == ids, (sorted(gw.counters.items()), gw.last_error)
+    assert set(got) == set(data)
+    twice = [d for d in data if got.count(d) > 1]
+    assert all(got.count(d) == 2 for d in twice)
+    assert len(twice) <= gw.counters["send_failed"]  # at most the one in flight at each loss
+    c = gw.counters
+    assert c["sent"] == c["acknowledged"] == len(data) and c["bytes_sent"] == sum(map(len, data))
+    assert c["sessions_opened"] >= 2 and c["reconnects"] == c["sessions_opened"] - 1
+    assert c["send_failed"] >= 1 and gw.report()["pending"] == 0
+
+
+@pytest.mark.parametrize("cl", ["tcpcl4", "tcpcl3"])
+def test_the_peer_lost_mid_stream_every_bundle_arrives_on_the_next_session(cl):
+    """The peer's listener stops (its sessions ended) as the 5th of 20 bundles arrives, while the
+    gateway is streaming; a new listener on the same port takes the rest after the gateway's backoff."""
+    n, kill_at = 20, 5
+    stopped = threading.Event()
+
+    def kill(p, _session):
+        if len(p.got) == kill_at:
+            async def stop():
+                await p.lst.close()
+                stopped.set()
+            asyncio.get_running_loop().create_task(stop())
+
+    peer = Peer(cl, on_take=kill)
+    port = peer.port
+    gw = Gateway(GatewaySpec(cl, "127.0.0.1", port, 2), reconnect_s=0.05, reconnect_max_s=0.4).start()
+    peer2 = None
+    try:
+        data = _bundles(n)
+        for i, d in enumerate(data):
+            gw.submit(f"b{i}", d)
+        assert stopped.wait(10)
+        time.sleep(0.5)  # the gateway fails to reach the port meanwhile, backing off
+        assert len(peer.got) < n  # the loss was mid-stream
+        peer2 = Peer(cl, port)
+        gw.flush()
+        _check_all_delivered_once_acknowledged(gw, data, peer.got + peer2.got)
+        assert peer2.got[-1] == data[-1]
+    finally:
+        gw.close()
+        peer.loop.call_soon_threadsafe(peer.loop.stop)
+        if peer2 is not None:
+            peer2.close()
+
+
+@pytest.mark.parametrize("big", [False, True], ids=["small", "6MB"])
+@pytest.mark.parametrize("cl", ["tcpcl4", "tcpcl3"])
+def test_a_session_that_stops_acknowledging_is_replaced_within_the_flush(cl, big):
+    """The peer stops reading the ground's session after the 3rd bundle (a stalled or half-open
+    connection: TCP stays up, nothing is acknowledged, nothing closes it) while its listener still
+    takes new sessions. The gateway must give the session up after ``ack_s``, end it without
+    waiting on the peer, open a new one and send the rest there, all within the flush. (With an
+    acknowledgment wait as long as the flush, the flush ran out first: ``send_failed`` = 1,
+    ``sessions_opened`` = 1, the rest never sent.) With a 6 MB 4th bundle the socket buffers fill:
+    the gateway's writes block, and so does its SESS_TERM / SHUTDOWN; the session is aborted."""
+    n, stall_after = 8, 3
+
+    def stall(p, session):
+        if len(p.got) == stall_after:
+            session._w.transport.pause_reading()  # the peer's side of this one session goes silent
+
+    peer = Peer(cl, on_take=stall)
+    gw = Gateway(GatewaySpec(cl, "127.0.0.1", peer.port, 2), reconnect_s=0.05, reconnect_max_s=0.4,
+                 ack_s=1.0, flush_s=20.0).start()
+    try:
+        data = _bundles(n)
+        if big:
+            data[stall_after] = encode_bundle(Bundle(dest=ipn(2, 1), src=ipn(11, 1), creation_ms=10**9, seq=99,
+                                                     lifetime_ms=60_000, payload=b"B" * 6_000_000))
+        for i, d in enumerate(data):
+            gw.submit(f"b{i}", d)
+        gw.flush()
+        assert gw.counters["sessions_aborted"] == (1 if big else 0)
+        assert peer.got == data  # the 4th was never read on the stalled session: no duplicate
+        assert gw.take_acks() == [f"b{i}" for i in range(n)]
+        c = gw.counters
+        assert c["sent"] == c["acknowledged"] == n and c["send_failed"] == 1
+        assert c["sessions_opened"] == 2 and c["reconnects"] == 1 and gw.report()["pending"] == 0
+        assert gw.last_error is not None
+    finally:
+        gw.close()
+        peer.close()
 
 
 @pytest.mark.parametrize("cl", ["tcpcl4", "tcpcl3"])

@@ -278,6 +278,14 @@ class Session:
             await asyncio.wait_for(self.wait_closed(), timeout_s)
         self._finish()
 
+    def abort(self) -> None:
+        """Drop the connection at once, without SHUTDOWN: for a peer that no longer reads (a
+        :meth:`close` whose SHUTDOWN cannot be written would wait on it)."""
+        self._fail("connection lost: aborted by this side")
+        with contextlib.suppress(Exception):
+            self._w.transport.abort()
+        self._finish()
+
     # ----- internals
     def _write(self, data: bytes) -> None:
         self._w.write(data)
