@@ -48,6 +48,8 @@ peer's bundles enter the run at the ground step after they arrived.
 How we know it is right: tests/unit/test_gateway.py (URL forms and their one-line errors; a
 session to the project's own listener: every bundle arrives byte-identical, acknowledged bundles
 only leave the store, a lost session is opened again and the unacknowledged bundles sent again;
+a peer lost mid-stream and a session that stops acknowledging (small bundles, and one that fills the
+socket buffers): every bundle arrives, duplicates only across the loss, within the flush;
 bundles from the peer taken in); tests/system/test_ground_gateway.py (a centralized run whose
 downlinks reach ``bundles listen`` and whose peer bundles reach the named satellite);
 tests/interop/test_ground_gateway_ion.py (ION 4.1.3 over TCPCLv3 and UDP) and
