@@ -22,23 +22,22 @@ bundles with one terrestrial DTN node over a real convergence layer (sat_node/dt
   drops the bundle. Every decision is counted per reason in the run's gateway.json.
 
 Delivery to the peer: a bundle stays in the ground's store until the peer acknowledged all of it
-(TCPCLv4 XFER_ACK, TCPCLv3 ACK_SEGMENT), and the bundles go one at a time, in submit order. A send
-that fails - the session ended or lost, the connection refused, or the bundle not sent and
-acknowledged within :data:`ACK_S` s (a peer that stopped reading keeps the TCP connection open: only
-this bound notices it) - counts ``send_failed``; the session is ended (SESS_TERM / SHUTDOWN, bounded by :data:`END_S`
-s, then dropped), and after a backoff (:data:`RECONNECT_S` s, doubled at each failure in a row up to
-:data:`RECONNECT_MAX_S` s, back to the start after a bundle is acknowledged) a new session is opened
-(``reconnects``) and every bundle not yet acknowledged is sent again, from the oldest. No bundle is
-lost; a bundle whose acknowledgment was lost (the peer had all of it when the session ended) is sent
+(TCPCLv4 XFER_ACK, TCPCLv3 ACK_SEGMENT), and the bundles go one at a time, in submit order. A send that
+fails - the session ended or lost, the connection refused, or the bundle not sent and acknowledged
+within :data:`ACK_S` s (a peer that stopped reading keeps the TCP connection open: only this bound
+notices it) - counts ``send_failed``; the session is ended (SESS_TERM / SHUTDOWN, bounded by
+:data:`END_S` s, then dropped), and after a backoff (:data:`RECONNECT_S` s, doubled at each failure in a
+row up to :data:`RECONNECT_MAX_S` s, back to the start after a bundle is acknowledged) a new session is
+opened (``reconnects``) and every bundle not yet acknowledged is sent again, from the oldest. No bundle
+is lost; a bundle whose acknowledgment was lost (the peer had all of it when the session ended) is sent
 again, so the peer gets it twice (no custody transfer: it delivers both). A refusal is a failed send
-when its reason asks for the bundle again (TCPCLv4 "retransmit" or "session terminating", which a
-peer ending its session sends for the transfer in flight; TCPCLv3 "retransmit"), a delivery when it
-is "completed", and otherwise final: the bundle is dropped from the queue (``refused``) and stays in
-the ground's store. A session lost while there
-is nothing to send is opened again with the next bundle. UDP acknowledges nothing: a datagram is counted sent
-when it left (``unacknowledged``), and one the peer did not take is lost. At the run's end the ground
-waits up to :data:`FLUSH_S` s for the last acknowledgments; what is still unacknowledged stays in
-the store and is counted.
+when its reason asks for the bundle again (TCPCLv4 "retransmit" or "session terminating", which a peer
+ending its session sends for the transfer in flight; TCPCLv3 "retransmit"), a delivery when it is
+"completed", and otherwise final: the bundle is dropped from the queue (``refused``) and stays in the
+ground's store. A session lost while there is nothing to send is opened again with the next bundle. UDP
+acknowledges nothing: a datagram is counted sent when it left (``unacknowledged``), and one the peer did
+not take is lost. At the run's end the ground waits up to :data:`FLUSH_S` s for the last
+acknowledgments; what is still unacknowledged stays in the store and is counted.
 
 The sessions run in an asyncio loop on a thread of their own; the ground's lockstep steps hand it
 bundles (:meth:`Gateway.submit`) and take what it received and what the peer acknowledged

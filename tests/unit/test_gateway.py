@@ -208,8 +208,8 @@ def test_a_session_that_stops_acknowledging_is_replaced_within_the_flush(cl, big
     try:
         data = _bundles(n)
         if big:
-            data[stall_after] = encode_bundle(Bundle(dest=ipn(2, 1), src=ipn(11, 1), creation_ms=10**9, seq=99,
-                                                     lifetime_ms=60_000, payload=b"B" * 6_000_000))
+            data[stall_after] = encode_bundle(Bundle(dest=ipn(2, 1), src=ipn(11, 1), creation_ms=10**9,
+                                                     seq=99, lifetime_ms=60_000, payload=b"B" * 6_000_000))
         for i, d in enumerate(data):
             gw.submit(f"b{i}", d)
         gw.flush()
