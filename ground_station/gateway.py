@@ -316,7 +316,9 @@ class Gateway:
                 failed = exc
             if failed is not None:
                 self.counters["send_failed"] += 1
-                self.last_error = f"{type(failed).__name__}: {failed}".splitlines()[0]
+                self.last_error = (f"no acknowledgement within {self.ack_s} s"
+                                   if isinstance(failed, TimeoutError) and not str(failed)
+                                   else f"{type(failed).__name__}: {failed}".splitlines()[0])
                 await self._drop_session()
                 await asyncio.sleep(backoff)
                 backoff = min(2 * backoff, self.reconnect_max_s)

@@ -398,7 +398,9 @@ class Session:
                         break
                 await asyncio.wait_for(asyncio.shield(fut), timeout_s)
             except (ConnectionError, OSError) as exc:
-                self._fail(f"connection lost while sending ({exc})")
+                # asyncio.wait_for's TimeoutError is an OSError on Python 3.11: name it for what it is
+                self._fail(f"no acknowledgement within {timeout_s} s" if isinstance(exc, TimeoutError)
+                           else f"connection lost while sending ({exc})")
                 raise SessionTerminated(f"TCPCLv4 {self.peer}: {self.error}") from None
             finally:
                 self._out.pop(tid, None)
@@ -434,7 +436,8 @@ class Session:
     def _fail(self, why: str) -> None:
         if self.error is None:
             self.error = why
-        self.counters["protocol_errors" if not why.startswith("connection lost") else "connections_lost"] += 1
+        self.counters["connections_lost" if why.startswith("connection lost")
+                      else "ack_timeouts" if why.startswith("no acknowledgement") else "protocol_errors"] += 1
 
     async def _term(self, reason: TermReason, reply: bool = False, close: bool = True) -> None:
         if self.term_sent is None:
