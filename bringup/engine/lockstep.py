@@ -215,8 +215,9 @@ class Gate:
         if line is not None:
             self._log(line)
 
-    def envelope(self, text: str, topic: str) -> Envelope | None:
-        """The envelope in wire ``text`` received on ``topic`` if it is the run's (MAC verified)."""
+    def _verified(self, text: str, topic: str) -> tuple[Envelope, str] | None:
+        """The envelope in wire ``text`` and its MAC if it is the run's (MAC verified), else None
+        (counted by reason)."""
         try:
             env, mac = decode_envelope_mac(text, topic)
             self.auth.verify(env, mac)
@@ -226,7 +227,12 @@ class Gate:
         except AuthError as exc:
             self.reject(topic, exc.reason, str(exc))
             return None
-        return env
+        return env, mac
+
+    def envelope(self, text: str, topic: str) -> Envelope | None:
+        """The envelope in wire ``text`` received on ``topic`` if it is the run's (MAC verified)."""
+        got = self._verified(text, topic)
+        return None if got is None else got[0]
 
     def cdr_text(self, topic: str, raw: bytes) -> str | None:
         """The text of a std_msgs/String received serialized (CDR), else None (counted malformed)."""
@@ -239,15 +245,10 @@ class Gate:
     def envelope_wire(self, text: str, topic: str) -> tuple[Envelope, str] | None:
         """:meth:`envelope` and the envelope's wire text without its MAC (what a bag records):
         ``text`` less its mac field when it was written by :meth:`wire`, else encoded again."""
-        try:
-            env, mac = decode_envelope_mac(text, topic)
-            self.auth.verify(env, mac)
-        except WireError as exc:
-            self.reject(topic, "malformed", str(exc))
+        got = self._verified(text, topic)
+        if got is None:
             return None
-        except AuthError as exc:
-            self.reject(topic, exc.reason, str(exc))
-            return None
+        env, mac = got
         return env, without_mac(text, mac) or encode_envelope(env)
 
     def text(self, topic: str, text: str) -> str | None:

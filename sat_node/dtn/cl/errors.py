@@ -3,6 +3,8 @@ and checked in tests/unit/test_cl_tcpcl4.py."""
 
 from __future__ import annotations
 
+from collections import Counter
+
 
 class ClError(Exception):
     """A convergence-layer session failed: malformed input, a refused parameter, a lost peer."""
@@ -22,3 +24,18 @@ class TransferRefused(ClError):
     def __init__(self, message: str, reason: int):
         super().__init__(message)
         self.reason = reason
+
+
+def send_failure(exc: BaseException, timeout_s: float | None) -> str:
+    """Why a transfer failed, for a session's ``error``: asyncio.wait_for's TimeoutError is an
+    OSError on Python 3.11, so the acknowledgement wait running out is named for what it is."""
+    if isinstance(exc, TimeoutError):
+        return f"no acknowledgement within {timeout_s} s"
+    return f"connection lost while sending ({exc})"
+
+
+def count_failure(counters: Counter[str], why: str) -> None:
+    """Count a session's failure under its kind: a lost connection, an acknowledgement wait that ran
+    out, or the peer's protocol error."""
+    counters["connections_lost" if why.startswith("connection lost")
+             else "ack_timeouts" if why.startswith("no acknowledgement") else "protocol_errors"] += 1

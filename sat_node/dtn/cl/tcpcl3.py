@@ -42,7 +42,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from enum import IntEnum
 
-from .errors import ClError, SessionTerminated, TransferRefused
+from .errors import ClError, SessionTerminated, TransferRefused, count_failure, send_failure
 from .listener import Listener as _Listener
 from .listener import start as _start
 
@@ -263,9 +263,7 @@ class Session:
                     fut.set_result(None)
                 await asyncio.wait_for(asyncio.shield(fut), timeout_s)
             except (ConnectionError, OSError) as exc:
-                # asyncio.wait_for's TimeoutError is an OSError on Python 3.11: name it for what it is
-                self._fail(f"no acknowledgement within {timeout_s} s" if isinstance(exc, TimeoutError)
-                           else f"connection lost while sending ({exc})")
+                self._fail(send_failure(exc, timeout_s))
                 raise SessionTerminated(f"TCPCLv3 {self.peer}: {self.error}") from None
             finally:
                 self._tx = None
@@ -296,8 +294,7 @@ class Session:
     def _fail(self, why: str) -> None:
         if self.error is None:
             self.error = why
-        self.counters["connections_lost" if why.startswith("connection lost")
-                      else "ack_timeouts" if why.startswith("no acknowledgement") else "protocol_errors"] += 1
+        count_failure(self.counters, why)
 
     async def _shutdown(self, reason: int | None = None, close: bool = True) -> None:
         if not self.shutdown_sent:
