@@ -102,12 +102,10 @@ class GroundLogic:
 
     def step(self, t_ns: int, inbox: list[Envelope]) -> StepResult:
         store = self.dtn.store if self.dtn is not None else None
-        own_tx = store is not None and store.begin()  # one store transaction per step, as a satellite's
-        try:
+        if store is None:
             return self._step(t_ns, inbox)
-        finally:
-            if own_tx:
-                store.commit()
+        with store.step_batch():  # one store transaction per step, as a satellite's
+            return self._step(t_ns, inbox)
 
     def _step(self, t_ns: int, inbox: list[Envelope]) -> StepResult:
         emits = []

@@ -192,13 +192,12 @@ class SatelliteLogic(OnboardOperations):
         """One lockstep step: the inbox, then the mode rules (sat_node/operations/modes.py), then
         what the mode allows (imaging, replanning), then the radio."""
         store = self.agent.store if self.agent is not None else None
-        own_tx = store is not None and store.begin()  # one store transaction per step (unless a
-        # caller's is open: the ROS host's checkpoint, or a local run's batch, bringup/engine/store_batches.py)
-        try:
+        if store is None:
             return self._step(t_ns, inbox)
-        finally:
-            if own_tx:
-                store.commit()
+        # one store transaction per step (unless a caller's is open: the ROS host's checkpoint, or a
+        # local run's batch, bringup/engine/store_batches.py)
+        with store.step_batch():
+            return self._step(t_ns, inbox)
 
     def _step(self, t_ns: int, inbox: list[Envelope]) -> StepResult:
         emits: list[Emit] = []

@@ -41,7 +41,9 @@ net effect equals the same writes made one by one.
 
 from __future__ import annotations
 
+import contextlib
 import sqlite3
+from collections.abc import Iterator
 from pathlib import Path
 from typing import NamedTuple
 
@@ -116,6 +118,17 @@ class BundleStore:
                 self._db.execute("COMMIT")
         finally:
             self._batch = False
+
+    @contextlib.contextmanager
+    def step_batch(self) -> Iterator[None]:
+        """One batch around a lockstep step: :meth:`begin` on entry, and :meth:`commit` on the way out
+        when this call opened it (a caller's open transaction or batch is left to its owner)."""
+        own = self.begin()
+        try:
+            yield
+        finally:
+            if own:
+                self.commit()
 
     def rollback(self) -> None:
         """Drop the batch's pending writes (and roll back the open transaction) and close the batch:
