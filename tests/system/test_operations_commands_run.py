@@ -23,6 +23,9 @@ from pathlib import Path
 import msgspec
 import pytest
 
+from tests.run_messages import bag_messages
+from tests.run_messages import comparable_report as _report
+
 pytestmark = [pytest.mark.system]
 
 _NS = 1_000_000_000
@@ -65,19 +68,7 @@ def local(tmp_path_factory):
 
 
 def _messages(bag: Path, suffix: str):
-    from bringup.recording.bag import BagReader
-    from msgs_json import codec
-
-    with BagReader(bag) as b:
-        topics = [t.topic for t in b.topics() if t.topic.endswith(suffix)]
-        return [codec.decode(env.topic, env.data) for env in b.envelopes(topics)] if topics else []
-
-
-def _report(run: Path) -> dict:
-    rep = json.loads((run / "report.json").read_text())
-    for k in ("runtime", "provenance", "engine", "security"):
-        rep.pop(k, None)
-    return rep
+    return bag_messages(bag, lambda topic: topic.endswith(suffix))
 
 
 def test_commands_executed_rejected_and_the_mode_they_set(local):

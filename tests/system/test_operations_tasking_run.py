@@ -15,13 +15,15 @@ satellite's ground contacts; and the ROS engine's report equals the local engine
 
 from __future__ import annotations
 
-import json
 import subprocess
 import sys
 from pathlib import Path
 
 import msgspec
 import pytest
+
+from tests.run_messages import bag_messages as _messages
+from tests.run_messages import comparable_report as _report
 
 pytestmark = [pytest.mark.system]
 
@@ -60,22 +62,6 @@ def run(engine: str, out: Path, commands=COMMANDS) -> Path:
 @pytest.fixture(scope="module")
 def local(tmp_path_factory):
     return run("local", tmp_path_factory.mktemp("task") / "local")
-
-
-def _messages(bag: Path, pred):
-    from bringup.recording.bag import BagReader
-    from msgs_json import codec
-
-    with BagReader(bag) as b:
-        topics = [t.topic for t in b.topics() if pred(t.topic)]
-        return [codec.decode(env.topic, env.data) for env in b.envelopes(topics)] if topics else []
-
-
-def _report(run_dir: Path) -> dict:
-    rep = json.loads((run_dir / "report.json").read_text())
-    for k in ("runtime", "provenance", "engine", "security"):
-        rep.pop(k, None)
-    return rep
 
 
 def test_the_tasked_target_is_observed_in_time_by_a_tasked_satellite(local):
