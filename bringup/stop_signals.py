@@ -10,6 +10,12 @@ run folder then records ``interrupted`` with the signal's name (bringup/cli/run_
 exits with 128 + the signal's number (130 for SIGINT, 143 for SIGTERM, 129 for SIGHUP, 131 for
 SIGQUIT), as a shell reports a process the signal ended.
 
+A signal that arrives while Python runs a finalizer (a ``__del__`` or a weakref callback during garbage
+collection) has its exception printed as "Exception ignored in ..." and dropped: the run would go on to
+its end and exit 0. The handler therefore also records the signal, and :func:`raise_pending` (called by
+a loop at each step; the local engine's calls it) raises it again if it was dropped; the ``with``
+block's end raises it too, so a dropped stop is never lost.
+
 How we know it is right: tests/faults/test_run_signals.py sends each signal to a local run, a ROS
 run's launcher and its processes, and checks run_status.json, the keys, the partial report and the
 reuse of the folder.
@@ -21,7 +27,7 @@ import signal
 import threading
 from contextlib import contextmanager
 
-__all__ = ["STOP_SIGNALS", "Interrupted", "exit_code", "signal_name", "stop_on_signals"]
+__all__ = ["STOP_SIGNALS", "Interrupted", "exit_code", "raise_pending", "signal_name", "stop_on_signals"]
 
 STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP, signal.SIGQUIT)
 
@@ -46,6 +52,17 @@ def exit_code(exc: BaseException) -> int:
     return 128 + int(getattr(exc, "signum", signal.SIGINT))
 
 
+#: signals received inside :func:`stop_on_signals` and not yet seen unwinding the block
+_pending: list[int] = []
+
+
+def raise_pending() -> None:
+    """Raise :class:`Interrupted` for a stop signal that arrived and whose exception was dropped
+    (raised inside a finalizer); nothing when none did. Call it where a loop would go on."""
+    if _pending:
+        raise Interrupted(_pending[0])
+
+
 @contextmanager
 def stop_on_signals(signals=STOP_SIGNALS):
     """Inside the block, each of ``signals`` raises :class:`Interrupted` in the main thread (the
@@ -56,13 +73,21 @@ def stop_on_signals(signals=STOP_SIGNALS):
         return
 
     def handler(signum, _frame):
+        _pending.append(int(signum))
         raise Interrupted(signum)
 
     old = {}
+    _pending.clear()
     try:
         for s in signals:
             old[s] = signal.signal(s, handler)
-        yield
+        try:
+            yield
+        except KeyboardInterrupt:
+            _pending.clear()  # (the stop reached the block: nothing was dropped)
+            raise
+        raise_pending()  # the block ended normally although a signal came: its exception was dropped
     finally:
+        _pending.clear()
         for s, h in old.items():
             signal.signal(s, h)

@@ -61,7 +61,7 @@ from bringup.scenario.provenance import provenance
 from bringup.scenario.work import check_work
 from bringup.scenario.work import describe as describe_work
 from bringup.scenario.world import World
-from bringup.stop_signals import STOP_SIGNALS, Interrupted, stop_on_signals
+from bringup.stop_signals import STOP_SIGNALS, Interrupted, raise_pending, stop_on_signals
 from dtn_router.router import ROUTER_NAME
 from ground_station.gateway import FLUSH_S
 from ground_station.operator_requests import OPERATOR_DIR
@@ -371,6 +371,7 @@ def _run_local(world, args, meta, bag_dir: Path, out: Path, router_kw, keys, *, 
         router = next((q for q in parts if q.name == ROUTER_NAME), None)
 
         def on_step(t_ns: int) -> None:
+            raise_pending()  # (a stop signal whose exception a finalizer dropped: bringup/stop_signals.py)
             rec.step(t_ns, in_flight=None if router is None else len(router.pending))
             batches.step()
 
