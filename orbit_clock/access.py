@@ -167,27 +167,55 @@ def _for_chunks(sat: np.ndarray, gp: np.ndarray, max_off_nadir_deg: float,
     if sat.ndim != 2 or gp.ndim != 2 or sat.shape[1] != 3 or gp.shape[1] != 3 or len(sat) < 2 or len(gp) == 0:
         return None
     r_s = np.sqrt(np.einsum("ij,ij->i", sat, sat))
-    r_g = np.sqrt(np.einsum("ij,ij->i", gp, gp))
-    if not (np.all(np.isfinite(r_s)) and np.all(np.isfinite(r_g))) or r_g.min() <= 0 or r_s.min() <= 0:
+    caps = _gp_caps(gp, chunk)
+    if caps is None or not np.all(np.isfinite(r_s)) or r_s.min() <= 0:
         return None
-    r, rho = float(r_s.max()), float(r_g.min())
+    rho, starts, ends, centre, radius = caps
+    r = float(r_s.max())
     if r <= rho:
         return None  # a satellite at or below a GP's radius: no simple bound, test every pair
     lam = min(math.pi, for_central_angle_rad(r, rho, max_off_nadir_deg) + math.radians(_FOR_ROWS_MARGIN_DEG))
-    ug = gp / r_g[:, None]
-    n = len(ug)
-    jump = np.flatnonzero(np.einsum("ij,ij->i", ug[1:], ug[:-1]) < math.cos(math.radians(0.5))) + 1
-    starts = np.union1d(np.arange(0, n, chunk), jump)
-    centre = np.add.reduceat(ug, starts, axis=0)
-    centre /= np.linalg.norm(centre, axis=1)[:, None]
-    which = np.repeat(np.arange(len(starts)), np.diff(np.append(starts, n)))
-    cos_to_centre = np.clip(np.einsum("ij,ij->i", ug, centre[which]), -1.0, 1.0)
-    radius = np.zeros(len(starts))
-    np.maximum.at(radius, which, np.arccos(cos_to_centre))
     reach = np.minimum(math.pi, lam + radius + 1e-9)
     cos_ang = (sat / r_s[:, None]) @ centre.T  # (T, chunks)
-    ends = np.append(starts[1:], n)
-    return starts.astype(np.int64), ends.astype(np.int64), cos_ang >= np.cos(reach)[None, :]
+    return starts, ends, cos_ang >= np.cos(reach)[None, :]
+
+
+# GP set (its bytes and the chunk length) -> its caps (_gp_caps): planners test the same GPs (a
+# region's, the planned satellite's) against many tracks
+_GP_CAPS: dict = {}
+_GP_CAPS_MAX = 256
+
+
+def _gp_caps(gp: np.ndarray, chunk: int):
+    """The GP part of :func:`_for_chunks`: (smallest GP radius, chunk starts, ends, cap centres, cap
+    radii), or None when a GP's radius is not finite and positive; remembered for the last
+    ``_GP_CAPS_MAX`` GP sets (the same numbers: computed once from the same bytes; callers do not
+    write to them)."""
+    key = (gp.tobytes(), chunk)
+    got = _GP_CAPS.get(key, False)
+    if got is not False:
+        return got
+    r_g = np.sqrt(np.einsum("ij,ij->i", gp, gp))
+    if not np.all(np.isfinite(r_g)) or r_g.min() <= 0:
+        got = None
+    else:
+        ug = gp / r_g[:, None]
+        n = len(ug)
+        jump = np.flatnonzero(np.einsum("ij,ij->i", ug[1:], ug[:-1]) < math.cos(math.radians(0.5))) + 1
+        starts = np.union1d(np.arange(0, n, chunk), jump)
+        centre = np.add.reduceat(ug, starts, axis=0)
+        centre /= np.linalg.norm(centre, axis=1)[:, None]
+        which = np.repeat(np.arange(len(starts)), np.diff(np.append(starts, n)))
+        cos_to_centre = np.clip(np.einsum("ij,ij->i", ug, centre[which]), -1.0, 1.0)
+        radius = np.zeros(len(starts))
+        np.maximum.at(radius, which, np.arccos(cos_to_centre))
+        ends = np.append(starts[1:], n)
+        # (not marked read-only: the compiled FOR test takes starts and ends as they are typed now)
+        got = (float(r_g.min()), starts.astype(np.int64), ends.astype(np.int64), centre, radius)
+    if len(_GP_CAPS) >= _GP_CAPS_MAX:
+        _GP_CAPS.clear()
+    _GP_CAPS[key] = got
+    return got
 
 
 def _eta_grid(sat_ecef_km: np.ndarray, gp_ecef_km: np.ndarray):

@@ -40,7 +40,7 @@ __all__ = ["KERNELS", "dispatchers", "warm_up"]
 # name -> the kernels it warms ((module, function names), ...), for the stats and the tests; the
 # planner's group holds the DP and the field-of-regard test and prior-state runs its instances are built with
 KERNELS = {
-    "dp": ((dp_kernels, ("dp_forward", "dp_states", "path_gain", "table_gain", "bit_gain")), (access_kernels, ("for_codes",)),
+    "dp": ((dp_kernels, ("dp_forward", "dp_states", "path_gain", "table_gain", "bit_gain", "plan_values")), (access_kernels, ("for_codes",)),
            (value_kernels, ("prior_runs",))),
     "cgr": ((cgr, ("_dijkstra", "_first_open", "_node_dominated", "_node_label")),),
 }

@@ -164,10 +164,15 @@ class ObservedView:
         self._insight = insight
         self._p = params
         self._t = float(t_now_s)
-        self._cache: dict[int, tuple[float, float]] = {}
+        # (region, its GPs asked for) -> their (sum_o k d_o, sum_o k): the instances of one plan (the
+        # planned satellite's and its partners') ask for the same regions' GPs
+        self._ref_cache: dict[tuple[int, bytes], tuple[np.ndarray, np.ndarray]] = {}
 
     def _ref(self, gps: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Per GP: (sum_o k d_o, sum_o k) at the planning time."""
+        """Per GP: (sum_o k d_o, sum_o k) at the planning time, region by region. A region's numbers
+        are kept for the next call that asks for exactly the same GPs of it: the same operations on
+        the same arrays give the same numbers (a matrix product's rounding may depend on the rows it
+        is given, so only the same rows are taken again; tests/unit/test_knowledge.py)."""
         n = np.zeros(len(gps))
         w = np.zeros(len(gps))
         o = self._obs
@@ -175,14 +180,17 @@ class ObservedView:
             return n, w
         for r in np.unique(self._region[gps]):
             sel = np.flatnonzero(self._region[gps] == r)
-            mo = o["region"] == r
-            if not mo.any():
-                continue
-            dx = self._xyz[gps[sel]][:, None, :] - o["xyz"][mo][None, :, :]
-            k = np.exp(-0.5 * np.einsum("ijk,ijk->ij", dx, dx) / self._p.spread_km ** 2
-                       - (self._t - o["t_s"][mo])[None, :] / self._p.memory_s)
-            n[sel] = k @ o["d"][mo]
-            w[sel] = k.sum(axis=1)
+            key = (int(r), gps[sel].tobytes())
+            got = self._ref_cache.get(key)
+            if got is None:
+                mo = o["region"] == r
+                if not mo.any():
+                    continue
+                dx = self._xyz[gps[sel]][:, None, :] - o["xyz"][mo][None, :, :]
+                k = np.exp(-0.5 * np.einsum("ijk,ijk->ij", dx, dx) / self._p.spread_km ** 2
+                           - (self._t - o["t_s"][mo])[None, :] / self._p.memory_s)
+                got = self._ref_cache[key] = (k @ o["d"][mo], k.sum(axis=1))
+            n[sel], w[sel] = got
         return n, w
 
     def innovation(self, gp_idx, t_s) -> np.ndarray:
@@ -193,9 +201,14 @@ class ObservedView:
         g0 = np.asarray(gp_idx)
         t0 = np.asarray(t_s, np.float64)
         shape = np.broadcast_shapes(g0.shape, t0.shape)
-        uniq, inv = np.unique(g0, return_inverse=True)
-        n, w = self._ref(uniq)
-        n0, w0 = n[inv].reshape(g0.shape), w[inv].reshape(g0.shape)
+        flat = g0.ravel()
+        if flat.size and g0.ndim and bool(np.all(flat[1:] > flat[:-1])):  # distinct and sorted (a planner's)
+            n, w = self._ref(flat)
+            n0, w0 = n.reshape(g0.shape), w.reshape(g0.shape)
+        else:
+            uniq, inv = np.unique(g0, return_inverse=True)
+            n, w = self._ref(uniq)
+            n0, w0 = n[inv].reshape(g0.shape), w[inv].reshape(g0.shape)
         a = np.exp(-np.maximum(t0 - self._t, 0.0) / self._p.memory_s)
         wt = a * w0
         d = a * n0 / np.maximum(1.0, wt)

@@ -44,7 +44,7 @@ import numpy as np
 
 from sat_node.acs import angle_between_deg, dot3, nadir_unit
 from sat_node.scheduler import dp_kernels
-from sat_node.scheduler.problem import SchedulingProblem, evaluate_plan, plan_violations
+from sat_node.scheduler.problem import SchedulingProblem, plan_violations
 
 __all__ = ["Plan", "ScheduleInvariantError", "slew_window_steps", "solve_dp"]
 
@@ -81,10 +81,20 @@ class Plan:
         return len(self.steps)
 
 
+def plan_value(p: SchedulingProblem, steps, cols) -> tuple[float, np.ndarray]:
+    """:func:`sat_node.scheduler.problem.evaluate_plan` compiled (dp_kernels.plan_values): the same
+    total and per-observation values, bit for bit (tests/unit/test_speed_paths.py)."""
+    steps = np.ascontiguousarray(steps, dtype=np.int64)
+    cols = np.ascontiguousarray(cols, dtype=np.int64)
+    vals = dp_kernels.plan_values(p.in_for, p.prior_recent, p.absval, p.prior_count, steps, cols,
+                                  float(p.step_s), float(p.revisit_zero_s))
+    return float(vals.sum()), vals
+
+
 def make_plan(p: SchedulingProblem, steps, cols, *, complete=True, steps_done=None, solve_s=0.0) -> Plan:
     steps = np.asarray(steps, dtype=np.int64)
     cols = np.asarray(cols, dtype=np.int64)
-    total, vals = evaluate_plan(p, steps, cols)
+    total, vals = plan_value(p, steps, cols)
     return Plan(gp_ids=p.gp_ids[cols], t_s=p.t0_s + p.step_s * steps, steps=steps, cols=cols, values=vals,
                 value=total, complete=complete, steps_done=p.n_steps if steps_done is None else steps_done,
                 solve_s=solve_s)
@@ -93,17 +103,40 @@ def make_plan(p: SchedulingProblem, steps, cols, *, complete=True, steps_done=No
 def slew_window_steps(p: SchedulingProblem, max_off_nadir_deg: float, nad: np.ndarray | None = None) -> int:
     """Smallest gap (steps) after which any slew between FOR targets fits (triangle inequality);
     ``nad``: the instance's nadir unit vectors per step, if the caller has them."""
-    nad = nadir_unit(p.sat_pos_km) if nad is None else nad
-    if p.n_steps > 1:
-        rate = float(np.max(angle_between_deg(nad[:-1], nad[1:]))) / p.step_s
-    else:
-        rate = 0.0
+    rate = _nadir_rate(p, nad)
+    key = (p.slew, p.step_s, max_off_nadir_deg, rate)
+    got = _W_STEPS.get(key)
+    if got is not None:
+        return got
     w = max(1, math.ceil(p.slew.min_time_s / p.step_s))
     while True:
         ang = min(180.0, 2.0 * max_off_nadir_deg + rate * w * p.step_s)
         if p.slew.time_s(ang) <= w * p.step_s:
-            return w
+            break
         w += 1
+    if len(_W_STEPS) > 4096:
+        _W_STEPS.clear()
+    _W_STEPS[key] = w
+    return w
+
+
+# (slew model, step, largest off-nadir angle, nadir rate) -> slew_window_steps (a function of them)
+_W_STEPS: dict = {}
+
+
+def _nadir_rate(p: SchedulingProblem, nad: np.ndarray | None) -> float:
+    """The largest rotation of nadir over one step [deg/s]; remembered in the instance, and taken
+    from the parent of one derived by forbidding GPs (the same positions)."""
+    rate = p._cache.get("nadir_rate")
+    if rate is None:
+        derived = p._cache.get("forbidden_of")
+        if derived is not None:
+            rate = _nadir_rate(derived[0], nad)
+        else:
+            nad = nadir_unit(p.sat_pos_km) if nad is None else nad
+            rate = float(np.max(angle_between_deg(nad[:-1], nad[1:]))) / p.step_s if p.n_steps > 1 else 0.0
+        p._cache["nadir_rate"] = rate
+    return rate
 
 
 _MAX_ANGLES: dict = {}
@@ -150,9 +183,11 @@ def _prepared(p: SchedulingProblem):
     if derived is not None:
         parent, cols = derived
         st_k, st_g, st_u, st_vf, st_n1, root_ok, off_deg, nad_t, _ = _prepared(parent)
-        keep = ~np.isin(st_g, cols)
+        gone = np.zeros(p.n_gp, dtype=bool)
+        gone[cols] = True
+        keep = np.flatnonzero(~gone[st_g])
         st_k, st_g, st_u, st_vf, st_n1, root_ok, off_deg = (
-            a[keep] for a in (st_k, st_g, st_u, st_vf, st_n1, root_ok, off_deg))
+            a.take(keep, axis=0) for a in (st_k, st_g, st_u, st_vf, st_n1, root_ok, off_deg))
     else:
         st_k, st_g, st_u, st_vf, _, zero = dp_kernels.dp_states(p.in_for, p.prior_recent, p.absval, p.prior_count,
                                                                 p.sat_pos_km, p.gp_ecef_km)
@@ -235,7 +270,7 @@ def solve_dp(p: SchedulingProblem, *, budget_s: float | None = None, chunk_steps
     else:
         best_v = 0.0
     if check:
-        v_dp, _ = evaluate_plan(p, steps, cols)
+        v_dp, _ = plan_value(p, steps, cols)
         if not math.isclose(v_dp, best_v, rel_tol=1e-9, abs_tol=1e-9):
             raise ScheduleInvariantError(f"DP value {best_v} != evaluated plan value {v_dp}")
     steps, cols = drop_worthless(p, steps, cols)
@@ -260,7 +295,7 @@ def drop_worthless(p: SchedulingProblem, steps: list[int], cols: list[int]) -> t
     changed = True
     while changed:
         changed = False
-        _, vals = evaluate_plan(p, steps, cols)
+        _, vals = plan_value(p, steps, cols)
         for i in np.flatnonzero(vals <= 0.0):
             s2, c2 = steps[:i] + steps[i + 1:], cols[:i] + cols[i + 1:]
             if not plan_violations(p, s2, c2, rule="sequential"):

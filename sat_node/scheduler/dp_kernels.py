@@ -48,7 +48,7 @@ import math
 import numpy as np
 from numba import config, njit
 
-__all__ = ["bit_gain", "dp_forward", "dp_states", "path_gain", "table_gain"]
+__all__ = ["bit_gain", "dp_forward", "dp_states", "path_gain", "plan_values", "table_gain"]
 
 
 @njit(cache=True)
@@ -417,3 +417,26 @@ def dp_states(in_for, prior_recent, absval, prior_count, sat, gp):
                     i += 1
     t_off[T] = i
     return st_k, st_g, st_u, st_vf, t_off, zero
+
+
+@njit(cache=True)
+def plan_values(in_for, prior_recent, absval, prior_count, steps, cols, step_s, revisit_zero_s):
+    """Eq. 1 value of each observation (step, GP column) of a plan in time order: the loop of
+    :func:`sat_node.scheduler.problem.evaluate_plan` (the same operations on the same numbers): 0
+    outside the FOR, recently seen, or within revisit_zero_s of an earlier look of the plan at the GP;
+    else absval / (prior count + earlier looks of the plan at the GP + 1)."""
+    n = steps.shape[0]
+    vals = np.zeros(n)
+    for i in range(n):
+        k = steps[i]
+        j = cols[i]
+        own = 0
+        recent = False
+        for m in range(i):
+            if cols[m] == j:
+                own += 1
+                if (k - steps[m]) * step_s < revisit_zero_s:
+                    recent = True
+        if in_for[k, j] and not prior_recent[k, j] and not recent:
+            vals[i] = absval[k, j] / (prior_count[k, j] + own + 1.0)
+    return vals

@@ -166,7 +166,7 @@ def solve_joint(problems: list[SchedulingProblem], *, budget_solves: int = 64, c
         plans, solves = _dive_claims(problems, check)
         return _result(problems, plans, False, solves, check)
     s = _Solver(problems, budget_solves)
-    visible = [_visible(p) for p in problems]
+    visible: list[set[int]] = []  # (made when the search first branches)
     # the greedy dive: contested GPs to the first look, until nothing is contested
     forb = tuple(frozenset() for _ in problems)
     for _ in range(DIVE_ROUNDS):
@@ -205,6 +205,7 @@ def solve_joint(problems: list[SchedulingProblem], *, budget_solves: int = 64, c
             best, best_plans = ub, plans  # conflict-free: its value is the sum
             continue
         g = max(cont, key=lambda x: max(plans[i].values[list(plans[i].gp_ids).index(x)] for _, i in cont[x]))
+        visible = visible or [_visible(p) for p in problems]
         for m in range(len(problems)):
             if g not in visible[m]:
                 continue

@@ -184,6 +184,9 @@ class PassIndex(Protocol):
         of ``gp_ids``: a GP in its FOR at time t from t0_s[j] on flags a sample within ``step_s`` of t."""
 
 
+#: samples of a partner's 10-s look tested in its first block (each next block is twice as long)
+_LOOK_BLOCK = 8
+
 #: name -> solver(instance, settings) -> Plan (settings: the planned satellite's footprint)
 SOLVERS: dict[str, Callable[[SchedulingProblem, PlannerSettings], Plan]] = {
     "dp": lambda p, st: solve_dp(p, check=True),
@@ -281,11 +284,11 @@ class Planner:
             out = self._earliest(rows, k, end, knowledge, mine_gps, mine_km)
             return [q for _order, q in sorted(out, key=lambda m: m[0])]
         cands = []  # (first time its FOR reaches one of my GPs [s] (K >= 1 only), name, order, start, ids)
-        for order, name, start, _lb in rows:
+        for order, name, start, lb in rows:
             ids = self.candidates(name, start, end) if self.candidates is not None else None
             if ids is not None and not mine_gps.intersection(ids.tolist()):
                 continue
-            first_s = self._first_look_s(name, start, end, mine_km, exact=bool(k))
+            first_s = self._first_look_s(name, start, end, mine_km, exact=bool(k), from_s=lb)
             if first_s is not None:
                 cands.append((first_s, name, order, start, ids))
         if k:
@@ -304,14 +307,29 @@ class Planner:
         st = self.settings
         return self.instance(name, start, knowledge, window_s=min(end, start + st.revisit_zero_s) - start, gp_ids=ids)
 
-    def _first_look_s(self, name: str, start: float, end: float, mine_km: np.ndarray, exact: bool) -> float | None:
+    def _first_look_s(self, name: str, start: float, end: float, mine_km: np.ndarray, exact: bool,
+                      from_s: float | None = None) -> float | None:
         """None when the 10-s look (the FOR over my GPs from ``start`` to the group's end) sees none
-        of them, else the first time it does on the DP grid (``exact``; else 0.0)."""
+        of them, else the first time it does on the DP grid (``exact``; else 0.0).
+
+        ``from_s``: a time before which the FOR reaches none of them (the pass index's bound,
+        :meth:`_passing`; None: ``start``). The look's samples are tested in blocks in time order,
+        from the first at or after ``from_s``, and it stops at the first block that sees one: the
+        same first sample as testing them all (a sample's test does not depend on the others;
+        tests/unit/test_joint_speed.py compares the two)."""
         coarse = np.append(np.arange(start, end, 10.0), end - self.settings.dp_step_s)
-        seen = for_mask(self.constellation.track_ecef_km(name, coarse), mine_km, self.for_deg(name)).any(axis=1)
-        if not seen.any():
-            return None
-        return self._first_in_for_s(name, coarse, int(np.argmax(seen)), mine_km) if exact else 0.0
+        todo = np.flatnonzero(coarse >= from_s) if from_s is not None else np.arange(len(coarse))
+        lo, size = 0, _LOOK_BLOCK
+        while lo < len(todo):
+            block = todo[lo:lo + size]
+            seen = for_mask(self.constellation.track_ecef_km(name, coarse[block]), mine_km,
+                            self.for_deg(name)).any(axis=1)
+            if seen.any():
+                j = int(block[np.argmax(seen)])
+                return self._first_in_for_s(name, coarse, j, mine_km) if exact else 0.0
+            lo += size
+            size *= 2
+        return None
 
     def _earliest(self, rows, k: int, end: float, knowledge: Knowledge, mine_gps: set, mine_km):
         """The bounded group of :meth:`group` - the first K partners in the order of (the first time
@@ -330,9 +348,9 @@ class Planner:
         i = 0
         while True:
             while i < len(rows) and (not heap or rows[i][3] <= heap[0][0]):
-                order, name, start, _lb = rows[i]
+                order, name, start, lb = rows[i]
                 i += 1
-                first_s = self._first_look_s(name, start, end, mine_km, exact=True)
+                first_s = self._first_look_s(name, start, end, mine_km, exact=True, from_s=lb)
                 if first_s is not None:
                     heapq.heappush(heap, (first_s, name, order, start))
             if not heap:

@@ -132,7 +132,7 @@ def build_problem(*, t0_s: float, step_s: float, sat_pos_km, gp_ecef_km, in_for,
     if not np.all(np.isfinite(a)) or np.any(a < 0):
         raise ProblemError("absval: values must be finite and >= 0")
     ids = np.arange(G, dtype=np.int64) if gp_ids is None else np.asarray(gp_ids, dtype=np.int64)
-    if ids.shape != (G,) or len(np.unique(ids)) != G:
+    if ids.shape != (G,) or not (np.all(ids[1:] > ids[:-1]) or len(np.unique(ids)) == G):
         raise ProblemError(f"gp_ids: need {G} distinct ids, got shape {ids.shape}")
     pc = np.zeros((T, G), np.int64) if prior_count is None else np.asarray(prior_count, np.int64)
     pr = np.zeros((T, G), bool) if prior_recent is None else np.asarray(prior_recent, bool)

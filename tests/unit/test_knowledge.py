@@ -193,6 +193,31 @@ def test_observed_view_equals_the_formula_on_random_observations():
     assert np.array_equal(got, flat) and np.allclose(got, one, rtol=1e-12, atol=0)
 
 
+def test_observed_view_reuses_a_region_only_for_the_same_gps():
+    """One view asked in turn for several GP sets (whole regions, as the planner's instances are, and
+    parts of them, repeated) gives each time, bit for bit, what a fresh view gives for that set: a
+    region's sums are taken again only for exactly the GPs they were made for."""
+    rng = np.random.default_rng(3)
+    n_gp = 90
+    regions = np.repeat([0, 1, 2], 30)
+    f = _field(rng.integers(1, 257, (8, n_gp)).astype(np.int16), rng.integers(1, 257, (8, n_gp)).astype(np.int16),
+               regions)
+    xyz = np.column_stack([rng.uniform(0, 60, n_gp), rng.uniform(0, 60, n_gp), np.zeros(n_gp)])
+    ks = KnowledgeState(KnowledgeParams(model="observed", spread_km=12.0, memory_s=1500.0), "sat_11")
+    for _ in range(400):
+        g, t = int(rng.integers(0, n_gp)), float(rng.uniform(0, 3000))
+        ks.learn(Inference("sat_21", g, int(t * 1e9), float(rng.uniform(1, 256)), int(regions[g]), 0.1, 0.0))
+    times = np.array([3100.0, 3500.0, 6000.0])
+    view = ks.knowledge(f, regions, xyz, 3100.0, [], None).value
+    sets = [np.arange(0, 60), np.arange(30, 90), np.arange(0, 90), np.arange(5, 25), np.arange(30, 90),
+            np.sort(rng.choice(n_gp, 50, replace=False)), np.arange(0, 60)]
+    for ids in sets:
+        fresh = ks.knowledge(f, regions, xyz, 3100.0, [], None).value
+        got = view.value_at(ids[None, :], times[:, None])
+        assert got.tobytes() == fresh.value_at(ids[None, :], times[:, None]).tobytes(), ids
+    assert len(view._ref_cache) >= 5  # whole regions were kept and taken again
+
+
 def test_observed_view_is_exact_at_a_fresh_look_and_forgets():
     n_gp = 3
     fc = np.full((8, n_gp), 20, np.int16)

@@ -405,6 +405,32 @@ def test_dp_path_tables_equal_path_walks():
     assert bitsets >= 3  # and the multi-word bitsets
 
 
+def test_compiled_plan_values_equal_evaluate_plan():
+    """dp.plan_value (dp_kernels.plan_values, compiled) gives evaluate_plan's total and per-look values
+    bit for bit, on random plans over random instances with priors, repeats of a GP within and past
+    the revisit window, looks outside the FOR, and the empty plan."""
+    import numpy as np
+    from dp_instances import random_instance
+
+    from sat_node.scheduler.dp import plan_value
+    from sat_node.scheduler.problem import evaluate_plan
+
+    rng = np.random.default_rng(7)
+    zeros = repeats = 0
+    for seed in range(30):
+        p = random_instance(seed, n_gp=3 + seed % 9, n_steps=40 + 3 * seed, max_window=10 + seed,
+                            revisit_zero_s=[5.0, 12.0, 900.0][seed % 3], prior=seed % 2 == 0)
+        for size in (0, 1, 4, 12, 30):
+            steps = np.sort(rng.choice(p.n_steps, size=min(size, p.n_steps), replace=False))
+            cols = rng.integers(0, p.n_gp, size=len(steps))
+            a, av = evaluate_plan(p, steps, cols)
+            b, bv = plan_value(p, steps, cols)
+            assert a == b and av.tobytes() == bv.tobytes(), (seed, size)
+            zeros += int((av == 0).sum())
+            repeats += len(set(cols.tolist())) < len(cols)
+    assert zeros > 50 and repeats > 20  # zero-valued looks and repeats are exercised
+
+
 def test_compiled_dp_states_equal_the_numpy_ones():
     """dp_kernels.dp_states (one compiled pass over the grid) gives the states of dp._states
     (SchedulingProblem.v_first and pointing in numpy): the same steps, columns, first-visit values
