@@ -186,6 +186,8 @@ class PassIndex(Protocol):
 
 #: samples of a partner's 10-s look tested in its first block (each next block is twice as long)
 _LOOK_BLOCK = 8
+#: partners whose first blocks a bounded group tests together (those it may not need included)
+_LOOK_BATCH = 8
 
 #: name -> solver(instance, settings) -> Plan (settings: the planned satellite's footprint)
 SOLVERS: dict[str, Callable[[SchedulingProblem, PlannerSettings], Plan]] = {
@@ -317,19 +319,46 @@ class Planner:
         from the first at or after ``from_s``, and it stops at the first block that sees one: the
         same first sample as testing them all (a sample's test does not depend on the others;
         tests/unit/test_joint_speed.py compares the two)."""
-        coarse = np.append(np.arange(start, end, 10.0), end - self.settings.dp_step_s)
-        todo = np.flatnonzero(coarse >= from_s) if from_s is not None else np.arange(len(coarse))
-        lo, size = 0, _LOOK_BLOCK
-        while lo < len(todo):
-            block = todo[lo:lo + size]
-            seen = for_mask(self.constellation.track_ecef_km(name, coarse[block]), mine_km,
-                            self.for_deg(name)).any(axis=1)
-            if seen.any():
-                j = int(block[np.argmax(seen)])
-                return self._first_in_for_s(name, coarse, j, mine_km) if exact else 0.0
-            lo += size
-            size *= 2
-        return None
+        return self._first_looks_s([(name, start, from_s)], end, mine_km, exact)[0]
+
+    def _first_looks_s(self, looks, end: float, mine_km: np.ndarray, exact: bool) -> list[float | None]:
+        """:meth:`_first_look_s` of several partners [(name, start, from_s)]: their first blocks
+        tested together (one propagation and one FOR test for all, when they share a field of
+        regard), the later blocks partner by partner."""
+        step = self.settings.dp_step_s
+        todo = []  # (name, coarse samples, the indices to test)
+        for name, start, from_s in looks:
+            coarse = np.append(np.arange(start, end, 10.0), end - step)
+            todo.append((name, coarse, np.flatnonzero(coarse >= from_s) if from_s is not None
+                         else np.arange(len(coarse))))
+        first = [t[2][:_LOOK_BLOCK] for t in todo]
+        seen = None
+        at = getattr(self.constellation, "positions_ecef_km_at", None)
+        if len(todo) > 1 and at is not None and len({self.for_deg(t[0]) for t in todo}) == 1:
+            idx = np.concatenate([np.full(len(b), self.constellation.index(t[0]), np.int64)
+                                  for t, b in zip(todo, first)])
+            pos = at(idx, np.concatenate([t[1][b] for t, b in zip(todo, first)]))
+            hit = for_mask(pos, mine_km, self.for_deg(todo[0][0])).any(axis=1)
+            seen = np.split(hit, np.cumsum([len(b) for b in first])[:-1])
+        out = []
+        for n, (name, coarse, idx) in enumerate(todo):
+            lo, size = 0, _LOOK_BLOCK
+            got = None
+            while lo < len(idx):
+                block = idx[lo:lo + size]
+                if lo == 0 and seen is not None:
+                    hit = seen[n]
+                else:
+                    hit = for_mask(self.constellation.track_ecef_km(name, coarse[block]), mine_km,
+                                   self.for_deg(name)).any(axis=1)
+                if hit.any():
+                    j = int(block[np.argmax(hit)])
+                    got = self._first_in_for_s(name, coarse, j, mine_km) if exact else 0.0
+                    break
+                lo += size
+                size *= 2
+            out.append(got)
+        return out
 
     def _earliest(self, rows, k: int, end: float, knowledge: Knowledge, mine_gps: set, mine_km):
         """The bounded group of :meth:`group` - the first K partners in the order of (the first time
@@ -345,12 +374,17 @@ class Planner:
         rows = sorted(rows, key=lambda r: (r[3], r[1]))
         heap: list = []  # (first time, name, order, start)
         out: list = []
+        looked: dict[int, float | None] = {}  # row -> its look, made a batch of rows ahead
         i = 0
         while True:
             while i < len(rows) and (not heap or rows[i][3] <= heap[0][0]):
-                order, name, start, lb = rows[i]
+                order, name, start, _lb = rows[i]
+                if i not in looked:
+                    batch = range(i, min(len(rows), i + _LOOK_BATCH))
+                    looks = [(rows[b][1], rows[b][2], rows[b][3]) for b in batch]
+                    looked.update(zip(batch, self._first_looks_s(looks, end, mine_km, exact=True)))
+                first_s = looked[i]
                 i += 1
-                first_s = self._first_look_s(name, start, end, mine_km, exact=True, from_s=lb)
                 if first_s is not None:
                     heapq.heappush(heap, (first_s, name, order, start))
             if not heap:

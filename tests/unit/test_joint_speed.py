@@ -2,12 +2,9 @@
 
 Oracles (each the computation the shortcut replaces, run here in full):
 * a partner's 10-s look (sat_node/scheduler/planner.py ``Planner._first_look_s``) tested block by
-  block from the pass index's bound, stopping at the first block that sees one of my GPs: the look
-  over every sample from the partner's start, as first written (here again);
-* the joint solver's re-solves (sat_node/scheduler/joint.py): a member's DP after a dive round, run
-  from the first step the round changed on the states of its previous solve (``solve_dp`` with
-  ``warm``), against the DP solved from nothing on the same instance: the same plan, value and
-  per-state values, bit for bit; and a whole joint plan with the shortcut against one without it.
+  block from the pass index's bound, stopping at the first block that sees one of my GPs, alone and
+  with the first blocks of several partners in one FOR test (``_first_looks_s``): the look over
+  every sample from the partner's start, as first written (here again);
 """
 
 from __future__ import annotations
@@ -61,11 +58,17 @@ def test_the_look_in_blocks_from_the_bound_finds_what_the_whole_look_finds(dense
             end = float(t0) + max(600.0, planner.settings.revisit_zero_s)
             for partners in (None, [(n, float(t0) + 120.0 * (j % 6)) for j, n in enumerate(names) if n != sat]):
                 partners = partners or [(n, float(t0)) for n in names if n != sat]
-                for _order, name, start, lb in planner._passing(partners, float(t0), end, mine_ids):
-                    for exact in (True, False):
-                        ref = _look_as_first_written(planner, name, start, end, mine_km, exact)
+                rows = planner._passing(partners, float(t0), end, mine_ids)
+                for exact in (True, False):
+                    refs = [_look_as_first_written(planner, name, start, end, mine_km, exact)
+                            for _order, name, start, _lb in rows]
+                    # together (a bounded group's batch: first blocks in one FOR test) and one by one
+                    looks = [(name, start, lb) for _order, name, start, lb in rows]
+                    assert planner._first_looks_s(looks, end, mine_km, exact) == refs
+                    for (_order, name, start, lb), ref in zip(rows, refs):
                         assert planner._first_look_s(name, start, end, mine_km, exact, from_s=lb) == ref
                         assert planner._first_look_s(name, start, end, mine_km, exact) == ref
+                for (_order, _name, start, lb), ref in zip(rows, refs):
                     seen += ref is not None
                     unseen += ref is None
                     bounded += lb > start  # the look starts after the partner's start
