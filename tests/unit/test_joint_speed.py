@@ -73,3 +73,28 @@ def test_the_look_in_blocks_from_the_bound_finds_what_the_whole_look_finds(dense
                     unseen += ref is None
                     bounded += lb > start  # the look starts after the partner's start
     assert seen > 50 and unseen > 50 and bounded > 20
+
+
+def test_for_mask_with_remembered_gp_caps_equals_the_test_of_every_pair(dense):
+    """The FOR pre-filter's GP caps (orbit_clock/access.py ``_gp_caps``), remembered per GP set, are
+    the ones computed afresh, and the masks made with them over many tracks (the same GP sets asked
+    again, as the planners do) equal the test of every (time, GP) pair."""
+    from orbit_clock import access
+
+    ctx, _settings, planner = dense
+    names = planner.constellation.names
+    regions = np.unique(np.asarray(ctx.gps.region_index))
+    hits = 0
+    for rep in range(3):
+        for r in regions:
+            gp = np.ascontiguousarray(planner.gp_ecef_km[np.flatnonzero(ctx.gps.region_index == r)])
+            key = (gp.tobytes(), 64)
+            hits += key in access._GP_CAPS
+            for name in names[rep::24]:
+                sat = planner.constellation.track_ecef_km(name, np.arange(0.0, 3000.0, 10.0))
+                assert np.array_equal(for_mask(sat, gp, 55.0), access._for_mask_all(sat, gp, 55.0))
+            cached = access._GP_CAPS[key]
+            access._GP_CAPS.pop(key)
+            fresh = access._gp_caps(gp, 64)
+            assert cached[0] == fresh[0] and all(a.tobytes() == b.tobytes() for a, b in zip(cached[1:], fresh[1:]))
+    assert hits >= 2 * len(regions)  # the sets were taken again
