@@ -325,6 +325,29 @@ class Planner:
         """:meth:`_first_look_s` of several partners [(name, start, from_s)]: their first blocks
         tested together (one propagation and one FOR test for all, when they share a field of
         regard), the later blocks partner by partner."""
+        return [self._refined_s(c, mine_km, exact) for c in self._coarse_looks(looks, end, mine_km)]
+
+    def _refined_s(self, look, mine_km: np.ndarray, exact: bool) -> float | None:
+        """A look of :meth:`_coarse_looks` as :meth:`_first_look_s` gives it: its later blocks
+        tested if the first saw none of my GPs, then the first sample that sees one refined."""
+        name, coarse, idx, hit = look
+        lo, size = 0, _LOOK_BLOCK
+        while lo < len(idx):
+            block = idx[lo:lo + size]
+            if lo > 0:
+                hit = for_mask(self.constellation.track_ecef_km(name, coarse[block]), mine_km,
+                               self.for_deg(name)).any(axis=1)
+            if hit.any():
+                j = int(block[np.argmax(hit)])
+                return self._first_in_for_s(name, coarse, j, mine_km) if exact else 0.0
+            lo += size
+            size *= 2
+        return None
+
+    def _coarse_looks(self, looks, end: float, mine_km: np.ndarray) -> list[tuple]:
+        """[(name, the look's 10-s samples, the indices of those to test, what its first block of
+        them saw)] of :meth:`_first_looks_s`: the first blocks only (:meth:`_refined_s` does the
+        rest when the look is needed)."""
         step = self.settings.dp_step_s
         todo = []  # (name, coarse samples, the indices to test)
         for name, start, from_s in looks:
@@ -340,25 +363,10 @@ class Planner:
             pos = at(idx, np.concatenate([t[1][b] for t, b in zip(todo, first)]))
             hit = for_mask(pos, mine_km, self.for_deg(todo[0][0])).any(axis=1)
             seen = np.split(hit, np.cumsum([len(b) for b in first])[:-1])
-        out = []
-        for n, (name, coarse, idx) in enumerate(todo):
-            lo, size = 0, _LOOK_BLOCK
-            got = None
-            while lo < len(idx):
-                block = idx[lo:lo + size]
-                if lo == 0 and seen is not None:
-                    hit = seen[n]
-                else:
-                    hit = for_mask(self.constellation.track_ecef_km(name, coarse[block]), mine_km,
-                                   self.for_deg(name)).any(axis=1)
-                if hit.any():
-                    j = int(block[np.argmax(hit)])
-                    got = self._first_in_for_s(name, coarse, j, mine_km) if exact else 0.0
-                    break
-                lo += size
-                size *= 2
-            out.append(got)
-        return out
+        if seen is None:
+            seen = [for_mask(self.constellation.track_ecef_km(t[0], t[1][b]), mine_km, self.for_deg(t[0])).any(axis=1)
+                    for t, b in zip(todo, first)]
+        return [(name, coarse, idx, hit) for (name, coarse, idx), hit in zip(todo, seen)]
 
     def _earliest(self, rows, k: int, end: float, knowledge: Knowledge, mine_gps: set, mine_km):
         """The bounded group of :meth:`group` - the first K partners in the order of (the first time
@@ -374,7 +382,7 @@ class Planner:
         rows = sorted(rows, key=lambda r: (r[3], r[1]))
         heap: list = []  # (first time, name, order, start)
         out: list = []
-        looked: dict[int, float | None] = {}  # row -> its look, made a batch of rows ahead
+        looked: dict[int, tuple] = {}  # row -> its look, made a batch of rows ahead (refined when needed)
         i = 0
         while True:
             while i < len(rows) and (not heap or rows[i][3] <= heap[0][0]):
@@ -382,8 +390,8 @@ class Planner:
                 if i not in looked:
                     batch = range(i, min(len(rows), i + _LOOK_BATCH))
                     looks = [(rows[b][1], rows[b][2], rows[b][3]) for b in batch]
-                    looked.update(zip(batch, self._first_looks_s(looks, end, mine_km, exact=True)))
-                first_s = looked[i]
+                    looked.update(zip(batch, self._coarse_looks(looks, end, mine_km)))
+                first_s = self._refined_s(looked[i], mine_km, exact=True)
                 i += 1
                 if first_s is not None:
                     heapq.heappush(heap, (first_s, name, order, start))
