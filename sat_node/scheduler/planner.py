@@ -55,7 +55,8 @@ names on a hand-drawn case, and with K at least the unbounded group's size plans
 tests/unit/test_region_passes.py: the partner choice that asks the pre-filter's pass index
 (``passes``; best-first when bounded) chooses the same partners with the same instances as the one
 that looks at every partner; tests/system/test_partner_choice_run.py: a whole run with it equals one
-without it, message by message.
+without it, message by message. tests/unit/test_joint_speed.py: a partner's look made in blocks from
+the pass index's bound (several partners' first blocks at once) finds what the whole look finds.
 tests/unit/test_fleet.py: in a mixed fleet each satellite's instance has the FOR mask of its own angle
 and its own slew model, and the non-agile baseline its own footprint.
 """
