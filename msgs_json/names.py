@@ -36,6 +36,7 @@ catalogue form: round trips, no number shared with a Walker or station number).
 
 from __future__ import annotations
 
+import functools
 import re
 
 __all__ = [
@@ -102,8 +103,14 @@ def sat_name(plane: int, slot: int, planes: int, per_plane: int) -> str:
 
 
 def sat_names(planes: int, per_plane: int) -> list[str]:
-    """Every satellite's name, plane-major (plane 1 slot 1, plane 1 slot 2, ...): also sorted order."""
-    return [sat_name(p, s, planes, per_plane) for p in range(1, planes + 1) for s in range(1, per_plane + 1)]
+    """Every satellite's name, plane-major (plane 1 slot 1, plane 1 slot 2, ...): also sorted order.
+    A new list each call (made once per size: a 1000-satellite run asks for it once per participant)."""
+    return list(_sat_names_tuple(planes, per_plane))
+
+
+@functools.lru_cache(maxsize=16)
+def _sat_names_tuple(planes: int, per_plane: int) -> tuple[str, ...]:
+    return tuple(sat_name(p, s, planes, per_plane) for p in range(1, planes + 1) for s in range(1, per_plane + 1))
 
 
 def is_sat_name(name: object) -> bool:

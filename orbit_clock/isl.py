@@ -181,30 +181,18 @@ def _candidate_segments(constellation: Constellation, t: np.ndarray, r: np.ndarr
 
 
 def _runs_in_segments(r: np.ndarray, I: np.ndarray, J: np.ndarray, pair: np.ndarray, first: np.ndarray,
-                      last: np.ndarray, grazing_height_km: float, max_range_km, chunk: int = 1_000_000):
+                      last: np.ndarray, grazing_height_km: float, max_range_km):
     """Runs of positive margin (pair, first inside sample, sample after) of the spans of
     :func:`_candidate_segments`, as :func:`orbit_clock.windows.true_runs` gives them on the full
-    grid (ordered by pair, then time); ``max_range_km`` one range or one per pair."""
-    length = last - first + 1
-    m = int(length.sum())
-    seg_of = np.repeat(np.arange(pair.size), length)
-    offset = np.arange(m) - np.repeat(np.cumsum(length) - length, length)
-    k = first[seg_of] + offset  # grid sample of each evaluation
-    inside = np.empty(m, dtype=bool)
-    for c0 in range(0, m, chunk):
-        sl = slice(c0, c0 + chunk)
-        p = pair[seg_of[sl]]
-        lim = max_range_km if np.ndim(max_range_km) == 0 else max_range_km[p]
-        inside[sl] = _margin(r[I[p], k[sl]], r[J[p], k[sl]], grazing_height_km, lim) > 0
-    seg_start = np.zeros(m, dtype=bool)
-    seg_start[np.cumsum(length) - length] = True
-    prev = np.concatenate([[False], inside[:-1]]) & ~seg_start
-    nxt_start = np.concatenate([seg_start[1:], [True]])
-    nxt = np.concatenate([inside[1:], [False]]) & ~nxt_start
-    s_idx = np.flatnonzero(inside & ~prev)
-    e_idx = np.flatnonzero(inside & ~nxt)
-    si = pair[seg_of[s_idx]]
-    ks, ke = k[s_idx], k[e_idx] + 1
+    grid (ordered by pair, then time); ``max_range_km`` one range or one per pair. The samples are
+    evaluated one by one by a compiled loop (orbit_clock/isl_kernels.py), which holds no array of
+    their number."""
+    from orbit_clock.isl_kernels import runs_in_segments
+
+    lim = np.broadcast_to(np.asarray(max_range_km, dtype=float), I.shape)
+    si, ks, ke = runs_in_segments(np.ascontiguousarray(r, dtype=float), I.astype(np.int64), J.astype(np.int64),
+                                  pair.astype(np.int64), first.astype(np.int64), last.astype(np.int64),
+                                  float(_Z_SCALE), float(WGS84_A_KM + grazing_height_km), np.ascontiguousarray(lim))
     order = np.lexsort((ks, si))
     return si[order], ks[order], ke[order]
 

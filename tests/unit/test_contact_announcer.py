@@ -77,3 +77,59 @@ def test_cut_and_extra_delay_show_in_the_windows():
 def test_every_mode_has_the_announcer(mode):
     roles = roles_for([f"sat_1{i}" for i in range(1, 4)], mode)
     assert roles.count(CONTACTS_ROLE) == 1
+
+
+def _reference_emits(isl, ground, steps_ns):
+    """Every edge of the plans, sorted by (instant, open before close, src, dst) - ties in plan
+    order, isl first -, each announced at the first step at or after it with ``codec.encode``'s text
+    of its ContactWindow: the announcer as first written (one tuple per edge, one struct per text)."""
+    from orbit_clock.contact_announcer import window_text
+
+    edges = []
+    for kind, cp in (("isl", isl), ("ground", ground)):
+        for c in cp.contacts:
+            s_ns, e_ns = round(c.start_s * S), round(c.end_s * S)
+            if e_ns > s_ns:
+                edges.append((s_ns, 0, "open", c, kind, s_ns, e_ns))
+                edges.append((e_ns, 1, "close", c, kind, s_ns, e_ns))
+    edges.sort(key=lambda e: (e[0], e[1], e[3].src, e[3].dst))
+    out, i = [], 0
+    for t in steps_ns:
+        got = []
+        while i < len(edges) and edges[i][0] <= t:
+            at, _, event, c, kind, s_ns, e_ns = edges[i]
+            got.append((T.CONTACTS, window_text(event, kind, c.src, c.dst, s_ns, e_ns, c.rate_bps, c.range_light_s), at))
+            i += 1
+        out.append(got)
+    return out
+
+
+def test_texts_and_order_equal_one_struct_per_edge(paper_scenario):
+    """The announcer's arrays and texts written from parts give, step by step, the emits of one
+    ContactWindow encoded per edge in one sorted list of edges: on a whole 24-satellite plan (ISL and
+    ground) and on a random plan with equal instants, equal node pairs at once, ground contacts
+    interleaved, zero-length windows and odd floats (1e-7 s light time, fractional rates)."""
+    import random
+
+    from bringup.scenario.world import World
+
+    w = World.build(paper_scenario.with_overrides(hours=1.0))
+    rng = random.Random(5)
+    nodes = [f"sat_{p}{s}" for p in range(1, 4) for s in range(1, 4)] + ["gs_a", "gs_b"]
+    cs, gs = [], []
+    for _ in range(400):
+        a, b = rng.sample(nodes, 2)
+        s0 = rng.choice([0.0, 1.5, 2.0, 10.0, rng.uniform(0, 100)])
+        c = Contact(round(s0, 3), round(s0 + rng.choice([0.0, 0.5, 8.0, rng.uniform(0, 50)]), 3), a, b,
+                    rng.choice([1000.0, 250.5, 1e6]), rng.choice([1e-7, 0.01, rng.uniform(0, 0.03)]))
+        (gs if a.startswith("gs_") or b.startswith("gs_") else cs).append(c)
+    for isl, ground, horizon in ((w.isl_plan, w.ground_plan, 3600 * S), (ContactPlan(cs), ContactPlan(gs), 160 * S)):
+        steps = [0]
+        while steps[-1] < horizon:
+            steps.append(min(horizon, steps[-1] + rng.choice([1, S // 2, 10 * S, 37 * S])))
+        a = ContactAnnouncer(isl, ground)
+        got = [a.start(steps[0]).emits] + [a.step(t, []).emits for t in steps[1:]]
+        want = _reference_emits(isl, ground, steps)
+        assert sum(map(len, want)) > 500
+        assert [[tuple(e) for e in g] for g in got] == want
+        assert a.announced == sum(map(len, want))

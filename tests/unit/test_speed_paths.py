@@ -615,6 +615,45 @@ def test_one_satellite_positions_equal_the_mixed_path():
         assert np.array_equal(c.positions_ecef_km_at(np.array([i]), t[2:3]), one[2:3])
 
 
+def test_isl_runs_kernel_equals_numpy_margin(paper_scenario):
+    """orbit_clock/isl_kernels.py: the compiled runs of positive margin within random spans equal
+    the runs of numpy's margin (orbit_clock/isl.py ``_margin``, every pair at every sample) cut to
+    the same spans - with one range per pair, several spans per pair and spans at the grid's ends."""
+    import numpy as np
+
+    from orbit_clock import build_constellation
+    from orbit_clock.isl import _margin, _runs_in_segments
+    from orbit_clock.windows import time_grid, true_runs
+
+    sc = paper_scenario.with_overrides(sats=96, planes=6, hours=1.0)
+    c = build_constellation(sc)
+    t = time_grid(0.0, sc.scenario.horizon_s, 10.0)
+    r = c.positions_ecef_km(t)
+    n = len(c)
+    I, J = np.triu_indices(n, k=1)
+    rng = np.random.default_rng(3)
+    lim = rng.uniform(2000.0, 7000.0, I.size)
+    inside = _margin(r[I], r[J], 80.0, lim[:, None]) > 0  # (pairs, samples), numpy
+    pair, first, last = [], [], []
+    for p in np.sort(rng.choice(np.flatnonzero(inside.any(axis=1)), 600, replace=False)):
+        edges = np.sort(rng.choice(t.size, 4, replace=False))
+        for a, b in ((edges[0], edges[1]), (edges[2], edges[3])):
+            pair.append(p), first.append(a), last.append(b)
+    pair.append(I.size - 1), first.append(0), last.append(t.size - 1)  # a whole-grid span
+    pair, first, last = (np.array(x, dtype=np.int64) for x in (pair, first, last))
+    want_si, want_ks, want_ke = [], [], []
+    for p, a, b in zip(pair, first, last):
+        _s, ks, ke = true_runs(inside[p:p + 1, a:b + 1])
+        want_si += [p] * ks.size
+        want_ks += list(ks + a)
+        want_ke += list(ke + a)
+    order = np.lexsort((want_ks, want_si))
+    want = [np.array(x, dtype=np.int64)[order] for x in (want_si, want_ks, want_ke)]
+    got = _runs_in_segments(r, I, J, pair, first, last, 80.0, lim)
+    assert len(want[0]) > 300
+    assert all(np.array_equal(g, w) for g, w in zip(got, want, strict=True))
+
+
 def test_pruned_isl_windows_equal_every_pair_at_every_sample(paper_scenario):
     """orbit_clock/isl.py: sampling only the pairs and times a k-d tree finds within reach gives the
     windows of the plain search (every pair at every grid sample), bit for bit - and samples less."""
