@@ -5,7 +5,8 @@ Usage::
     .venv/bin/python bench/bench_scale.py [--sats 24,48,96,240,480] [--hours 6] [--planes 3]
         [--regions paper|global] [--planning joint|alone] [--joint-max-partners K] [--json]
 
-A run of minutes: ``--sats 24,48,96 --hours 1``.
+A run of minutes: ``--sats 24,48,96 --hours 1``. ``--force`` passes ``--force`` to every run (sizes past
+the run's work limit, bringup/scenario/limits.py, e.g. ``--sats 1000 --planes 25``).
 
 Each size is one `constellation run --engine local --sats N --planes P` (a Walker star over the
 paper scenario's orbits; `--planes 3` keeps the paper's planes, as `--sats` alone does), run as a
@@ -97,6 +98,8 @@ def run_size(n: int, planes: int, args, scenario: str, out: Path) -> dict:
            "--planes", str(p), "--hours", str(args.hours), "--planning", args.planning, "--out", str(out), "--no-plots", "--no-progress"]
     if args.joint_max_partners is not None:
         cmd += ["--joint-max-partners", str(args.joint_max_partners)]
+    if args.force:
+        cmd += ["--force"]
     load0 = os.getloadavg()[0]
     c0 = os.times()
     t0 = time.perf_counter()
@@ -171,6 +174,8 @@ def main() -> int:
                     help="joint (the scenario's) or alone: each satellite plans by itself")
     ap.add_argument("--joint-max-partners", type=int, default=None, metavar="K",
                     help="joint planning with at most K partners (0: all, the scenario's default)")
+    ap.add_argument("--force", action="store_true",
+                    help="pass --force to the runs (sizes past the run's work limit: 1000 satellites x 25 planes)")
     ap.add_argument("--json", action="store_true", help="one JSON document at the end instead of the table")
     args = ap.parse_args()
     sizes = [int(x) for x in args.sats.split(",")]

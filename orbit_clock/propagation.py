@@ -141,7 +141,9 @@ class Constellation:
                 raise PropagationError(f"SGP4 error {int(err[err != 0][0])} for {self.names[i]}")
             return teme_to_ecef(r, theta)
         # one group of positions per satellite, in their given order (a stable sort: O(n log n),
-        # where one mask per satellite would be O(n * satellites))
+        # where one mask per satellite would be O(n * satellites)); the rotation to Earth-fixed is
+        # element by element, so it is made once for all of them (the same numbers as group by group:
+        # tests/unit/test_speed_paths.py)
         order = np.argsort(sat_idx, kind="stable")
         cuts = np.flatnonzero(np.diff(sat_idx[order])) + 1
         for m in np.split(order, cuts) if order.size else ():
@@ -149,8 +151,8 @@ class Constellation:
             err, r, _ = self.satrecs[i].sgp4_array(jd[m], fr[m])
             if np.any(err):
                 raise PropagationError(f"SGP4 error {int(err[err != 0][0])} for {self.names[i]}")
-            out[m] = teme_to_ecef(r, theta[m])
-        return out
+            out[m] = r
+        return teme_to_ecef(out, theta)
 
     def track_ecef_km(self, sat: str | int, t_s) -> np.ndarray:
         """ECEF positions (n, 3) km of one satellite (name or index) at times t_s [s] (1-D)."""

@@ -53,6 +53,8 @@ __all__ = ["DtnPort", "count_rejection"]
 
 _NS = 1_000_000_000
 _NO_INFO = object()  # sentinel: no _ev_info entry for an event
+_INFO: dict[bytes, tuple[int, dict]] = {}  # received bytes -> (DTN epoch, _bundle_info): DtnPort._bundle_info
+_INFO_MAX = 1024
 _KEEP_EVENTS = 4096  # the agent's event list is emptied past this (memory stays flat over long runs)
 
 
@@ -144,7 +146,7 @@ class DtnPort:
                 except BundleError:
                     b = None
             if b is not None:
-                info = self._bundle_info(b)
+                info = self._bundle_info(b, env.data)
                 for ev in agent.events[n_ev:]:
                     self._ev_info[id(ev)] = info
             if outcome == "delivered":
@@ -256,15 +258,26 @@ class DtnPort:
         return Emit(self.counters_topic, codec.encode(S.DtnCounters(sat=self.name, t_ns=t_ns, counters=c)), t_ns)
 
     # ------------------------------------------------------------------ events -> messages
-    def _bundle_info(self, b) -> dict:
+    def _bundle_info(self, b, data: bytes | None = None) -> dict:
+        """What the events of received bundle ``b`` say about it. ``data``: the bytes ``b`` was decoded
+        from, as received (``b`` not altered since): the info is then a function of those bytes and
+        the DTN epoch alone - unless it names this node -, kept for the other nodes in this process
+        that receive the same bytes (a multicast copy reaches several recipients at once; the info is
+        read, never changed)."""
+        epoch = self.agent.config.epoch_dtn_ms
+        if type(data) is bytes:
+            hit = _INFO.get(data)
+            if hit is not None and hit[0] == epoch:
+                return hit[1]
         try:
             rs = recipients_of(b)
         except ValueError:
             rs = ()
+        mine = not rs and isinstance(b.dest, Imc)  # the destination named is this node
         info = {"bundle_id": b.bundle_id, "src": node_name(b.src[0]),
                 "dst": node_name(rs[0][0]) if rs else (self.name if isinstance(b.dest, Imc) else node_name(b.dest[0])),
                 "priority": min((r[1] for r in rs), default=0),
-                "creation_ns": (b.creation_ms - self.agent.config.epoch_dtn_ms) * 1_000_000,
+                "creation_ns": (b.creation_ms - epoch) * 1_000_000,
                 "hop_count": (b.hop_count[1] if b.hop_count else 0)}
         try:
             nhs = sorted(next_hops_of(b))
@@ -272,6 +285,10 @@ class DtnPort:
                 info["next_hop"] = node_name(nhs[0])
         except ValueError:
             pass
+        if type(data) is bytes and not mine:
+            if len(_INFO) >= _INFO_MAX:
+                _INFO.clear()
+            _INFO[data] = (epoch, info)
         return info
 
     def _event_msg(self, ev):
