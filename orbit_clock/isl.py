@@ -133,6 +133,9 @@ def _margin(a: np.ndarray, b: np.ndarray, grazing_height_km: float, max_range_km
     return np.minimum(los_clearance_km(a, b, grazing_height_km), max_range_km - rng)
 
 
+# ISL windows per block of the mean-range computation (isl_contact_plan)
+_MEAN_BLOCK = 50_000
+
 # Grid samples per pruning block: the pair distance is looked up at every _BLOCK-th sample
 _BLOCK = 6
 
@@ -211,8 +214,14 @@ def isl_contact_plan(scenario, constellation: Constellation | None = None, *, st
     keep = en > st
     i, j, st, en = i[keep], j[keep], st[keep], en[keep]
     n = 21  # range samples per window, ends included
-    light_s = mean_range_km(lambda t: c.positions_ecef_km_at(np.repeat(i, n), t),
-                            lambda t: c.positions_ecef_km_at(np.repeat(j, n), t), st, en, n) / C_KM_S
+    # in blocks of windows (each window's mean is its own: the same numbers), so that the sample
+    # arrays stay small (2.3 M windows at 1000 satellites x 6 h: 4.7e7 positions at once otherwise)
+    light_s = np.empty(st.size)
+    for k0 in range(0, st.size, _MEAN_BLOCK):
+        b = slice(k0, k0 + _MEAN_BLOCK)
+        ib, jb = i[b], j[b]
+        light_s[b] = mean_range_km(lambda t, ib=ib: c.positions_ecef_km_at(np.repeat(ib, n), t),
+                                   lambda t, jb=jb: c.positions_ecef_km_at(np.repeat(jb, n), t), st[b], en[b], n) / C_KM_S
     contacts = []
     for a, b, s0, s1, lt in zip(i, j, st, en, light_s):
         na, nb = c.names[a], c.names[b]

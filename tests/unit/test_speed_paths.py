@@ -676,3 +676,19 @@ def test_pruned_isl_windows_equal_every_pair_at_every_sample(paper_scenario):
         if sats >= 96:
             assert (last - first + 1).sum() < 0.6 * sats * (sats - 1) / 2 * t.size
 
+
+
+def test_isl_mean_range_in_blocks_equals_one_block(paper_scenario, monkeypatch):
+    """orbit_clock/isl.py isl_contact_plan: the windows' mean ranges (light times) computed in blocks
+    of windows equal those of all windows at once, contact for contact."""
+    from orbit_clock import build_constellation, isl
+    from orbit_clock.isl import isl_contact_plan
+
+    sc = paper_scenario.with_overrides(sats=96, planes=6, hours=1.0)
+    c = build_constellation(sc)
+    monkeypatch.setattr(isl, "_MEAN_BLOCK", 10**9)
+    whole = isl_contact_plan(sc, c)
+    monkeypatch.setattr(isl, "_MEAN_BLOCK", 7)
+    blocks = isl_contact_plan(sc, c)
+    assert len(whole) > 1000
+    assert blocks.contacts == whole.contacts
