@@ -11,10 +11,12 @@ exits with 128 + the signal's number (130 for SIGINT, 143 for SIGTERM, 129 for S
 SIGQUIT), as a shell reports a process the signal ended.
 
 A signal that arrives while Python runs a finalizer (a ``__del__`` or a weakref callback during garbage
-collection) has its exception printed as "Exception ignored in ..." and dropped: the run would go on to
-its end and exit 0. The handler therefore also records the signal, and :func:`raise_pending` (called by
-a loop at each step; the local engine's calls it) raises it again if it was dropped; the ``with``
-block's end raises it too, so a dropped stop is never lost.
+collection) has its exception handed to ``sys.unraisablehook`` ("Exception ignored in ...") and dropped:
+the run would go on to its end and exit 0. Inside the block a hook notes each :class:`Interrupted`
+dropped that way (and passes it on to the hook before it); :func:`raise_pending` (called by a loop at
+each step; the local engine's calls it) raises it again, and so does the ``with`` block's end, so a
+dropped stop is never lost. A stop that reached the code (caught and handled there, as the ROS
+launcher does) is not noted.
 
 How we know it is right: tests/faults/test_run_signals.py sends each signal to a local run, a ROS
 run's launcher and its processes, and checks run_status.json, the keys, the partial report and the
@@ -24,6 +26,7 @@ reuse of the folder.
 from __future__ import annotations
 
 import signal
+import sys
 import threading
 from contextlib import contextmanager
 
@@ -52,7 +55,7 @@ def exit_code(exc: BaseException) -> int:
     return 128 + int(getattr(exc, "signum", signal.SIGINT))
 
 
-#: signals received inside :func:`stop_on_signals` and not yet seen unwinding the block
+#: signals whose Interrupted was dropped (by a finalizer) inside :func:`stop_on_signals`
 _pending: list[int] = []
 
 
@@ -73,21 +76,29 @@ def stop_on_signals(signals=STOP_SIGNALS):
         return
 
     def handler(signum, _frame):
-        _pending.append(int(signum))
         raise Interrupted(signum)
+
+    before_hook = sys.unraisablehook
+
+    def dropped(unraisable) -> None:
+        if isinstance(unraisable.exc_value, Interrupted):
+            _pending.append(unraisable.exc_value.signum)
+        before_hook(unraisable)
 
     old = {}
     _pending.clear()
+    sys.unraisablehook = dropped
     try:
         for s in signals:
             old[s] = signal.signal(s, handler)
         try:
             yield
         except KeyboardInterrupt:
-            _pending.clear()  # (the stop reached the block: nothing was dropped)
+            _pending.clear()  # (a stop is on its way out: the dropped one would say the same)
             raise
-        raise_pending()  # the block ended normally although a signal came: its exception was dropped
+        raise_pending()  # the block ended normally although a stop's exception was dropped
     finally:
         _pending.clear()
+        sys.unraisablehook = before_hook
         for s, h in old.items():
             signal.signal(s, h)

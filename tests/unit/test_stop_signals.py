@@ -34,37 +34,45 @@ def _drop_signal_in_finalizer() -> None:
 def test_dropped_signal_is_raised_by_raise_pending(monkeypatch):
     dropped = []
     monkeypatch.setattr(sys, "unraisablehook", dropped.append)
-    with pytest.raises(Interrupted) as exc:
-        with stop_on_signals():
-            _drop_signal_in_finalizer()
-            # (the exception really was dropped: Python handed it to the unraisable hook)
-            assert [type(u.exc_value) for u in dropped] == [Interrupted]
-            raise_pending()
-            pytest.fail("raise_pending did not raise the dropped SIGTERM")
+    with pytest.raises(Interrupted) as exc, stop_on_signals():
+        _drop_signal_in_finalizer()
+        # (the exception really was dropped: Python handed it to the unraisable hook)
+        assert [type(u.exc_value) for u in dropped] == [Interrupted]
+        raise_pending()
+        pytest.fail("raise_pending did not raise the dropped SIGTERM")
     assert exc.value.signum == signal.SIGTERM
 
 
 def test_dropped_signal_is_raised_at_the_end_of_the_block():
-    with pytest.raises(Interrupted) as exc:
-        with stop_on_signals():
-            _drop_signal_in_finalizer()
+    with pytest.raises(Interrupted) as exc, stop_on_signals():
+        _drop_signal_in_finalizer()
     assert exc.value.signum == signal.SIGTERM
 
 
 def test_delivered_signal_leaves_nothing_pending():
-    with pytest.raises(Interrupted):
-        with stop_on_signals():
-            os.kill(os.getpid(), signal.SIGHUP)
-            for _ in range(10**6):
-                pass
+    with pytest.raises(Interrupted), stop_on_signals():
+        os.kill(os.getpid(), signal.SIGHUP)
+        for _ in range(10**6):
+            pass
     with stop_on_signals():
         raise_pending()  # (nothing: the earlier stop reached its block)
 
 
+def test_caught_signal_is_not_raised_again():
+    """A stop the code catches and handles (the ROS launcher returns 130) is not raised at the end."""
+    with stop_on_signals():
+        try:
+            os.kill(os.getpid(), signal.SIGTERM)
+            for _ in range(10**6):
+                pass
+        except Interrupted as exc:
+            assert exc.signum == signal.SIGTERM
+        raise_pending()
+
+
 def test_the_earlier_handlers_come_back():
     before = signal.getsignal(signal.SIGTERM)
-    with pytest.raises(Interrupted):
-        with stop_on_signals():
-            _drop_signal_in_finalizer()
+    with pytest.raises(Interrupted), stop_on_signals():
+        _drop_signal_in_finalizer()
     assert signal.getsignal(signal.SIGTERM) is before
     raise_pending()  # (nothing pending outside the block)
