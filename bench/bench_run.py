@@ -58,6 +58,78 @@ def _mem_mib(pids: list[int]) -> tuple[float, float]:
     return rss / 1024, pss / 1024
 
 
+_TICK = os.sysconf("SC_CLK_TCK")
+
+
+def _roles_by_pid(logs: Path) -> dict[int, str]:
+    """pid -> role from the ROS launcher's ``logs/<role>.pid`` files (forked hosts keep the
+    launcher's command line, so the command line cannot tell)."""
+    out = {}
+    for f in logs.glob("*.pid"):
+        try:
+            out[int(f.read_text().strip() or 0)] = f.stem
+        except (OSError, ValueError):
+            pass
+    return out
+
+
+def _cpu_by_pid(pids: list[int], seen: dict[int, tuple[str, float]], logs: Path) -> None:
+    """Record each process's CPU seconds so far (user + system, /proc/PID/stat) under its kind: the
+    ROS engine's node processes by their role (sat_* -> "satellites"), the rest "prepare" (the
+    launcher's `node --prepare`), "launcher" (the `constellation run` process itself) or "other". A
+    process that exits between two samples loses at most one sampling period of CPU here; the
+    tree's total (rusage) is exact."""
+    roles = None
+    for p in pids:
+        try:
+            with open(f"/proc/{p}/stat") as fh:
+                f = fh.read().rsplit(")", 1)[1].split()
+            cpu = (int(f[11]) + int(f[12])) / _TICK
+        except (OSError, IndexError, ValueError):
+            continue
+        kind = seen.get(p, ("", 0.0))[0]
+        if kind in ("", "other"):  # (a forked host is "other" until its pid file is written)
+            if roles is None:
+                roles = _roles_by_pid(logs)
+            role = roles.get(p)
+            if role is not None:
+                kind = "satellites" if role.startswith("sat_") else role
+            elif p == pids[0]:
+                kind = "launcher"
+            else:
+                try:
+                    with open(f"/proc/{p}/cmdline", "rb") as fh:
+                        argv = fh.read().decode(errors="replace").split("\0")
+                except OSError:
+                    continue
+                kind = "prepare" if "--prepare" in argv else "other"
+        seen[p] = (kind, cpu)
+
+
+def _by_kind(seen: dict[int, tuple[str, float]]) -> dict[str, float]:
+    kinds: dict[str, float] = {}
+    for kind, c in seen.values():
+        kinds[kind] = round(kinds.get(kind, 0.0) + c, 1)
+    return dict(sorted(kinds.items()))
+
+
+def _phases(log: Path, t0: float, marks: dict[str, tuple[float, dict]], seen) -> None:
+    """When (wall seconds since the start) the clock's log first said every process was ready (the
+    start-up's end: step 0 follows) and that the nodes were shut down (after the last step), with
+    the CPU seconds per process kind so far at that moment."""
+    if "shut_down" in marks:
+        return
+    try:
+        text = log.read_text(errors="replace")
+    except OSError:
+        return
+    now = time.perf_counter() - t0
+    if "ready" not in marks and "every process ready" in text:
+        marks["ready"] = (now, _by_kind(seen))
+    if "shut_down" not in marks and "nodes shut down in" in text:
+        marks["shut_down"] = (now, _by_kind(seen))
+
+
 def _mem_available_mib() -> float:
     with open("/proc/meminfo") as fh:
         for line in fh:
@@ -78,8 +150,13 @@ def run_one(engine: str, args, out: Path, src: str | None = None) -> dict:
     proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, env=env, cwd=src)
     peak_rss = peak_pss = 0.0
     avail0 = min_avail = _mem_available_mib()
+    seen: dict[int, tuple[str, float]] = {}
+    marks: dict[str, tuple[float, dict]] = {}
     while proc.poll() is None:
-        rss, pss = _mem_mib(_tree(proc.pid))
+        tree = _tree(proc.pid)
+        _cpu_by_pid(tree, seen, out / "logs")
+        _phases(out / "logs" / "clock.log", t0, marks, seen)
+        rss, pss = _mem_mib(tree)
         peak_rss, peak_pss = max(peak_rss, rss), max(peak_pss, pss)
         min_avail = min(min_avail, _mem_available_mib())
         time.sleep(0.25)
@@ -90,12 +167,25 @@ def run_one(engine: str, args, out: Path, src: str | None = None) -> dict:
         raise SystemExit(f"{engine} run failed: {err[-2000:]}")
     rep = json.loads((out / "report.json").read_text())
     cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+    kinds = _by_kind(seen)
+    rt = rep.get("runtime", {})
+    # ROS engine: wall and CPU per kind of the start (command start -> every process ready, step 0
+    # next), the steps (-> every node shut down after the last step) and the end (-> command exit)
+    phases = {}
+    if "ready" in marks and "shut_down" in marks:
+        (t1, c1), (t2, c2) = marks["ready"], marks["shut_down"]
+        phases = {"start": {"wall_s": round(t1, 1), "cpu_s": c1},
+                  "steps": {"wall_s": round(t2 - t1, 1),
+                            "cpu_s": {k: round(v - c1.get(k, 0.0), 1) for k, v in c2.items()}},
+                  "end": {"wall_s": round(wall - t2, 1),
+                          "cpu_s": {k: round(v - c2.get(k, 0.0), 1) for k, v in kinds.items()}}}
     return {"engine": engine, "wall_s": round(wall, 2), "real_time_factor": round(args.hours * 3600 / wall, 1),
             "peak_rss_sum_mib": round(peak_rss, 1), "peak_pss_mib": round(peak_pss, 1),
             "peak_mem_taken_mib": round(avail0 - min_avail, 1), "cpu_s": round(cpu, 1), "cpu_cores_avg": round(cpu / wall, 2),
             "value": rep["value"]["cumulative"], "observations": rep["observations"]["count"],
             "bundles_created": rep["dtn"].get("bundles_created"),
-            "bundles_delivered": rep["dtn"].get("bundles_delivered")}
+            "bundles_delivered": rep["dtn"].get("bundles_delivered"),
+            "steps": rt.get("steps"), "cpu_s_by_kind": kinds, "phases": phases}
 
 
 def main() -> int:

@@ -39,6 +39,7 @@ from bringup.cli.common import (
     overrides_of,
     scenario_from_args,
 )
+from bringup.cli.main import main as cli_main
 from bringup.cli.run_folder import RunFolder, json_text, write_text_atomic
 from bringup.engine.local import LocalEngine
 from bringup.engine.ros.factory import FACTORY, PREPARE
@@ -497,7 +498,8 @@ def _run_ros(world, world_path: Path, args, meta, bag_dir: Path, out: Path, rout
             prog.start()
         t0 = time.perf_counter()
         try:
-            res = launch(spec, out, progress=progress, domain_id=lease.domain_id, keys=keys)
+            # the hosts forked from this process, their code and kernels loaded once (fork_start.py)
+            res = launch(spec, out, progress=progress, domain_id=lease.domain_id, keys=keys, fork=cli_main)
         finally:
             if prog is not None:
                 prog.stop()

@@ -95,6 +95,7 @@ from pathlib import Path
 import msgspec
 
 from bringup.engine.keys import ENV_KEYS_DIGEST, KEYS_FILE_NAME, RunKeys
+from bringup.engine.ros.fork_start import fork_node, preload
 from bringup.engine.ros.lifeline import ENV_LAUNCHER_PID, ENV_RESTARTED
 from bringup.engine.ros.run_spec import CLOCK_ROLE, RunSpec
 from bringup.engine.ros.shm_cleanup import remove_unheld
@@ -367,10 +368,35 @@ def _prepare(spec: RunSpec, spec_path: Path, out_dir: Path, env: dict[str, str],
 Wrap = Callable[[str, list[str], dict[str, str]], tuple[list[str], dict[str, str]]]
 
 
+def _preload(spec: RunSpec, out_dir: Path, progress: Callable[[LaunchProgress], None] | None) -> str:
+    """``launch(fork=True)``: load in this process what the forked hosts share
+    (bringup/engine/ros/fork_start.py preload: the host code, the factory, the prepare hook for the
+    whole run). Returns "" or the run's one-line error."""
+    what = spec.prepare or spec.factory
+    if progress is not None:
+        progress(LaunchProgress(0, 0, 0, 0.0, status=f"preparing the run ({what})"))
+    t0 = time.monotonic()
+    try:
+        preload(spec)
+    except Exception as exc:  # noqa: BLE001 - the run's one-line error names the hook and the cause
+        return f"preparing the run ({what}) failed: {type(exc).__name__}: {exc}"
+    took = time.monotonic() - t0
+    with open(out_dir / "logs" / "prepare.log", "a") as fh:
+        fh.write(f"launcher: prepared in this process ({what}) in {took:.2f} s; hosts forked from it\n")
+    if progress is not None:
+        progress(LaunchProgress(0, 0, 0, 0.0, status=f"prepared in {took:.1f} s (logs/prepare.log)"))
+    return ""
+
+
 def launch(spec: RunSpec, out_dir: Path, *, progress: Callable[[LaunchProgress], None] | None = None,
            domain_id: int | None = None, python: str = sys.executable, wrap: Wrap | None = None,
-           keys: RunKeys | None = None) -> LaunchResult:
+           keys: RunKeys | None = None, fork: Callable[[list[str]], int] | None = None) -> LaunchResult:
     """Run the whole ROS-engine run described by ``spec``; returns when every child has exited.
+
+    ``fork``: the command line's ``main`` (bringup/cli/main.py): the host processes are forked from
+    this process, each running ``main(["node", ...])``, once it has loaded their code and the
+    prepare hook's kernels (bringup/engine/ros/fork_start.py), instead of each started as a new
+    interpreter; not with ``wrap``. The clock is always started as its own command.
 
     ``keys``: the run's keys when the spec names no ``keys_file`` (default: a new run key and the
     deployment's BPSec key, bringup/engine/keys.py); they are written to ``out_dir/run.keys`` (mode
@@ -405,6 +431,7 @@ def launch(spec: RunSpec, out_dir: Path, *, progress: Callable[[LaunchProgress],
 
     restarts: dict[str, int] = {}
     lingered: list[str] = []
+    forking = fork is not None and wrap is None
 
     def start(role: str, restarted: int = 0, **kw) -> _Child:
         log = out_dir / "logs" / f"{role}.log"
@@ -415,8 +442,12 @@ def launch(spec: RunSpec, out_dir: Path, *, progress: Callable[[LaunchProgress],
             cenv[ENV_RESTARTED] = str(restarted)
         if wrap is not None:
             argv, cenv = wrap(role, argv, cenv)
-        proc = subprocess.Popen(argv, env=cenv, cwd=str(REPO), stderr=fh, stdin=subprocess.DEVNULL, **kw)
-        fh.close()
+        if forking and role != CLOCK_ROLE:
+            fh.close()
+            proc = fork_node(argv[3:], cenv, log, str(REPO), fork)  # type: ignore[arg-type]
+        else:
+            proc = subprocess.Popen(argv, env=cenv, cwd=str(REPO), stderr=fh, stdin=subprocess.DEVNULL, **kw)
+            fh.close()
         (out_dir / "logs" / f"{role}.pid").write_text(f"{proc.pid}\n")
         return _Child(role, proc, log)
 
@@ -452,7 +483,11 @@ def launch(spec: RunSpec, out_dir: Path, *, progress: Callable[[LaunchProgress],
     stops = stop_on_signals()
     stops.__enter__()
     try:
-        if spec.prepare is not None:
+        if forking:
+            failed_prep = _preload(spec, out_dir, progress)
+            if failed_prep:
+                return LaunchResult(1, failed_prep, dom, out_dir, None, ["prepare"])
+        elif spec.prepare is not None:
             failed_prep = _prepare(spec, spec_path, out_dir, env, python, progress)
             if failed_prep:
                 return LaunchResult(1, failed_prep, dom, out_dir, None, ["prepare"])
