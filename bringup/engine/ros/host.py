@@ -14,7 +14,8 @@ their logical topic names (what they subscribe to and emit, and what their inbox
 the lockstep's counts (hellos' subscriptions, acks' ``sent``, publishers' matching) use the
 resolved names, which are what DDS and the recorder see. Every participant node declares the run's
 settings as read-only parameters (parameter services on), and every ``live_period_s`` of sim time
-the host publishes the participants' live state (bringup/engine/ros/live.py: fixes, /diagnostics).
+the host publishes the participants' live state to whoever subscribes (bringup/engine/ros/live.py:
+fixes, /diagnostics).
 Data topics are std_msgs/String carrying wire envelopes (msgs_json/wire.py), RELIABLE + KEEP_ALL;
 /sim/step and /sim/ack are RELIABLE + TRANSIENT_LOCAL (traps 3-4). Subscription callbacks only
 buffer envelopes; the step itself runs in one loop, participants in list order, each inbox sorted

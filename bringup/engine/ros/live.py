@@ -4,8 +4,9 @@ The bag has every visualisation message after the run; this module puts the same
 the run goes on, so RViz, Foxglove (foxglove_bridge / ROS 2 connection) or ``ros2 topic echo``
 attached to the run's ROS_DOMAIN_ID see it:
 
-* each host process (bringup/engine/ros/host.py), every ``[viz] period_s`` of sim time, for each of
-  its participants that has a ``live_state`` (msgs_json.envelope.LiveState; satellites and the ISL
+* each host process (bringup/engine/ros/host.py), every ``[viz] period_s`` of sim time while
+  someone subscribes (a topic with no subscriber gets nothing built: the fixes' publishers exist
+  from the start, so a viewer finds them), for each of its participants that has a ``live_state`` (msgs_json.envelope.LiveState; satellites and the ISL
   medium): a sensor_msgs/NavSatFix on the node's relative ``fix`` (``/<sat>/fix``), the same bytes
   the bag records for that instant (bringup/recording/viz_messages.py ``navsat_fixes_cdr``), and one
   diagnostic_msgs/DiagnosticArray on ``/diagnostics`` with a DiagnosticStatus per participant
@@ -103,27 +104,35 @@ class HostLive:
         self.period_ns = max(1, round(period_s * 1e9))
         self.next_ns = 0
         self.published = 0
+        self.skipped = 0  # periods due with no one subscribed
         self.diag = host.host_node.create_publisher(DiagnosticArray, DIAGNOSTICS,
                                                     qos_profile(topic_qos(DIAGNOSTICS, _DIAG_TYPE)))
-        self._fix_pubs: dict[str, object] = {}
         self._slots = [s for s in host.slots if callable(getattr(s.p, "live_state", None))]
+        # made now, not at the first fix: a viewer must find them to subscribe (see publish)
+        self._fix_pubs: dict[str, object] = {s.name: self._fix_pub(s) for s in self._slots if is_sat_name(s.name)}
 
     def _fix_pub(self, slot):
         """The satellite's NavSatFix publisher, on its node's relative ``fix`` (``/<sat>/fix``)."""
-        pub = self._fix_pubs.get(slot.name)
-        if pub is None:
-            pub = self._fix_pubs[slot.name] = slot.node.create_publisher(
-                NavSatFix, "fix", qos_profile(topic_qos(fix_topic(slot.name), NAVSAT_TYPE)))
-        return pub
+        return slot.node.create_publisher(NavSatFix, "fix", qos_profile(topic_qos(fix_topic(slot.name), NAVSAT_TYPE)))
 
     def publish(self, t_ns: int, *, final: bool = False) -> bool:
+        """The live state at ``t_ns`` when a period is due (or ``final``), to the topics someone
+        subscribes to; True when something was published."""
         if t_ns < self.next_ns and not final:
             return False
         self.next_ns = (t_ns // self.period_ns + 1) * self.period_ns
+        # nothing is built for topics no one subscribes to (the bag has the fixes from the clock)
+        diag_on = self.diag.get_subscription_count() > 0
+        fix_on = {name for name, pub in self._fix_pubs.items() if pub.get_subscription_count() > 0}
+        if not diag_on and not fix_on:
+            self.skipped += 1
+            return False
         stamp = self.epoch_ns + t_ns
         sec, nsec = divmod(stamp, 1_000_000_000)
         statuses = []
         for slot in self._slots:
+            if not diag_on and slot.name not in fix_on:
+                continue
             where = f"live_state at {t_ns}"
             try:
                 st = slot.p.live_state(t_ns)
@@ -132,22 +141,24 @@ class HostLive:
             st = check_live_state(slot.name, st, where)
             if st is None:
                 continue
-            if st.position_ecef_km is not None and is_sat_name(slot.name):
+            if st.position_ecef_km is not None and slot.name in fix_on:
                 cdr = navsat_fixes_cdr(np.asarray([st.position_ecef_km], dtype=float), stamp)[0]
-                self._fix_pub(slot).publish(cdr)
-            statuses.append(_status(slot.node.get_fully_qualified_name(), slot.name, st.level, st.message,
-                                    st.values))
-        h = self.host
-        values = {"participants": ",".join(s.name for s in h.slots), "duplicates_dropped": h.duplicates,
-                  "republished": h.republished, "steps_done": h.done_k + 1}
-        rejected = h.gate.rejections.counts()  # what the host let not in, by topic and reason
-        for topic, reasons in rejected.items():
-            for reason, n in reasons.items():
-                values[f"rejected.{reason}.{topic}"] = n
-        statuses.append(_status(h.host_node.get_fully_qualified_name(), h.role, 1 if rejected else 0,
-                                f"host of {len(h.slots)} participant(s)", values))
-        msg = DiagnosticArray(status=statuses)
-        msg.header.stamp.sec, msg.header.stamp.nanosec = sec, nsec
-        self.diag.publish(msg)
+                self._fix_pubs[slot.name].publish(cdr)
+            if diag_on:
+                statuses.append(_status(slot.node.get_fully_qualified_name(), slot.name, st.level, st.message,
+                                        st.values))
+        if diag_on:
+            h = self.host
+            values = {"participants": ",".join(s.name for s in h.slots), "duplicates_dropped": h.duplicates,
+                      "republished": h.republished, "steps_done": h.done_k + 1}
+            rejected = h.gate.rejections.counts()  # what the host let not in, by topic and reason
+            for topic, reasons in rejected.items():
+                for reason, n in reasons.items():
+                    values[f"rejected.{reason}.{topic}"] = n
+            statuses.append(_status(h.host_node.get_fully_qualified_name(), h.role, 1 if rejected else 0,
+                                    f"host of {len(h.slots)} participant(s)", values))
+            msg = DiagnosticArray(status=statuses)
+            msg.header.stamp.sec, msg.header.stamp.nanosec = sec, nsec
+            self.diag.publish(msg)
         self.published += 1
         return True
