@@ -104,11 +104,40 @@ def preload(spec, role_hint: str | None = None) -> None:
     import bringup.engine.ros.host  # noqa: F401 - loaded once for every child
     from bringup.engine.ros.run_spec import load_factory
 
+    _type_supports()
+
     load_factory(spec.factory)
     if spec.prepare is not None:
         load_factory(spec.prepare)(spec, role_hint)
     gc.collect()
     gc.freeze()
+
+
+def _type_supports() -> None:
+    """The C type supports of the messages and services every host's nodes use (each loaded by
+    rclpy at its first publisher, subscription or service: a library load and the rosidl parser's
+    import per process otherwise)."""
+    from diagnostic_msgs.msg import DiagnosticArray
+    from lifecycle_msgs.msg import TransitionEvent
+    from lifecycle_msgs.srv import ChangeState, GetAvailableStates, GetAvailableTransitions, GetState
+    from rcl_interfaces.msg import ParameterEvent
+    from rcl_interfaces.srv import (
+        DescribeParameters,
+        GetParameters,
+        GetParameterTypes,
+        ListParameters,
+        SetParameters,
+        SetParametersAtomically,
+    )
+    from rclpy.type_support import check_for_type_support
+    from rosgraph_msgs.msg import Clock
+    from sensor_msgs.msg import NavSatFix
+    from std_msgs.msg import String
+
+    for t in (String, Clock, DiagnosticArray, NavSatFix, TransitionEvent, ParameterEvent, ChangeState, GetState,
+              GetAvailableStates, GetAvailableTransitions, DescribeParameters, GetParameters, GetParameterTypes,
+              ListParameters, SetParameters, SetParametersAtomically):
+        check_for_type_support(t)
 
 
 def fork_node(argv: list[str], env: dict[str, str], log: Path, cwd: str,

@@ -62,6 +62,12 @@ same export a clock does at its end, and the result's message says where that pa
 Checkpoints of an earlier run in ``state_dir`` (``clock.sqlite``, ``<role>.state.sqlite``) are
 removed when a launch starts, so a new run never resumes an old one.
 
+Forked hosts: with ``fork`` (the command line's ``main``; `constellation run` passes it) the
+launcher loads the hosts' code and runs the prepare hook in its own process, then forks every host
+process from itself (bringup/engine/ros/fork_start.py; tests/ros/test_fork_start.py): the same
+command, environment, log and pid file, without each process paying the interpreter's start, the
+imports and the kernels' loading again. The clock and wrapped commands are started as commands.
+
 Multi-host: ``wrap(role, argv, env) -> (argv, env)`` rewrites each child's command and environment,
 e.g. ``ip netns exec NS ...`` with per-host ``ROS_STATIC_PEERS`` (tests/multihost).
 
