@@ -10,6 +10,13 @@ resident memory is sampled every 0.25 s from /proc (peak of the RSS sum and of t
 rusage after they exit (user + system, every process of the tree), wall time is measured around the
 child. The local engine is the baseline printed beside the ROS engine in the same run, and the two
 runs' headline figures are compared (they must be equal: same observations and deliveries).
+Where the CPU goes: ``cpu_s_by_kind`` sums each process's CPU (/proc/PID/stat, sampled) by kind -
+the ROS engine's clock, satellites, router, contacts (named by the run's ``logs/<role>.pid``
+files: forked hosts keep the launcher's command line), the launcher (the `constellation run`
+process), the launcher's ``--prepare`` process - and, for the ROS engine, ``phases`` splits wall
+and CPU into the start (until the clock's log says every process is ready: step 0 follows), the
+steps (until it says the nodes are shut down after the last step) and the end (until the command
+exits).
 Targets (issue 5): ros >= 60x real time (6 h in <= 6 min), local >= 1000x, total memory <= 4 GiB.
 """
 

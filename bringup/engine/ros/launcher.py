@@ -388,7 +388,7 @@ def _preload(spec: RunSpec, out_dir: Path, progress: Callable[[LaunchProgress], 
         return f"preparing the run ({what}) failed: {type(exc).__name__}: {exc}"
     took = time.monotonic() - t0
     with open(out_dir / "logs" / "prepare.log", "a") as fh:
-        fh.write(f"launcher: prepared in this process ({what}) in {took:.2f} s; hosts forked from it\n")
+        fh.write(f"node prepare: ready ({what} took {took:.2f} s in the launcher's process; hosts forked from it)\n")
     if progress is not None:
         progress(LaunchProgress(0, 0, 0, 0.0, status=f"prepared in {took:.1f} s (logs/prepare.log)"))
     return ""
