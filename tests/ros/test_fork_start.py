@@ -5,7 +5,8 @@ its one-line error in the role's log) and a signal as ``-signum``, as Popen does
 with subprocess.TimeoutExpired; a toy run whose hosts are forked records exactly the envelopes of
 the local engine for the same participants, its hosts being children of the launcher's process (the
 pid files) that loaded nothing of their own (the prepare hook ran once, in the launcher); a forked
-host killed with SIGKILL is named by its signal.
+host killed with SIGKILL is named by its signal; a prepare hook that fails in the launcher is named and
+no process is started.
 """
 
 from __future__ import annotations
@@ -113,3 +114,13 @@ def test_killed_forked_host_is_named(tmp_path):
     assert "process 'c2' killed by SIGKILL" in res.message, res.message
     assert "c2" in res.failed_roles
     assert time.monotonic() - t0 < 60
+
+
+def test_failed_preload_is_named_and_starts_nothing(tmp_path):
+    spec = RunSpec(factory="tests.ros.toy_participants:make", prepare="tests.ros.toy_participants:slow_prepare",
+                   roles=toy.roles(2, pingpong=False), horizon_ns=60 * S, max_step_ns=10 * S,
+                   extra={"n_counters": 2, "prepare_fail": "run"})
+    res = launch(spec, tmp_path / "run", fork=main)
+    assert not res.ok and res.failed_roles == ["prepare"]
+    assert "preparing the run" in res.message and "cannot get ready" in res.message, res.message
+    assert not (tmp_path / "run" / "logs" / "clock.log").exists()

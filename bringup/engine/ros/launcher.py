@@ -375,7 +375,7 @@ Wrap = Callable[[str, list[str], dict[str, str]], tuple[list[str], dict[str, str
 
 
 def _preload(spec: RunSpec, out_dir: Path, progress: Callable[[LaunchProgress], None] | None) -> str:
-    """``launch(fork=True)``: load in this process what the forked hosts share
+    """``launch(fork=main)``: load in this process what the forked hosts share
     (bringup/engine/ros/fork_start.py preload: the host code, the factory, the prepare hook for the
     whole run). Returns "" or the run's one-line error."""
     what = spec.prepare or spec.factory
