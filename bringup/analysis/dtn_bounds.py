@@ -37,7 +37,6 @@ random plans every run that delivers all its bundles within their TTLs has a mea
 from __future__ import annotations
 
 import numpy as np
-from scipy.optimize import linear_sum_assignment
 
 from orbit_clock.contact_plan import ContactPlan
 from sat_node.dtn.agent import ttl_s_for_priority
@@ -195,6 +194,8 @@ def _per_observation_bound(plan: ContactPlan, traffic: list[TrafficItem], bundle
         count += 1
     if not count:
         return None
+    from scipy.optimize import linear_sum_assignment  # here: only this bound needs scipy (its import is slow)
+
     by_src: dict[str, list] = {}
     for (src, _row, _t), (t, n) in obs.items():
         by_src.setdefault(src, []).append((t, n))

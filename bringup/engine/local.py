@@ -8,7 +8,7 @@ ROS run must match:
    the envelopes emitted during step k-1 (or by ``start`` for k = 0) on the topics it subscribes
    to, sorted by ``(t_ns, source, seq)``. Nothing emitted in step k is seen before step k+1. An
    event-driven participant is called only when its inbox is not empty or its wakeup is due
-   (contract ``must_step``).
+   (contract ``must_step``, applied inline).
 3. The next step comes from the contract's step rule (bringup/engine/contract.py ``next_step_ns``):
    the earliest wakeup, at most ``max_step_ns`` ahead, never past the horizon, at least 1 ns on;
    the last step is at ``horizon_ns``, then ``finish(horizon_ns)`` is called once and its emits are
@@ -57,7 +57,6 @@ import heapq
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from itertools import compress
 from operator import attrgetter
 
 from bringup.engine.contract import (
@@ -69,8 +68,6 @@ from bringup.engine.contract import (
     check_subscriptions,
     failed,
     is_event_driven,
-    must_step,
-    next_step_ns,
 )
 from bringup.engine.lifecycle import Lifecycle, LifecycleError
 from msgs_json.envelope import Envelope, Participant
@@ -276,21 +273,25 @@ class LocalEngine:
                 queued[i] = r.next_wakeup_ns
 
         steps = 0
+        heappop, heappush = heapq.heappop, heapq.heappush
         while True:
-            # deliver what was emitted in the previous step
-            inboxes: list[list[Envelope]] = [[] for _ in range(n)] if pending else None  # type: ignore[assignment]
+            # deliver what was emitted in the previous step: participant index -> its inbox (only
+            # the receivers have one)
+            inboxes: dict[int, list[Envelope]] = {}
             if pending:
                 pending.sort(key=_KEY)
                 if sink_many is not None:
                     sink_many(pending)
-                    for env in pending:
-                        for i in subs_get(env.topic, ()):
-                            inboxes[i].append(env)
                 else:
                     for env in pending:
                         emit_out(env)
-                        for i in subs_get(env.topic, ()):
-                            inboxes[i].append(env)
+                for env in pending:
+                    for i in subs_get(env.topic, ()):
+                        box = inboxes.get(i)
+                        if box is None:
+                            inboxes[i] = [env]
+                        else:
+                            box.append(env)
                 n_env += len(pending)
                 pending = []
             if on_step is not None:
@@ -300,10 +301,9 @@ class LocalEngine:
             order = range_n
             if any_driven:
                 called = set(always)
-                if inboxes:
-                    called.update(compress(range_n, inboxes))
+                called.update(inboxes)
                 while due and due[0][0] <= t:
-                    w, j = heapq.heappop(due)
+                    w, j = heappop(due)
                     if wake[j] == w:
                         called.add(j)
                     if queued[j] == w:
@@ -311,16 +311,20 @@ class LocalEngine:
                 order = sorted(called)
             try:
                 for i in order:
-                    box = inboxes[i] if inboxes else []
-                    if driven[i] and not box and not must_step(True, False, wake[i], t):
-                        continue  # an event-driven participant with nothing this step (contract rule 1)
+                    box = inboxes.get(i)
+                    if box is None:
+                        if driven[i]:
+                            w = wake[i]
+                            if w is None or w > t:
+                                continue  # an event-driven participant with nothing this step (contract rule 1)
+                        box = []
                     r = steps_fn[i](t, box)
                     check_result(names[i], r, where)
                     if r.emits:
                         pending.extend(self._stamp(names[i], r.emits, t, where))
                     w = r.next_wakeup_ns
                     if w is not None and driven[i] and queued[i] != w:
-                        heapq.heappush(due, (w, i))
+                        heappush(due, (w, i))
                         queued[i] = w
                     wake[i] = w
                     flight[i] = r.in_flight
@@ -336,7 +340,25 @@ class LocalEngine:
                     progress(Progress(t, horizon, steps, n_env, now - wall0, _sum(flight)))
             if t >= horizon:
                 break
-            t = next_step_ns(t, wake, max_step, horizon)
+            # the step rule (contract next_step_ns) over every wakeup: the event-driven participants'
+            # are the live entries of ``due`` (an entry is live while it is its participant's wakeup;
+            # stale ones are dropped here, and the participant is then known to have none queued),
+            # the others' are read one by one
+            nxt = min(t + max_step, horizon)
+            while due:
+                w, j = due[0]
+                if wake[j] != w:
+                    heappop(due)
+                    if queued[j] == w:
+                        queued[j] = None
+                    continue
+                nxt = min(nxt, w)
+                break
+            for j in always:
+                w = wake[j]
+                if w is not None and w < nxt:
+                    nxt = w
+            t = nxt if nxt > t else t + 1
 
         # finish: emits recorded, delivered to no one (the last step's emits too)
         for i, p in enumerate(ps):

@@ -58,8 +58,10 @@ DTN-alone runs' hand-worked latencies and conservation (tests/unit/test_dtn_alon
 
 from __future__ import annotations
 
+import bisect
 import heapq
 import itertools
+import math
 from collections import Counter
 from dataclasses import dataclass, field, replace
 from operator import attrgetter
@@ -71,9 +73,18 @@ from orbit_clock.contact_plan import ContactPlan, node_name, node_number
 
 from .bpsec import IntegrityError, add_bib
 from .rx_policy import FOREIGN_POLICIES, admit
-from .bpv7 import BIB_BLOCK, PAPER_EPOCH_DTN_MS, Bundle, BundleError, decode_bundle, encode_bundle, ipn
+from .bpv7 import (
+    BIB_BLOCK,
+    PAPER_EPOCH_DTN_MS,
+    Bundle,
+    BundleError,
+    decode_bundle,
+    encode_bundle,
+    ipn,
+    remember_sent,
+)
 from .cgr import ContactGraph
-from .routing_blocks import RECIPIENTS_BLOCK, peek_next_hops, set_routing
+from .routing_blocks import RECIPIENTS_BLOCK, peek_next_hops, remember_unicast_peek, set_routing
 from .store import BundleStore, StoredBundle
 
 __all__ = ["BundleAgent", "AgentConfig", "Transmission", "BundleEvent", "ttl_s_for_priority",
@@ -303,7 +314,7 @@ class BundleAgent:
         self._version = 0  # bumped whenever _parked changes (route memo key)
         self._route_memo: tuple = (-1, -1, {})  # (t_ns, version, {routing key: (Route | None, deadline_s)})
         self._expiry_heap: list = []
-        self._out_starts = self.graph.out_starts.get(node, np.zeros(0))
+        self._out_starts = self.graph.out_starts_l.get(node, [])
         n_contacts = len(self.graph.contacts)
         self._backlog_buf = np.zeros(n_contacts, dtype=np.float64)  # all 0 between queries (_route)
         self._excluded_buf = np.zeros(n_contacts, dtype=np.bool_)  # all False between queries
@@ -524,11 +535,12 @@ class BundleAgent:
     def _maybe_park(self, g: _Group, c: int, s: int) -> bool:
         """Park ``g`` if its best first contact ``c`` is not open at ``s``: until it opens, or until
         any other outgoing contact opens first (which may offer a better route)."""
-        start_ns = int(np.ceil(self.graph.start_s[c] * _NS))
+        start_ns = math.ceil(self.graph.start_l[c] * _NS)
         if start_ns <= s:
             return False
-        k = int(np.searchsorted(self._out_starts, s / _NS, side="right"))
-        nxt = int(np.ceil(self._out_starts[k] * _NS)) if k < len(self._out_starts) else start_ns
+        starts = self._out_starts
+        k = bisect.bisect_right(starts, s / _NS)
+        nxt = math.ceil(starts[k] * _NS) if k < len(starts) else start_ns
         self._park(g, c, max(s + 1, min(start_ns, nxt)))
         return True
 
@@ -673,11 +685,12 @@ class BundleAgent:
         h.bundle.previous_node = ipn(self.number, 0)
         dnum = node_number(h.dest)
         b = h.bundle
-        set_routing(b, [(dnum, h.priority, b.lifetime_ms)], {node_number(self.graph.contacts[c].dst): (dnum,)})
+        split = {node_number(self.graph.contacts[c].dst): (dnum,)}
+        set_routing(b, [(dnum, h.priority, b.lifetime_ms)], split)
         data = encode_bundle(h.bundle)
         bits = self._bits(data)
-        end = s + int(np.ceil(bits / self.graph.rate_bps[c] * _NS))
-        if end > self.graph.end_s[c] * _NS:  # rounding: the contact closes first - re-route without it
+        end = s + math.ceil(bits / self.graph.rate_l[c] * _NS)
+        if end > self.graph.end_l[c] * _NS:  # rounding: the contact closes first - re-route without it
             self._leave_group(h)
             h.excluded.add(c)
             del self._held[bid]
@@ -687,6 +700,9 @@ class BundleAgent:
         self._leave_group(h)
         del self._held[bid]
         h.contact = c
+        # the copies' readers (the medium, the nodes in view) in this process need not parse them
+        remember_sent(data, b)
+        remember_unicast_peek(data, b, split)
         tx = Transmission(data, self.graph.contacts[c].dst, s, end, bits, self.node, bid, c,
                           (self.graph.contacts[c].dst,))
         self._in_flight[bid] = (tx, h)

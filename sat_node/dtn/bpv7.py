@@ -27,7 +27,8 @@ every one-byte corruption of the primary block detected, and the RFC 9173 A.1 bu
 primary block is given in the RFC) decoding. Speed paths: :func:`decode_bundle`'s fast
 path for the common shape and the encoding caches give exactly what the plain paths give
 (tests/unit/test_speed_paths.py: fast vs plain decode on random bundles of every shape and on
-random corruptions of them, cached vs fresh encodings).
+random corruptions of them, cached vs fresh encodings, bytes a sender noted with
+:func:`remember_sent` vs their plain decode).
 """
 
 from __future__ import annotations
@@ -548,10 +549,64 @@ def decode_bundle(data: bytes) -> Bundle:
     byte string) takes :func:`_decode_fast`; whatever it does not vouch for goes through the plain
     checks of :func:`_decode_plain`, which give the reason of any defect."""
     if type(data) is bytes:
+        sent = _SENT.get(data)
+        if sent is not None:  # bytes this process encoded and remembered (remember_sent)
+            fields, blocks = sent
+            b = _new_bundle(Bundle)
+            b.__dict__.update(fields, blocks=list(blocks), _enc={})
+            return b
         b = _decode_fast(data)
         if b is not None:
             return b
     return _decode_plain(data)
+
+
+# bundle bytes this process encoded for a transmission -> the Bundle that decoding them gives, as
+# (fields, blocks): the copy is usually decoded by a node of the same process (a DTN-alone or local
+# run: the next hop), which then builds that Bundle without parsing. A pure function of the bytes,
+# like the caches below; kept only for the shape _decode_fast accepts (remember_sent), where the
+# Bundle is a function of the sender's fields alone (tests/unit/test_speed_paths.py compares it
+# with the plain decode of the same bytes on random bundles).
+_SENT: dict = {}
+
+
+def remember_sent(data: bytes, b: Bundle) -> None:
+    """Note that ``data`` is ``encode_bundle(b)`` (just made), so that :func:`decode_bundle` of those
+    bytes returns what parsing them would, without parsing. Bundles not of the common shape (a
+    fragment, block CRCs, a non-ipn EID, a creation time of 0, a known extension block twice or
+    unparsable) are not noted (their bytes are parsed)."""
+    if type(data) is not bytes or b.fragment is not None or type(b.flags) is not int or b.flags < 0 or b.flags & 1 \
+            or b.crc_type not in (CRC_16, CRC_32C) or b.payload_crc_type != CRC_NONE \
+            or type(b.payload) is not bytes or type(b.payload_flags) is not int or b.payload_flags < 0 \
+            or type(b.creation_ms) is not int or b.creation_ms <= 0 or type(b.seq) is not int or b.seq < 0 \
+            or type(b.lifetime_ms) is not int or b.lifetime_ms < 0:
+        return
+    dest, src, rpt = (_ipn_fast(_eid_cbor(e)) for e in (b.dest, b.src, b.report_to or b.src))
+    if dest is None or src is None or rpt is None:
+        return
+    numbers = {1}
+    known = set()
+    for blk in b.blocks:
+        t = blk.type
+        if blk.crc_type != CRC_NONE or type(blk.data) is not bytes or type(t) is not int or t < 0 \
+                or t == PAYLOAD_BLOCK or type(blk.number) is not int or blk.number <= 0 or blk.number in numbers \
+                or type(blk.flags) is not int or blk.flags < 0:
+            return
+        numbers.add(blk.number)
+        if t in _EXT_KNOWN:
+            if t in known:
+                return
+            known.add(t)
+    try:  # the known extension blocks parse (as the decoder checks)
+        b.previous_node, b.hop_count, b.age_ms  # noqa: B018 (validation by access)
+    except BundleError:
+        return
+    if len(_SENT) >= 4096:
+        _SENT.clear()
+    _SENT[data] = ({"dest": dest, "src": src, "creation_ms": b.creation_ms, "seq": b.seq,
+                    "lifetime_ms": b.lifetime_ms, "payload": b.payload, "report_to": rpt, "flags": b.flags,
+                    "crc_type": b.crc_type, "fragment": None, "payload_crc_type": CRC_NONE,
+                    "payload_flags": b.payload_flags, "primary_raw": encode_primary(b)}, tuple(b.blocks))
 
 
 # (block type, block-type-specific data) of known extension blocks whose data parsed (a handful of

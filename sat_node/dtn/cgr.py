@@ -297,6 +297,12 @@ class ContactGraph:
         # per node: its outgoing contacts' start times, sorted (when a new first hop appears)
         self.out_starts = {name: np.sort(self.start_s[self.out_idx[self.out_ptr[i]:self.out_ptr[i + 1]]])
                            for i, name in enumerate(self.node_names)}
+        # the same values as Python floats, for the agents' per-decision arithmetic (a numpy scalar
+        # operation costs several times a float's; the results are the same IEEE doubles)
+        self.start_l: list[float] = self.start_s.tolist()
+        self.end_l: list[float] = self.end_s.tolist()
+        self.rate_l: list[float] = self.rate_bps.tolist()
+        self.out_starts_l: dict[str, list[float]] = {name: a.tolist() for name, a in self.out_starts.items()}
 
     def outgoing(self, node: str) -> np.ndarray:
         i = self.node_index[node]

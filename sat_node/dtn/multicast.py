@@ -55,8 +55,10 @@ kill -9 with a partially served bundle (tests/faults/test_restart_unit.py).
 
 from __future__ import annotations
 
+import bisect
 import heapq
 import itertools
+import math
 from collections import Counter
 from dataclasses import dataclass, field
 from typing import Callable
@@ -67,7 +69,7 @@ from orbit_clock.contact_plan import ContactPlan, node_name, node_number
 
 from .agent import AgentConfig, BundleAgent, BundleEvent, Transmission, buffered_routes, ttl_s_for_priority
 from .bpsec import IntegrityError, add_bib
-from .bpv7 import Bundle, BundleError, decode_bundle, encode_bundle, ipn
+from .bpv7 import Bundle, BundleError, decode_bundle, encode_bundle, ipn, remember_sent
 from .cgr import ContactGraph
 from .rx_policy import admit
 from .routing_blocks import (IMC_BLOCK, NEXT_HOPS_BLOCK, OBSERVATION_GROUP, RECIPIENTS_BLOCK, next_hops_of,
@@ -152,7 +154,7 @@ class MulticastAgent:
         self._sent: list = []  # (Transmission) in send order, not settled
         self._parked_bits: dict[int, list] = {}  # contact -> bits waiting for it, by priority
         self._expiry: list = []  # (deadline_ns, bid, recipient number)
-        self._out_starts = self.graph.out_starts.get(node, np.zeros(0))
+        self._out_starts = self.graph.out_starts_l.get(node, [])
         n_contacts = len(self.graph.contacts)
         self._backlog_buf = np.zeros(n_contacts, dtype=np.float64)  # all 0 between queries (_route)
         self._excluded_buf = np.zeros(n_contacts, dtype=np.bool_)  # all False between queries
@@ -499,7 +501,7 @@ class MulticastAgent:
                 dropped = True
                 continue
             c = route.contacts[0]
-            start_ns = int(np.ceil(self.graph.start_s[c] * _NS))
+            start_ns = math.ceil(self.graph.start_l[c] * _NS)
             if start_ns > s:
                 wait_until = min(wait_until, start_ns)
                 p, bb = waits.get(c, (r.priority, 0))
@@ -511,8 +513,9 @@ class MulticastAgent:
             self._forget_if_done(h)
         if not groups:
             if h.queued:
-                k = int(np.searchsorted(self._out_starts, s / _NS, side="right"))
-                nxt = int(np.ceil(self._out_starts[k] * _NS)) if k < len(self._out_starts) else wait_until
+                starts = self._out_starts
+                k = bisect.bisect_right(starts, s / _NS)
+                nxt = math.ceil(starts[k] * _NS) if k < len(starts) else wait_until
                 self._park(h, max(s + 1, min(wait_until, nxt)), waits)
             else:
                 h.ver += 1
@@ -534,15 +537,16 @@ class MulticastAgent:
         set_routing(b, rcpts, split)
         data = encode_bundle(b)
         bits = self.config.bundle_bits + overhead_bits_of(rcpts, split)  # = overhead_bits(data), not parsed
-        rate = min(self.graph.rate_bps[c] for c, _rs in groups.values())
-        end = s + int(np.ceil(bits / rate * _NS))
-        late = [c for c, _rs in groups.values() if end > self.graph.end_s[c] * _NS]
+        rate = min(self.graph.rate_l[c] for c, _rs in groups.values())
+        end = s + math.ceil(bits / rate * _NS)
+        late = [c for c, _rs in groups.values() if end > self.graph.end_l[c] * _NS]
         if late:  # rounding: a contact closes first - route again without it
             h.excluded.update(late)
             self._requeue(h, s)
             return None
         for r in served:
             del h.queued[r.num]
+        remember_sent(data, b)  # the next hops in this process decode the copy without parsing it
         h.flying[s] = {nh: rs for nh, (_c, rs) in groups.items()}
         h.tx_contact[s] = {nh: c for nh, (c, _rs) in groups.items()}
         nhs = tuple(sorted(groups, key=node_number))

@@ -231,6 +231,25 @@ def _peek(data: bytes) -> tuple[tuple[int, ...], int]:
 _ROUTING = frozenset((IMC_BLOCK, RECIPIENTS_BLOCK, NEXT_HOPS_BLOCK))
 
 
+def remember_unicast_peek(data: bytes, b: Bundle, split: dict[int, tuple[int, ...]]) -> None:
+    """Note what :func:`_peek` of ``data`` gives, ``data`` being the encoding of ``b`` just after
+    ``set_routing(b, recipients, split)``: its next hops are ``split``'s (ascending, as written) and,
+    without an IMC block, its overhead is 0 - so the medium and the nodes in view need not parse the
+    copy. Not noted when ``b`` has an IMC block or a routing block twice (then it is parsed)."""
+    if type(data) is not bytes:
+        return
+    seen = set()
+    for blk in b.blocks:
+        t = blk.type
+        if t in _ROUTING:
+            if t == IMC_BLOCK or t in seen:
+                return
+            seen.add(t)
+    if NEXT_HOPS_BLOCK not in seen:
+        return
+    _memo(_PEEK, data, (tuple(sorted(int(nh) for nh in split)), 0))
+
+
 def peek_next_hops(data: bytes) -> tuple[int, ...]:
     """The next hops the copy names (ascending; () without a next-hops block), without checking the
     rest. Raises BundleError if the bytes are not a bundle-shaped CBOR array."""

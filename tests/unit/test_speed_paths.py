@@ -280,6 +280,47 @@ def test_fast_decode_equals_plain_decode_on_random_bundles_and_corruptions():
     assert n_fast > 100  # the fast path is really taken on the common shape
 
 
+def test_remembered_sent_bytes_decode_as_parsed_ones():
+    """decode_bundle of bytes a sender noted (remember_sent) returns what parsing them returns (fields,
+    blocks, primary block bytes), on random bundles of every shape - the uncommon ones are not noted
+    - and a fresh Bundle each time (a receiver changes its copy); remember_unicast_peek notes what
+    the medium's peek parses."""
+    from sat_node.dtn import bpv7, routing_blocks
+    from sat_node.dtn.routing_blocks import set_routing
+
+    noted = peeks = 0
+    for k, b in enumerate(_random_bundles(400, 17)):
+        if k % 3 == 0 and b.block(routing_blocks.RECIPIENTS_BLOCK) is not None:
+            split = {11 + k % 20: (b.dest[0],)}
+            set_routing(b, [(b.dest[0], 1 + k % 15, b.lifetime_ms)], split)
+        else:
+            split = None
+        raw = bpv7.encode_bundle(b)
+        want = _decode_outcome(bpv7._decode_plain, raw)
+        bpv7._SENT.clear()
+        bpv7.remember_sent(raw, b)
+        if raw in bpv7._SENT:
+            noted += 1
+            assert want[0] == "ok"
+        got = bpv7.decode_bundle(raw)
+        assert _decode_outcome(bpv7.decode_bundle, raw) == want
+        again = bpv7.decode_bundle(raw)
+        assert again is not got and again.blocks is not got.blocks and again._enc is not got._enc
+        if split is not None:
+            routing_blocks._PEEK.clear()
+            try:
+                parsed = routing_blocks._peek(raw)
+            except bpv7.BundleError:  # e.g. a routing block twice: never noted
+                parsed = None
+            routing_blocks._PEEK.clear()
+            routing_blocks.remember_unicast_peek(raw, b, split)
+            assert routing_blocks._PEEK.get(raw, parsed) == parsed
+            peeks += raw in routing_blocks._PEEK
+    bpv7._SENT.clear()
+    routing_blocks._PEEK.clear()
+    assert noted > 60 and peeks > 20  # the common shape is noted (the others: creation time 0, fragments...)
+
+
 def test_block_and_primary_encodings_from_caches_equal_fresh_ones():
     import cbor2
 
