@@ -21,7 +21,7 @@ How we know it is right: tests/unit/test_link.py on drawn plans (copies to every
 arrival = end + light time, a contact ending mid-transmission fails, a cut contact fails), and
 tests/unit/test_speed_paths.py (open_contacts, which checks a sender's long contacts one by one and
 skips short ones that started more than its longest short contact ago, equals the full scan on a
-random plan).
+random plan; so does the memo of the open contacts that transmit reads, on random transmission times).
 """
 
 from __future__ import annotations
@@ -72,6 +72,11 @@ class LinkModel:
             self._short[s] = ([c for _i, c in short], [c.start_s for _i, c in short], [i for i, _c in short],
                               max((c.end_s - c.start_s for _i, c in short), default=0.0) + 1.0)
             self._long[s] = [(i, c) for i, c in enumerate(cs) if c.end_s - c.start_s > _LONG_S]
+        # open_contacts at the sender's last transmission, with the interval [from, until) over which
+        # that set stays the same (until: the first of its contacts to end or of the sender's
+        # contacts to start after it): a radio sends many bundles between two changes
+        self._open_memo: dict[str, tuple[float, float, list[Contact]]] = {}
+        self._starts = {s: sorted(c.start_s for c in cs) for s, cs in self._by_src.items()}
         self._busy_until_ns: dict[str, int] = {}
         self.counters = {"tx": 0, "ok": 0, "no_contact": 0, "contact_ended": 0, "radio_busy": 0, "copies": 0}
         self.air_ns: dict[str, int] = {}  # sender -> time on air [ns] (every transmission that went out)
@@ -91,6 +96,18 @@ class LinkModel:
             found = sorted(found + longs, key=lambda x: x[0])
         return [c for _i, c in found]
 
+    def _open_at(self, sender: str, t_s: float) -> list[Contact]:
+        """:meth:`open_contacts` (the list is shared: read only), from the memo while it holds."""
+        got = self._open_memo.get(sender)
+        if got is not None and got[0] <= t_s < got[1]:
+            return got[2]
+        found = self.open_contacts(sender, t_s)
+        starts = self._starts.get(sender, ())
+        k = bisect.bisect_right(starts, t_s)
+        until = min([starts[k] if k < len(starts) else float("inf")] + [c.end_s for c in found])
+        self._open_memo[sender] = (t_s, until, found)
+        return found
+
     def transmit(self, sender: str, next_hop, start_ns: int, bits: int) -> LinkOutcome:
         """One transmission to ``next_hop`` (a node name, or a sequence of them for a multicast one)."""
         self.counters["tx"] += 1
@@ -99,7 +116,7 @@ class LinkModel:
             self.counters["radio_busy"] += 1
             return LinkOutcome(False, start_ns, [], "radio_busy", {h: "radio_busy" for h in hops})
         t_s = start_ns / _NS
-        open_now = self.open_contacts(sender, t_s)
+        open_now = self._open_at(sender, t_s)
         links = {}
         for h in hops:
             mine = [c for c in open_now if c.dst == h]

@@ -381,6 +381,17 @@ class ContactGraph:
         (the same routes as one :meth:`route` each: :func:`_dijkstra`'s docstring says why). The
         other arguments are :meth:`route`'s, shared by every destination. With a hop tolerance the
         choice at one destination depends on the search stopping there: one search each then."""
+        if len(dests) == 1:  # the agents' common query: what the general path below does for one
+            d, deadline_s = dests[0]
+            if source == d:
+                raise ValueError(f"route from {source} to itself")
+            ni = self.node_index
+            if source not in ni or d not in ni:
+                return [None]
+            di, dl = ni[d], float(deadline_s)
+            self._run(source, (di,), t_s, bits, backlog_bits, dl, residual_bits, excluded, excluded_nodes,
+                      first_backlog_bits, hop_tolerance_s)
+            return [self._route_to(source, di, t_s, bits, backlog_bits, dl, first_backlog_bits)]
         out: list[Route | None] = [None] * len(dests)
         idx = []  # (position in dests, node index, deadline)
         for k, (d, deadline_s) in enumerate(dests):

@@ -84,10 +84,26 @@ def _memo(cache: dict, data: bytes, value) -> None:
 
 
 def encode_recipients(recipients) -> bytes:
+    recipients = tuple(recipients)
+    try:  # a few distinct recipient lists per run: each encoded once (equal inputs, equal ints, equal bytes)
+        got = _ENC_RCPT.get(recipients)
+    except TypeError:  # an unhashable item: encoded as it is
+        got = _ENC_RCPT_NONE
+    if got is not None and got is not _ENC_RCPT_NONE:
+        return got
     flat = []
     for node, prio, life in sorted(recipients):
         flat += [int(node), int(prio), int(life)]
-    return cbor2.dumps(flat)
+    out = cbor2.dumps(flat)
+    if got is None:
+        _memo(_ENC_RCPT, recipients, out)
+    return out
+
+
+# recipient lists / next-hop splits -> their encoding (the encoders' inputs: a handful per run)
+_ENC_RCPT: dict = {}
+_ENC_SPLIT: dict = {}
+_ENC_RCPT_NONE = object()
 
 
 def parse_recipients(data: bytes) -> tuple[Recipient, ...]:
@@ -108,10 +124,20 @@ def parse_recipients(data: bytes) -> tuple[Recipient, ...]:
 
 
 def encode_next_hops(split: dict[int, tuple[int, ...]]) -> bytes:
+    key = tuple(split.items())
+    try:
+        got = _ENC_SPLIT.get(key)
+    except TypeError:  # e.g. lists of recipients: encoded as they are
+        got = _ENC_RCPT_NONE
+    if got is not None and got is not _ENC_RCPT_NONE:
+        return got
     flat: list = []
     for nh in sorted(split):
         flat += [int(nh), sorted(int(r) for r in split[nh])]
-    return cbor2.dumps(flat)
+    out = cbor2.dumps(flat)
+    if got is None:
+        _memo(_ENC_SPLIT, key, out)
+    return out
 
 
 def parse_next_hops(data: bytes) -> tuple[tuple[int, tuple[int, ...]], ...]:

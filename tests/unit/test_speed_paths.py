@@ -321,6 +321,28 @@ def test_remembered_sent_bytes_decode_as_parsed_ones():
     assert noted > 60 and peeks > 20  # the common shape is noted (the others: creation time 0, fragments...)
 
 
+def test_memoised_routing_encoders_equal_fresh_encodings():
+    """encode_recipients / encode_next_hops from their memo give the bytes a fresh encoding gives,
+    whatever the order or the int-like types of the input (and lists, unhashable, still encode)."""
+    import cbor2
+
+    from sat_node.dtn import routing_blocks as rb
+
+    rng = random.Random(5)
+    for _ in range(600):
+        rcpts = [(rng.randrange(11, 40), rng.randrange(1, 16), rng.choice([900000, 1800000, 3000000]))
+                 for _ in range(rng.randrange(1, 4))]
+        split = {rng.randrange(11, 40): tuple(r[0] for r in rcpts[: rng.randrange(1, len(rcpts) + 1)])}
+        want_r = cbor2.dumps([x for r in sorted(rcpts) for x in r])
+        want_s = cbor2.dumps([x for nh in sorted(split) for x in (nh, sorted(split[nh]))])
+        for form in (rcpts, tuple(reversed(rcpts)), [list(r) for r in rcpts], [(True if r[0] == 1 else r[0], *r[1:])
+                                                                            for r in rcpts]):
+            assert rb.encode_recipients(form) == want_r
+        assert rb.encode_next_hops(split) == want_s
+        assert rb.encode_next_hops({k: list(v) for k, v in split.items()}) == want_s
+    assert rb._ENC_RCPT and rb._ENC_SPLIT
+
+
 def test_block_and_primary_encodings_from_caches_equal_fresh_ones():
     import cbor2
 
@@ -375,6 +397,16 @@ def test_open_contacts_window_equals_full_scan():
         sender = rng.choice(["sat_11", "sat_12", "sat_13", "sat_14", "sat_99"])
         full = [c for c in lm._by_src.get(sender, []) if c.start_s <= t and c.end_s > t]
         assert lm.open_contacts(sender, t) == full
+    # the memo transmit reads: mostly increasing times per sender (a radio's), with steps back
+    for sender in ["sat_11", "sat_12", "sat_99"]:
+        t = -5.0
+        hits = 0
+        for _ in range(3000):
+            t = t + rng.choice([0.0, 0.5, 2.0, 40.0, 300.0]) if rng.random() < 0.95 else rng.uniform(-10, 24000)
+            memo = lm._open_memo.get(sender)
+            hits += memo is not None and memo[0] <= t < memo[1]
+            assert lm._open_at(sender, t) == [c for c in lm._by_src.get(sender, []) if c.start_s <= t < c.end_s]
+        assert hits > 100
 
 
 def test_memoised_qos_parse_equals_rosbags_parse(tmp_path):
