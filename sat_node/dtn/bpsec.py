@@ -13,7 +13,8 @@ constellation's shared key, given to :func:`add_bib` / :func:`verify_bib`.
 How we know it is right: RFC 9173 appendix A.1 (key 1a2b...1a2b, HMAC 512, scope 0, payload "Ready to
 generate a 32-byte payload"): same IPPT bytes and the same 64-byte MAC as the RFC
 (tests/unit/test_bpsec.py); a flipped payload bit, a wrong key and a truncated BIB all fail, also
-after the same BIB bytes were parsed once and cached (tests/unit/test_speed_paths.py).
+after the same BIB bytes were parsed once and cached, and what add_bib leaves in those caches equals
+the parse and a fresh check (tests/unit/test_speed_paths.py).
 """
 
 from __future__ import annotations
@@ -93,8 +94,37 @@ def add_bib(b: Bundle, key: bytes, security_source: tuple[int, int], *, sha_vari
     if params:
         seq.append(params)
     seq.append(results)
-    b.blocks.insert(0, CanonicalBlock(BIB_BLOCK, block_number, flags, 0, b"".join(cbor2.dumps(x) for x in seq)))
+    data = b"".join(cbor2.dumps(x) for x in seq)
+    blk = CanonicalBlock(BIB_BLOCK, block_number, flags, 0, data)
+    b.blocks.insert(0, blk)
+    _remember_made(b, blk, key, targets, params, security_source, results, scope, sha_variant)
     return b
+
+
+def _remember_made(b: Bundle, blk: CanonicalBlock, key: bytes, targets, params, source, results, scope: int,
+                   variant: int) -> None:
+    """The caches verify_bib reads, for a BIB just made: its parse (what _parse_asb_plain gives for
+    these bytes, built from what was encoded) and its MACs as checked (they were computed from these
+    very inputs, so checking them gives True). Only for plain ints and an ipn source; checked equal to
+    the parse and to a fresh check in tests/unit/test_speed_paths.py."""
+    if type(blk.data) is not bytes or not all(type(t) is int for t in targets) \
+            or not (type(source) is tuple and len(source) == 2 and all(type(x) is int and x >= 0 for x in source)) \
+            or not all(type(x) is int for p in params for x in p):
+        return
+    if len(_ASB) >= 4096:
+        _ASB.clear()
+    _ASB[blk.data] = (list(targets), BIB_HMAC_SHA2, source, {p[0]: p[1] for p in params}, results)
+    for t in targets:
+        memo = _verified_key(b, blk, key, t, scope, variant)
+        if len(_VERIFIED) >= 8192:
+            _VERIFIED.clear()
+        _VERIFIED.add(memo)
+
+
+def _verified_key(b: Bundle, blk: CanonicalBlock, key: bytes, t: int, scope: int, variant: int) -> tuple:
+    """Every input of a BIB's MAC over target ``t`` (verify_bib's memo key)."""
+    return (key, blk.data, blk.number, blk.flags, scope, variant, t, encode_primary(b) if scope & 1 else b"",
+            _target(b, t))
 
 
 # BIB block-type-specific data -> its parse (a pure function of the bytes; a bundle's BIB is the same at
@@ -153,8 +183,7 @@ def verify_bib(b: Bundle, key: bytes, *, required_targets: tuple[int, ...] = (1,
                 raise IntegrityError(f"BIB: no HMAC result for target {t}")
             # every input of the MAC: a bundle's BIB, primary block and payload are the same at every
             # hop, so a process that checked them once (N agents in one process) need not again
-            memo = (key, blk.data, blk.number, blk.flags, scope, variant, t, encode_primary(b) if scope & 1 else b"",
-                    _target(b, t)) if type(blk.data) is bytes else None
+            memo = _verified_key(b, blk, key, t, scope, variant) if type(blk.data) is bytes else None
             if memo is None or memo not in _VERIFIED:
                 want = hmac.digest(key, ippt(b, t, scope, (blk.type, blk.number, blk.flags)), SHA_VARIANTS[variant])
                 if not hmac.compare_digest(want, macs[0]):

@@ -561,6 +561,23 @@ def decode_bundle(data: bytes) -> Bundle:
     return _decode_plain(data)
 
 
+def _decoded_eid(eid):
+    """What the decoder reads back from ``_eid_cbor(eid)`` (None: not the fast path's kind)."""
+    key = None
+    if (type(eid) is tuple or type(eid) is Imc) and len(eid) == 2 and type(eid[0]) is int and type(eid[1]) is int:
+        key = (type(eid) is Imc, eid[0], eid[1])  # (an Imc equals the tuple of its numbers: told apart here)
+        got = _EID_DECODED.get(key)
+        if got is not None:
+            return got
+    got = _ipn_fast(_eid_cbor(eid))
+    if got is not None and key is not None and len(_EID_DECODED) < 4096:
+        _EID_DECODED[key] = got
+    return got
+
+
+_EID_DECODED: dict = {}
+
+
 # bundle bytes this process encoded for a transmission -> the Bundle that decoding them gives, as
 # (fields, blocks): the copy is usually decoded by a node of the same process (a DTN-alone or local
 # run: the next hop), which then builds that Bundle without parsing. A pure function of the bytes,
@@ -581,7 +598,7 @@ def remember_sent(data: bytes, b: Bundle) -> None:
             or type(b.creation_ms) is not int or b.creation_ms <= 0 or type(b.seq) is not int or b.seq < 0 \
             or type(b.lifetime_ms) is not int or b.lifetime_ms < 0:
         return
-    dest, src, rpt = (_ipn_fast(_eid_cbor(e)) for e in (b.dest, b.src, b.report_to or b.src))
+    dest, src, rpt = _decoded_eid(b.dest), _decoded_eid(b.src), _decoded_eid(b.report_to or b.src)
     if dest is None or src is None or rpt is None:
         return
     numbers = {1}
@@ -593,14 +610,10 @@ def remember_sent(data: bytes, b: Bundle) -> None:
                 or type(blk.flags) is not int or blk.flags < 0:
             return
         numbers.add(blk.number)
-        if t in _EXT_KNOWN:
-            if t in known:
+        if t in _EXT_KNOWN:  # a known extension block: one of each, with data already seen to parse
+            if t in known or (t, blk.data) not in _EXT_OK:
                 return
             known.add(t)
-    try:  # the known extension blocks parse (as the decoder checks)
-        b.previous_node, b.hop_count, b.age_ms  # noqa: B018 (validation by access)
-    except BundleError:
-        return
     if len(_SENT) >= 4096:
         _SENT.clear()
     _SENT[data] = ({"dest": dest, "src": src, "creation_ms": b.creation_ms, "seq": b.seq,

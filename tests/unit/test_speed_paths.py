@@ -380,6 +380,48 @@ def test_bib_verify_with_parse_cache_still_rejects():
             verify_bib(c, b"k" * 32)
 
 
+def test_bib_caches_filled_when_made_equal_parse_and_check():
+    """What add_bib leaves in verify_bib's caches (the BIB's parse, its MACs as checked) is what
+    parsing its bytes gives and what a fresh check says (also for other variants and scopes); a
+    changed payload, primary block or key is still checked, and fails."""
+    import dataclasses
+
+    import pytest
+
+    from sat_node.dtn import bpsec
+    from sat_node.dtn.bpv7 import decode_bundle, encode_bundle
+
+    rng = random.Random(21)
+    made = 0
+    for b in _random_bundles(120, 23):
+        bpsec._ASB.clear()
+        bpsec._VERIFIED.clear()
+        variant, scope = rng.choice([(6, 7), (6, 7), (5, 1), (7, 6), (6, 0)])
+        bpsec.add_bib(b, b"k" * 32, (b.src[0], 0), sha_variant=variant, scope=scope)
+        blk = b.block(11)
+        if blk.data in bpsec._ASB:
+            made += 1
+            assert bpsec._ASB[blk.data] == bpsec._parse_asb_plain(blk.data)
+            assert len(bpsec._VERIFIED) == 1
+        raw = encode_bundle(b)
+        remembered = set(bpsec._VERIFIED)
+        bpsec._VERIFIED.clear()
+        bpsec.verify_bib(decode_bundle(raw), b"k" * 32)  # a fresh check: passes, and notes the same inputs
+        assert remembered <= bpsec._VERIFIED
+        bpsec._VERIFIED |= remembered
+        with pytest.raises(bpsec.IntegrityError):
+            bpsec.verify_bib(decode_bundle(raw), b"x" * 32)
+        c = decode_bundle(raw)
+        c.payload = c.payload + b"!"
+        with pytest.raises(bpsec.IntegrityError):
+            bpsec.verify_bib(c, b"k" * 32)
+        if scope & 1:
+            c = dataclasses.replace(decode_bundle(raw), seq=b.seq + 1, primary_raw=None)
+            with pytest.raises(bpsec.IntegrityError):
+                bpsec.verify_bib(c, b"k" * 32)
+    assert made > 100
+
+
 def test_open_contacts_window_equals_full_scan():
     from dtn_router.link import LinkModel
     from orbit_clock.contact_plan import Contact, ContactPlan
