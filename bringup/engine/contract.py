@@ -156,7 +156,18 @@ def must_step(event_driven: bool, has_inbox: bool, wakeup_ns: int | None, t_ns: 
 
 
 def failed(name: str, where: str, exc: BaseException) -> EngineError:
-    """The error for an exception ``exc`` raised by participant ``name`` in ``where``."""
+    """The error for an exception ``exc`` raised by participant ``name`` in ``where``.
+
+    A stop signal that arrived inside compiled code comes out as another exception with the
+    interrupt as its cause (CPython: "SystemError: ... returned a result with an exception set"):
+    then the interrupt itself is raised here, so the run is stopped, not failed
+    (tests/unit/test_stop_signals.py)."""
+    seen, cause = set(), exc
+    while cause is not None and id(cause) not in seen:
+        if isinstance(cause, KeyboardInterrupt):
+            raise cause
+        seen.add(id(cause))
+        cause = cause.__cause__ or cause.__context__
     return EngineError(f"{name} failed in {where}: {type(exc).__name__}: {exc}")
 
 

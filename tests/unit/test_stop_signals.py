@@ -76,3 +76,24 @@ def test_the_earlier_handlers_come_back():
         _drop_signal_in_finalizer()
     assert signal.getsignal(signal.SIGTERM) is before
     raise_pending()  # (nothing pending outside the block)
+
+
+def test_stop_inside_compiled_code_stops_the_run_rather_than_failing_it():
+    """A signal handled while numba's dispatcher runs leaves "SystemError: ... returned a result
+    with an exception set" with the interrupt as its cause (seen in a local run stopped by SIGTERM):
+    the engine's error for a participant raises the interrupt itself."""
+    from bringup.engine.contract import EngineError, failed
+
+    stop = Interrupted(signal.SIGTERM)
+    try:
+        try:
+            raise stop
+        except Interrupted as inner:
+            raise SystemError("CPUDispatcher(<function dp_states>) returned a result with an exception set") \
+                from inner
+    except SystemError as exc:
+        with pytest.raises(Interrupted) as got:
+            failed("sat_33", "step at 3600000000000", exc)
+    assert got.value is stop
+    plain = failed("sat_33", "step", ValueError("bad"))
+    assert isinstance(plain, EngineError) and "sat_33 failed in step: ValueError: bad" in str(plain)
