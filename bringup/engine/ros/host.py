@@ -343,9 +343,13 @@ class ParticipantHost(HostLifecycle):
                 self._hello()
 
     def _hello(self) -> None:
+        """Say hello: at start, and again after a restart while envelopes are missing. ``resume_k``
+        is the last step this host has done and checkpointed - the checkpoint it restarted from
+        at first, then each step it has run since (a restarted host that waits for envelopes many
+        steps later is not one whose state is lost: tests/ros/test_rejoin_hello.py)."""
         subs_count = {topic: len(boxes) for topic, boxes in self.inboxes_by_topic.items()}
         self._ack(k=0, t_ns=0, hello=True, participants=[s.name for s in self.slots], subscriptions=subs_count,
-                  resume_k=self.resume_k)
+                  resume_k=max(self.resume_k, self.done_k) if self.resume_k >= 0 else self.resume_k)
 
     def _publisher(self, slot: Slot, topic: str):
         pub = slot.pubs.get(topic)
