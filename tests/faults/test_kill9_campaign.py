@@ -125,11 +125,13 @@ def test_kill9_campaign_every_report_equals_the_clean_run(clean, tmp_path):
             # an instant while the run goes on (the clean run took ref_wall from the same point to its end)
             delay = rng.uniform(0.5, max(1.0, 0.85 * ref_wall))
             time.sleep(delay)
+            killed = False
             if proc.poll() is None:
-                os.kill(int((out / "logs" / f"{victim}.pid").read_text()), signal.SIGKILL)
-                killed = True
-            else:
-                killed = False
+                try:
+                    os.kill(int((out / "logs" / f"{victim}.pid").read_text()), signal.SIGKILL)
+                    killed = True
+                except ProcessLookupError:  # (the victim had already finished: the run is ending; drawn again)
+                    pass
             err = proc.communicate(timeout=1800)[1]
         finally:
             if proc.poll() is None:
