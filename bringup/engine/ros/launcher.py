@@ -454,7 +454,10 @@ def launch(spec: RunSpec, out_dir: Path, *, progress: Callable[[LaunchProgress],
         else:
             proc = subprocess.Popen(argv, env=cenv, cwd=str(REPO), stderr=fh, stdin=subprocess.DEVNULL, **kw)
             fh.close()
-        (out_dir / "logs" / f"{role}.pid").write_text(f"{proc.pid}\n")
+        # (written whole or not at all: a tool reading the pid files while the run starts never sees an empty one)
+        pid_tmp = out_dir / "logs" / f".{role}.pid.tmp"
+        pid_tmp.write_text(f"{proc.pid}\n")
+        os.replace(pid_tmp, out_dir / "logs" / f"{role}.pid")
         return _Child(role, proc, log)
 
     def read_progress(stream) -> None:
