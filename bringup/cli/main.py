@@ -24,11 +24,11 @@ import argparse
 import atexit
 import importlib
 import math
-import os
 import sys
 from collections.abc import Iterable
 
 from bringup.errors import UserError, os_error_line
+from bringup.process_end import exit_now
 from bringup.scenario.config import ScenarioError
 from bringup.scenario.provenance import version
 from bringup.stop_signals import exit_code, signal_name
@@ -190,12 +190,7 @@ def entry() -> None:
     if _fast_exit and sys.getprofile() is None and sys.gettrace() is None:  # (profilers, coverage: their
         # results are written at interpreter exit)
         atexit._run_exitfuncs()
-        for stream in (sys.stdout, sys.stderr):
-            try:
-                stream.flush()
-            except (OSError, ValueError):
-                pass
-        os._exit(code)
+        exit_now(code)
     sys.exit(code)
 
 

@@ -47,6 +47,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 from bringup.stop_signals import STOP_SIGNALS
+from bringup.process_end import exit_now
 
 __all__ = ["ForkedProcess", "fork_node", "preload"]
 
@@ -182,9 +183,4 @@ def fork_node(argv: list[str], env: dict[str, str], log: Path, cwd: str,
         traceback.print_exc()
         code = 1
     finally:
-        for stream in (sys.stdout, sys.stderr):
-            try:
-                stream.flush()
-            except (OSError, ValueError):
-                pass
-        os._exit(code)
+        exit_now(code)

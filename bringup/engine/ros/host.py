@@ -69,7 +69,6 @@ tests/ros/test_lifecycle_run.py: the nodes' states read through their lifecycle 
 from __future__ import annotations
 
 import faulthandler
-import os
 import signal
 import sys
 import time
@@ -118,6 +117,7 @@ from bringup.engine.ros.host_lifecycle import HostError, HostLifecycle, ManagedN
 from bringup.engine.ros.live import HostLive
 from bringup.engine.ros.naming import node_name_and_namespace, ros_topic_name
 from bringup.engine.ros.profiling import dump as dump_profile
+from bringup import process_end
 from bringup.stop_signals import STOP_SIGNALS
 from msgs_json.envelope import Envelope, Participant, StepResult
 from msgs_json.wire import string_cdr
@@ -558,12 +558,7 @@ def exit_now(code: int) -> None:
     (they drop it at lease expiry), so the process skips it: stdout/stderr flushed, ``os._exit``.
     A profile started with ``AGILE_DTN_PROFILE_DIR`` (bringup/engine/ros/profiling.py) is written first."""
     dump_profile()
-    for stream in (sys.stdout, sys.stderr):
-        try:
-            stream.flush()
-        except (OSError, ValueError):
-            pass
-    os._exit(code)
+    process_end.exit_now(code)
 
 
 def run_host(role: str, participants: Sequence[Participant], **kw) -> int:

@@ -62,11 +62,10 @@ same export a clock does at its end, and the result's message says where that pa
 Checkpoints of an earlier run in ``state_dir`` (``clock.sqlite``, ``<role>.state.sqlite``) are
 removed when a launch starts, so a new run never resumes an old one.
 
-Forked hosts: with ``fork`` (the command line's ``main``; `constellation run` passes it) the
-launcher loads the hosts' code and runs the prepare hook in its own process, then forks every host
-process from itself (bringup/engine/ros/fork_start.py; tests/ros/test_fork_start.py): the same
-command, environment, log and pid file, without each process paying the interpreter's start, the
-imports and the kernels' loading again. The clock and wrapped commands are started as commands.
+Forked hosts: with ``fork`` (the command line's ``main``; `constellation run` passes it) the launcher
+loads the hosts' code and runs the prepare hook in its own process, then forks every host from itself
+(bringup/engine/ros/fork_start.py; tests/ros/test_fork_start.py): the same command, environment, log
+and pid file, without each paying the imports and kernels again; the clock and wrapped hosts are not.
 
 Multi-host: ``wrap(role, argv, env) -> (argv, env)`` rewrites each child's command and environment,
 e.g. ``ip netns exec NS ...`` with per-host ``ROS_STATIC_PEERS`` (tests/multihost).
@@ -454,10 +453,8 @@ def launch(spec: RunSpec, out_dir: Path, *, progress: Callable[[LaunchProgress],
         else:
             proc = subprocess.Popen(argv, env=cenv, cwd=str(REPO), stderr=fh, stdin=subprocess.DEVNULL, **kw)
             fh.close()
-        # (written whole or not at all: a tool reading the pid files while the run starts never sees an empty one)
-        pid_tmp = out_dir / "logs" / f".{role}.pid.tmp"
-        pid_tmp.write_text(f"{proc.pid}\n")
-        os.replace(pid_tmp, out_dir / "logs" / f"{role}.pid")
+        (tmp := out_dir / "logs" / f".{role}.pid.tmp").write_text(f"{proc.pid}\n")  # (renamed whole: never empty)
+        os.replace(tmp, out_dir / "logs" / f"{role}.pid")
         return _Child(role, proc, log)
 
     def read_progress(stream) -> None:
