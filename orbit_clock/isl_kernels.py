@@ -76,8 +76,8 @@ def runs_in_segments(r, I, J, pair, first, last, z_scale, radius, lim_pair):
         j = J[p]
         lim = lim_pair[p]
         start = -1
-        for k in range(first[s], last[s] + 1):
-            if _inside(r, i, j, k, z_scale, radius, lim):
+        for k in range(first[s], last[s] + 2):  # (k = last + 1 closes a run still open at the span's end)
+            if k <= last[s] and _inside(r, i, j, k, z_scale, radius, lim):
                 if start < 0:
                     start = k
             elif start >= 0:
@@ -91,14 +91,4 @@ def runs_in_segments(r, I, J, pair, first, last, z_scale, radius, lim_pair):
                 ke[n] = k
                 n += 1
                 start = -1
-        if start >= 0:
-            if n == cap:
-                cap *= 2
-                si = np.concatenate((si, np.empty(cap - si.size, np.int64)))
-                ks = np.concatenate((ks, np.empty(cap - ks.size, np.int64)))
-                ke = np.concatenate((ke, np.empty(cap - ke.size, np.int64)))
-            si[n] = p
-            ks[n] = start
-            ke[n] = last[s] + 1
-            n += 1
     return si[:n], ks[:n], ke[:n]
