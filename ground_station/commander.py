@@ -24,6 +24,7 @@ tests/system/test_operations_commands_run.py (whole runs: latency, execution, re
 from __future__ import annotations
 
 import datetime as dt
+import math
 
 from ground_station.operator_requests import RequestInbox
 from msgs_json import codec
@@ -74,6 +75,19 @@ class _LiveTask:
         except ValueError:
             raise ValueError(f"deadline {by!r}: not an ISO 8601 time") from None
         self.lat_deg, self.lon_deg, self.priority, self.by = float(lat), float(lon), int(pri), by
+
+
+def _live_set_args(req: dict) -> dict:
+    """A live ``set`` request's command arguments, checked as a scripted ``[[commands]]`` set is
+    (bringup/scenario/operations_cfg.py): a settable name, a value of its type within its bounds."""
+    name, value = req.get("name"), req.get("value")
+    if name not in SETTABLE:
+        raise ValueError(f"set: {name!r} is not settable in flight (settable: {', '.join(SETTABLE)})")
+    tp, lo, hi = SETTABLE[name]
+    num = isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+    if not num or (tp is int and not isinstance(value, int)) or not lo <= value <= hi:
+        raise ValueError(f"set {name}: {value!r} is not {'an integer' if tp is int else 'a number'} in [{lo}, {hi}]")
+    return {"name": name, "value": tp(value)}
 
 
 def _ns_since(text: str, epoch: dt.datetime) -> int:
@@ -163,6 +177,8 @@ class CommanderLogic:
             if req.get("mode") not in ("safe", "nominal"):
                 raise ValueError(f"mode {req.get('mode')!r}: expected safe or nominal")
             args = {"mode": req["mode"]}
+        elif kind == "set":
+            args = _live_set_args(req)
         else:
             cfg = _LiveTask(req)
             args = task_args(self.world, cfg, "task")

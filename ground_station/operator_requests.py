@@ -13,7 +13,8 @@ is counted by reason and changes nothing. It also keeps ``now.json`` (the run's 
 step) up to date.
 
 Request forms: ``{"request":"task","sat":SAT|"all","lat_deg":..,"lon_deg":..,"priority":P,"by":ISO}``
-and ``{"request":"mode","sat":SAT,"mode":"safe"|"nominal"}``.
+``{"request":"mode","sat":SAT,"mode":"safe"|"nominal"}`` and ``{"request":"set","sat":SAT,"name":NAME,
+"value":V}`` (a parameter of sat_node/operations/commands.py ``SETTABLE``).
 
 Oracle: tests/unit/test_operator_requests.py (the MAC recomputed with Python's hmac; a request under
 another key, a malformed one, a file that is not the user's own are refused and counted; each
@@ -33,7 +34,7 @@ __all__ = ["NOW_FILE", "OPERATOR_DIR", "REQUEST_KINDS", "RequestInbox", "encode_
 
 OPERATOR_DIR = "operator"
 NOW_FILE = "now.json"  # the run's time at its latest step (RequestInbox.mark_time)
-REQUEST_KINDS = ("task", "mode")
+REQUEST_KINDS = ("task", "mode", "set")
 _MAX_BYTES = 4096
 
 

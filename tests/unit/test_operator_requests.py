@@ -139,8 +139,23 @@ def test_the_cli_tasks_a_gateway_that_steps(world, tmp_path):
     answers = []
     _step_until_answered(g, _ask(out, {"request": "mode", "sat": "sat_33", "mode": "safe"}, answers), 210 * _NS)
     assert answers[0]["commands"] == ["op2"]
-    assert g.live.refused == {"refused": 3}
-    assert json.loads((out / OPERATOR_DIR / "now.json").read_text()) == {"t_s": 210.0}  # the run's time
+    # a parameter, live: the uplinked command verifies under sat_33's key and carries name and value
+    answers = []
+    emits = _step_until_answered(g, _ask(out, {"request": "set", "sat": "sat_33",
+                                             "name": "operations.store_max_bundles", "value": 500}, answers), 220 * _NS)
+    assert answers[0]["commands"] == ["op3"]
+    cmds = [parse_command(codec.decode(e.topic, e.data).payload.encode(), satellite_command_key(GROUND_KEY, "sat_33"))
+            for e in emits]
+    assert [(c.id, c.kind, c.args) for c in cmds] == [("op3", "set", {"name": "operations.store_max_bundles",
+                                                                      "value": 500})]
+    for bad, why in (({"name": "scheduler.dp_step_s"}, "not settable"), ({"value": 0}, "is not an integer in [1, "),
+                     ({"value": 2.5}, "is not an integer")):
+        answers = []
+        req = {"request": "set", "sat": "sat_33", "name": "operations.store_max_bundles", "value": 500} | bad
+        _step_until_answered(g, _ask(out, req, answers), 230 * _NS)
+        assert isinstance(answers[0], UserError) and why in str(answers[0]) and "\n" not in str(answers[0])
+    assert g.live.refused == {"refused": 6}
+    assert json.loads((out / OPERATOR_DIR / "now.json").read_text()) == {"t_s": 230.0}  # the run's time
 
 
 def test_cli_errors_are_one_line(tmp_path, capsys):
@@ -157,3 +172,12 @@ def test_cli_errors_are_one_line(tmp_path, capsys):
     assert main(["command", "--out", str(out), "sat_12", "mode", "safe"]) == 2
     err = capsys.readouterr().err
     assert "is the run over" in err and len(err.strip().splitlines()) == 1
+    # the command's own arguments are checked before anything is written
+    for argv, why in ((["mode", "off"], "expected safe or nominal"), (["set", "operations.nope", "1"], "not settable"),
+                      (["set", "operations.store_max_bundles", "x"], "is not an integer"),
+                      (["set", "operations.pointing_error_max_deg", "500"], "outside [0.0, 180.0]"),
+                      (["set", "operations.store_max_bundles"], "expected NAME VALUE")):
+        assert main(["command", "--out", str(out), "sat_12", *argv]) == 2
+        err = capsys.readouterr().err
+        assert why in err and len(err.strip().splitlines()) == 1, err
+    assert not list((out / OPERATOR_DIR).glob("*.req"))
