@@ -38,6 +38,10 @@ from sat_node.dtn.agent import SEND_ORDERS, AgentConfig
 from sat_node.dtn.bpv7 import PAPER_EPOCH_DTN_MS, dtn_ms_of
 from sat_node.dtn.traffic import TrafficError, read_traffic
 
+# every file the command writes (--dump-bundles: the bundles, the key) is closed before run() returns:
+# the console script may skip the interpreter's teardown (bringup/cli/main.py entry)
+FAST_EXIT = True
+
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--contact-plan", type=Path, required=True,

@@ -182,7 +182,7 @@ def main(argv: list[str] | None = None) -> int:
 
 def entry() -> None:
     """The console script: ``main()``, then exit with its code. After a command whose module sets
-    ``FAST_EXIT = True`` (it closes every file it writes before returning: ``run``) succeeded, the
+    ``FAST_EXIT = True`` (it closes every file it writes before returning: ``run``, ``dtn``) succeeded, the
     process leaves with ``os._exit`` once the atexit handlers have run and stdout/stderr are
     flushed: the interpreter's teardown after numba kernels were loaded (LLVM's) takes ~0.3-0.4 s
     and would only free memory. Not under a profiler or tracer (they write their results then)."""

@@ -417,9 +417,10 @@ class ContactGraph:
     def earliest_arrivals(self, source: str, t_s: float, bits: float) -> dict[str, float]:
         """One-to-all earliest arrival [s] with full volumes and no backlog (lower bounds)."""
         arr2, _pred = self._run(source, [], t_s, bits, 0.0, INF, None, None, ())
-        arr = np.where(self._stamp == self._qid, arr2.min(axis=1), INF)
+        reached = np.flatnonzero(self._stamp == self._qid)  # the contacts this search wrote (the others: INF)
         by_node = np.full(len(self.node_names), INF)
-        np.minimum.at(by_node, self.dst, arr)  # per node: the earliest over the contacts into it
+        # per node: the earliest over the contacts into it
+        np.minimum.at(by_node, self.dst[reached], arr2[reached].min(axis=1))
         out = {self.node_names[i]: float(by_node[i]) for i in np.nonzero(np.isfinite(by_node))[0]}
         out.pop(source, None)
         return out

@@ -19,6 +19,7 @@ figures bit for bit whatever the order of the events (test_report_does_not_depen
 
 from __future__ import annotations
 
+import math
 from collections import Counter, defaultdict
 
 import numpy as np
@@ -95,9 +96,9 @@ def dtn_report(events, *, lower_bound_s: dict | None = None, held: int | None = 
         out[f"dtn.latency_s_by_priority.{p}.count"] = len(xs)
         out[f"dtn.latency_s_by_priority.{p}.created"] = n_by_p.get(p, 0)
     if lower_bound_s is not None:
-        lb = [v for v in lower_bound_s.values() if np.isfinite(v)]
+        lb = [v for v in lower_bound_s.values() if math.isfinite(v)]
         out["dtn.latency_s.lower_bound_mean"] = float(np.mean(lb)) if lb else None
-        both = [lower_bound_s[b] for b in lat if b in lower_bound_s and np.isfinite(lower_bound_s[b])]
+        both = [lower_bound_s[b] for b in lat if b in lower_bound_s and math.isfinite(lower_bound_s[b])]
         out["dtn.latency_s.lower_bound_mean_delivered"] = float(np.mean(both)) if both else None
     if held is not None:
         out["dtn.bundles_held_at_end"] = held

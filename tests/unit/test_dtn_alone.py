@@ -410,3 +410,49 @@ def test_cli_epoch_sets_bundle_creation_times(tmp_path, capsys):
         assert json.loads(capsys.readouterr().out)["dtn.delivery_ratio"] == 1.0
         created[name] = sorted(decode_bundle(f.read_bytes()).creation_ms - zero for f in dump.glob("*.bpv7"))
     assert created["default"] == created["later"] == [10_000, 20_500]
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_hops_within_ttl_and_earliest_arrivals_against_plain_searches(seed):
+    """The bounds' inputs on random plans (sparse, short contacts: many nodes unreachable within a
+    TTL) and unsorted traffic, against searches written plainly: each item's fewest hops from a
+    breadth-first search over the contacts open within its window, looked at one by one (no window or
+    source shared), and the one-to-all earliest arrival against one CGR route query per destination
+    (full volumes, no backlog: the same earliest arrival)."""
+    from bringup.analysis.dtn_bounds import hops_within_ttl
+    from sat_node.dtn.agent import ttl_s_for_priority
+    from sat_node.dtn.cgr import ContactGraph
+    rng = random.Random(100 + seed)
+    nodes = [f"sat_{p}{s}" for p in (1, 2, 3) for s in (1, 2, 3)]
+    contacts = []
+    for _ in range(40):
+        a, b = rng.sample(nodes, 2)
+        t0 = rng.uniform(0, 3000)
+        contacts.append(Contact(t0, t0 + rng.uniform(5, 400), a, b, 1000.0, rng.uniform(0.01, 0.2)))
+    plan = ContactPlan(contacts)
+    times = [round(rng.uniform(0, 3000), 1) for _ in range(6)]
+    traffic = [TrafficItem(rng.choice(times), src, dst, rng.randint(1, 15), f"p{k}", "r", k)
+               for k in range(120) for src, dst in [rng.sample(nodes, 2)]]
+    ttl = {1: 300.0, 3: 900.0, 15: 2000.0}
+
+    def plain_hops(item):
+        w = ttl_s_for_priority(item.priority, ttl)
+        open_ = [c for c in plan.contacts if c.start_s < item.t_s + w and c.end_s > item.t_s]
+        hops, level = {item.source: 0}, 0
+        while True:
+            nxt = {c.dst for c in open_ if hops.get(c.src) == level and c.dst not in hops}
+            if not nxt:
+                return hops.get(item.dest, -1)
+            level += 1
+            hops.update(dict.fromkeys(nxt, level))
+
+    got = hops_within_ttl(plan, traffic, ttl)
+    assert got == [plain_hops(it) for it in traffic]
+    assert any(h < 0 for h in got) and any(h > 1 for h in got)  # both cases occur
+    g = ContactGraph(plan)
+    for src in nodes:
+        for t in times:
+            ea = g.earliest_arrivals(src, t, 2000)
+            for d in nodes:
+                r = None if d == src else g.route(src, d, t, 2000)
+                assert ea.get(d) == (None if r is None else r.arrival_s), (src, t, d)
