@@ -32,6 +32,7 @@ from bringup.cli.common import add_epoch_arg, add_key_args
 from bringup.cli.run_folder import json_text
 from bringup.engine.keys import resolve_bpsec_key, write_key_file
 from bringup.errors import UserError
+from bringup.numba_blas import load_cython_blas
 from orbit_clock.contact_plan import node_number
 from orbit_clock.contact_plan_io import ContactPlanError, read_contact_plan
 from sat_node.dtn.agent import SEND_ORDERS, AgentConfig
@@ -150,6 +151,7 @@ def run(args: argparse.Namespace) -> int:
             # the BIBs of the dumped bundles verify under this key (another BPv7 stack needs it)
             write_key_file(dump / "bpsec.key", key)
             print(f"dtn: BPSec key {key_from} written to {dump / 'bpsec.key'}", file=sys.stderr)
+    load_cython_blas()  # numba's first kernel call then skips importing scipy.linalg (bringup/numba_blas.py)
     run_ = run_dtn(plan, traffic, config=config, dump_dir=dump, dump_count=100)
     per_obs = args.forwarding == "multicast"
     report = run_.report(None if args.no_lower_bound else
