@@ -110,44 +110,34 @@ def store_forward_bound_mean(plan: ContactPlan, traffic: list[TrafficItem], bund
     return total / count if count else None
 
 
-def _fewest_hops(origin: int, adj: list[list[int]]) -> list[int]:
-    """Breadth-first hop counts from ``origin`` over the node adjacency ``adj`` (-1: unreachable)."""
-    hops = [-1] * len(adj)
+def _fewest_hops(origin: int, n: int, src: np.ndarray, dst: np.ndarray, mask: np.ndarray) -> list[int]:
+    """Breadth-first hop counts from ``origin`` over the contacts in ``mask`` (-1: unreachable)."""
+    adj: list[set[int]] = [set() for _ in range(n)]
+    for a, b in zip(src[mask].tolist(), dst[mask].tolist()):
+        adj[a].add(b)
+    hops = [-1] * n
     hops[origin] = 0
     frontier = [origin]
     while frontier:
         nxt = []
         for u in frontier:
-            h = hops[u] + 1
             for v in adj[u]:
                 if hops[v] < 0:
-                    hops[v] = h
+                    hops[v] = hops[u] + 1
                     nxt.append(v)
         frontier = nxt
     return hops
 
 
-def _adjacency(n: int, edges: np.ndarray) -> list[list[int]]:
-    """Node adjacency lists of the contacts coded ``src * n + dst`` in ``edges`` (each node pair once)."""
-    adj: list[list[int]] = [[] for _ in range(n)]
-    for e in np.unique(edges).tolist():
-        adj[e // n].append(e % n)
-    return adj
-
-
 def hops_within_ttl(plan: ContactPlan, traffic: list[TrafficItem], ttl_s_by_priority: dict[int, float]) -> list[int]:
-    """Per traffic item: its fewest hops over contacts open within [created, created + TTL] (-1: none).
-    The contacts of one window [created, created + TTL] are gathered once for every source created
-    then (the traffic is mostly in creation order: the windows of one creation time are kept)."""
+    """Per traffic item: its fewest hops over contacts open within [created, created + TTL] (-1: none)."""
     names = plan.nodes
-    n = len(names)
-    idx = {name: i for i, name in enumerate(names)}
+    idx = {n: i for i, n in enumerate(names)}
     start = np.array([c.start_s for c in plan.contacts])
     end = np.array([c.end_s for c in plan.contacts])
-    code = np.array([idx[c.src] * n + idx[c.dst] for c in plan.contacts], dtype=np.int64)
+    src = np.array([idx[c.src] for c in plan.contacts])
+    dst = np.array([idx[c.dst] for c in plan.contacts])
     cache: dict[tuple, list[int]] = {}
-    windows: dict[tuple[float, float], list[list[int]]] = {}
-    window_t = None
     out = []
     for item in traffic:
         if item.source not in idx or item.dest not in idx:
@@ -155,16 +145,9 @@ def hops_within_ttl(plan: ContactPlan, traffic: list[TrafficItem], ttl_s_by_prio
             continue
         ttl = ttl_s_for_priority(item.priority, ttl_s_by_priority)
         key = (item.t_s, ttl, item.source)
-        hops = cache.get(key)
-        if hops is None:
-            if item.t_s != window_t:
-                windows.clear()
-                window_t = item.t_s
-            adj = windows.get((item.t_s, ttl))
-            if adj is None:
-                adj = windows[(item.t_s, ttl)] = _adjacency(n, code[(start < item.t_s + ttl) & (end > item.t_s)])
-            hops = cache[key] = _fewest_hops(idx[item.source], adj)
-        out.append(hops[idx[item.dest]])
+        if key not in cache:
+            cache[key] = _fewest_hops(idx[item.source], len(names), src, dst, (start < item.t_s + ttl) & (end > item.t_s))
+        out.append(cache[key][idx[item.dest]])
     return out
 
 
