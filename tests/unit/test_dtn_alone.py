@@ -456,3 +456,24 @@ def test_hops_within_ttl_and_earliest_arrivals_against_plain_searches(seed):
             for d in nodes:
                 r = None if d == src else g.route(src, d, t, 2000)
                 assert ea.get(d) == (None if r is None else r.arrival_s), (src, t, d)
+
+
+def test_cyclic_collector_off_during_the_run_only():
+    """run_dtn turns the cyclic garbage collector off for the run (bringup/analysis/dtn_alone.py) and
+    leaves it as it found it: on after the run when it was on, off when it was off."""
+    import gc
+
+    from sat_node.dtn.agent import AgentConfig
+    seen = []
+    traffic = [TrafficItem(10.0, "sat_11", "sat_13", 1, "p1", "r", 2)]
+    assert gc.isenabled()
+    run = run_dtn(PLAN, traffic, config=AgentConfig(key=TEST_BPSEC_KEY), sink=lambda env: seen.append(gc.isenabled()))
+    assert seen and not any(seen)
+    assert gc.isenabled()
+    assert run.report()["dtn.bundles_delivered"] == 1
+    gc.disable()
+    try:
+        run_dtn(PLAN, traffic, config=AgentConfig(key=TEST_BPSEC_KEY))
+        assert not gc.isenabled()
+    finally:
+        gc.enable()
