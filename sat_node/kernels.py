@@ -13,7 +13,8 @@ same once for the checkout (scripts/setup.sh starts it in the background while t
 the cache it fills is the one every later run of this checkout loads from, and it prints the time.
 
 :func:`warm_up` runs each kernel through its ordinary caller (``solve_dp``, ``for_mask`` and
-``prior_state`` on a two-step, two-GP instance; a CGR route and a one-to-all query on a three-contact plan), so it compiles exactly the
+``prior_state`` on a two-step, two-GP instance, the observed view's kernel exponent on the types its
+view passes; a CGR route and a one-to-all query on a three-contact plan), so it compiles exactly the
 argument types a run uses. How we know it is right: tests/unit/test_kernels_warm_up.py (after
 ``warm_up``, a paper run on the local engine adds no signature to any kernel; a second process with
 the same cache finds every kernel there: cache hits, no misses).
@@ -28,10 +29,10 @@ import numpy as np
 from orbit_clock import access_kernels
 from orbit_clock.access import for_mask
 from orbit_clock.contact_plan import Contact, ContactPlan
+from sat_node import knowledge_kernels, value_kernels
 from sat_node.acs import SlewModel
 from sat_node.dtn import cgr
 from sat_node.dtn.cgr import ContactGraph
-from sat_node import value_kernels
 from sat_node.scheduler import build_problem, dp_kernels, solve_dp
 from sat_node.value import KnownObservation, prior_state
 
@@ -41,7 +42,7 @@ __all__ = ["KERNELS", "dispatchers", "warm_up"]
 # planner's group holds the DP and the field-of-regard test and prior-state runs its instances are built with
 KERNELS = {
     "dp": ((dp_kernels, ("dp_forward", "dp_states", "path_gain", "table_gain", "bit_gain", "plan_values")), (access_kernels, ("for_codes",)),
-           (value_kernels, ("prior_runs",))),
+           (value_kernels, ("prior_runs",)), (knowledge_kernels, ("kernel_exponent",))),
     "cgr": ((cgr, ("_dijkstra", "_first_open", "_node_dominated", "_node_label")),),
 }
 
@@ -67,6 +68,8 @@ def _dp() -> None:
     solve_dp(p, check=True, table_cells=0, bit_words=0)  # the branch that walks back-pointers
     for_mask(sat, gp, 55.0)  # the compiled field-of-regard test (both GPs within its bound)
     prior_state([KnownObservation(5.0, 1, "sat_12")], np.array([0, 1]), np.array([0.0, 10.0]), "sat_11", 900.0)
+    # the observed view's kernel sums (sat_node/knowledge.py ObservedView._ref: contiguous float64 arrays)
+    knowledge_kernels.kernel_exponent(gp, np.ascontiguousarray(gp[:1]), np.array([5.0]), 10.0, 100.0, 1298.4)
 
 
 def _cgr() -> None:

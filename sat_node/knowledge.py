@@ -67,6 +67,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from sat_node.inference import Inference
+from sat_node.knowledge_kernels import kernel_exponent
 from sat_node.scheduler.planner import Knowledge, PersistenceView
 from sat_node.value import Belief
 
@@ -167,6 +168,7 @@ class ObservedView:
         # (region, its GPs asked for) -> their (sum_o k d_o, sum_o k): the instances of one plan (the
         # planned satellite's and its partners') ask for the same regions' GPs
         self._ref_cache: dict[tuple[int, bytes], tuple[np.ndarray, np.ndarray]] = {}
+        self._looks: dict[int, tuple | None] = {}  # region -> its known looks (_region_looks)
 
     def _ref(self, gps: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Per GP: (sum_o k d_o, sum_o k) at the planning time, region by region. A region's numbers
@@ -183,15 +185,28 @@ class ObservedView:
             key = (int(r), gps[sel].tobytes())
             got = self._ref_cache.get(key)
             if got is None:
-                mo = o["region"] == r
-                if not mo.any():
+                looks = self._region_looks(int(r))
+                if looks is None:
                     continue
-                dx = self._xyz[gps[sel]][:, None, :] - o["xyz"][mo][None, :, :]
-                k = np.exp(-0.5 * np.einsum("ijk,ijk->ij", dx, dx) / self._p.spread_km ** 2
-                           - (self._t - o["t_s"][mo])[None, :] / self._p.memory_s)
-                got = self._ref_cache[key] = (k @ o["d"][mo], k.sum(axis=1))
+                xyz, t_s, d = looks
+                # the kernel's exponent in one compiled pass (sat_node/knowledge_kernels.py: the bits of
+                # -0.5 |dx|^2 / spread^2 - (t - t_o) / memory as numpy made them); exp, @, sum numpy's
+                k = np.exp(kernel_exponent(np.ascontiguousarray(self._xyz[gps[sel]]), xyz, t_s, self._t,
+                                           self._p.spread_km ** 2, self._p.memory_s))
+                got = self._ref_cache[key] = (k @ d, k.sum(axis=1))
             n[sel], w[sel] = got
         return n, w
+
+    def _region_looks(self, r: int):
+        """(xyz (N, 3), t_s (N,), d (N,)) of the known looks in region ``r``, contiguous, kept for
+        the view (None: none there)."""
+        if r not in self._looks:
+            o = self._obs
+            mo = o["region"] == r
+            self._looks[r] = (None if not mo.any() else
+                              (np.ascontiguousarray(o["xyz"][mo], np.float64),
+                               np.ascontiguousarray(o["t_s"][mo], np.float64), o["d"][mo]))
+        return self._looks[r]
 
     def innovation(self, gp_idx, t_s) -> np.ndarray:
         """D(g, t) of the module docstring (t at or after the planning time). ``gp_idx`` and ``t_s``
@@ -214,11 +229,17 @@ class ObservedView:
         d = a * n0 / np.maximum(1.0, wt)
         om = np.zeros(shape)
         reg0 = self._region[g0]
+        # a row of GPs by a column of times (a planner's instance): a region's columns take its row
+        # factor as they are (the same numbers as the masked copy below)
+        by_cols = len(shape) == 2 and g0.shape == (1, shape[1]) and t0.shape == (shape[0], 1)
         for r, (t_i, omega, delta) in self._insight.items():
             m0 = reg0 == r
             if m0.any():
                 age = t0 - t_i
                 f = (omega + delta * np.minimum(age, self._p.memory_s) / 3600.0) * np.exp(-age / self._p.memory_s)
+                if by_cols:
+                    om[:, m0[0]] = f
+                    continue
                 m = np.broadcast_to(m0, shape)
                 om[m] = np.broadcast_to(f, shape)[m]
         return np.clip(d + (1.0 - np.minimum(1.0, np.broadcast_to(wt, shape))) * om, -_LN_MAX, _LN_MAX)

@@ -1,0 +1,51 @@
+"""Numba kernel of the observed-knowledge sums (:class:`sat_node.knowledge.ObservedView`).
+
+The observed model spreads each known look's innovation over its region's GPs with a Gaussian
+kernel in distance that fades with the look's age (sat_node/knowledge.py, module docstring):
+``k(g, o) = exp(-0.5 |x_g - x_o|^2 / spread^2 - (t_now - t_o) / memory)``. Its exponent was a
+chain of numpy temporaries over the (GPs, looks) grid - the (G, N, 3) differences, their squared
+norms by ``einsum``, the scalings - each a pass over memory; :func:`kernel_exponent` makes the
+same numbers in one pass. The exponential, the matrix-vector product with the innovations and
+the row sums stay numpy's (their rounding is numpy's SIMD and BLAS code, which a compiled loop
+would not reproduce bit for bit).
+
+The same IEEE operations in the same order as the numpy expression it replaces:
+``-0.5 * einsum("ijk,ijk->ij", dx, dx) / spread_km ** 2 - (t_now - t_o) / memory_s`` with
+``dx = x_g - x_o``; numpy's ``einsum`` adds a 3-vector's squared components as
+``(x*x + z*z) + y*y`` (its SIMD reduction folds the vector's halves; measured, and checked by the
+test against ``einsum`` itself). How we know it is right: tests/unit/test_knowledge_kernels.py
+compares the kernel's bits with the numpy expression's on random and real (paper GP) geometry,
+and the views built with it with the numpy path (test_knowledge.py's scalar formula and
+region-reuse tests keep holding).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+__all__ = ["kernel_exponent"]
+
+
+@njit(cache=True)
+def kernel_exponent(gp_xyz, obs_xyz, obs_t, t_now, spread2, memory_s):
+    """(G, N) exponent of the Gaussian kernel between GPs ``gp_xyz`` (G, 3) [km] and looks
+    ``obs_xyz`` (N, 3) [km] made at ``obs_t`` (N,) [s], at ``t_now`` [s]: ``-0.5 |dx|^2 / spread2
+    - (t_now - t_o) / memory_s`` (module docstring: numpy's operations and order)."""
+    G = gp_xyz.shape[0]
+    N = obs_xyz.shape[0]
+    age = np.empty(N)
+    for j in range(N):
+        age[j] = (t_now - obs_t[j]) / memory_s
+    out = np.empty((G, N))
+    for i in range(G):
+        gx = gp_xyz[i, 0]
+        gy = gp_xyz[i, 1]
+        gz = gp_xyz[i, 2]
+        for j in range(N):
+            dx = gx - obs_xyz[j, 0]
+            dy = gy - obs_xyz[j, 1]
+            dz = gz - obs_xyz[j, 2]
+            sq = (dx * dx + dz * dz) + dy * dy
+            out[i, j] = -0.5 * sq / spread2 - age[j]
+    return out
