@@ -14,7 +14,7 @@ the cache it fills is the one every later run of this checkout loads from, and i
 
 :func:`warm_up` runs each kernel through its ordinary caller (``solve_dp``, ``for_mask`` and
 ``prior_state`` on a two-step, two-GP instance, the observed view's kernel exponent on the types its
-view passes; a CGR route and a one-to-all query on a three-contact plan), so it compiles exactly the
+view passes, a joint group's value on arrays; a CGR route and a one-to-all query on a three-contact plan), so it compiles exactly the
 argument types a run uses. How we know it is right: tests/unit/test_kernels_warm_up.py (after
 ``warm_up``, a paper run on the local engine adds no signature to any kernel; a second process with
 the same cache finds every kernel there: cache hits, no misses).
@@ -33,7 +33,9 @@ from sat_node import knowledge_kernels, value_kernels
 from sat_node.acs import SlewModel
 from sat_node.dtn import cgr
 from sat_node.dtn.cgr import ContactGraph
-from sat_node.scheduler import build_problem, dp_kernels, solve_dp
+from sat_node.scheduler import build_problem, dp_kernels, joint_kernels, solve_dp
+from sat_node.scheduler.dp import make_plan
+from sat_node.scheduler.joint_kernels import group_value
 from sat_node.value import KnownObservation, prior_state
 
 __all__ = ["KERNELS", "dispatchers", "warm_up"]
@@ -42,7 +44,8 @@ __all__ = ["KERNELS", "dispatchers", "warm_up"]
 # planner's group holds the DP and the field-of-regard test and prior-state runs its instances are built with
 KERNELS = {
     "dp": ((dp_kernels, ("dp_forward", "dp_states", "path_gain", "table_gain", "bit_gain", "plan_values")), (access_kernels, ("for_codes",)),
-           (value_kernels, ("prior_runs",)), (knowledge_kernels, ("kernel_exponent",))),
+           (value_kernels, ("prior_runs",)), (knowledge_kernels, ("kernel_exponent",)),
+           (joint_kernels, ("joint_total",))),
     "cgr": ((cgr, ("_dijkstra", "_first_open", "_node_dominated", "_node_label")),),
 }
 
@@ -70,6 +73,8 @@ def _dp() -> None:
     prior_state([KnownObservation(5.0, 1, "sat_12")], np.array([0, 1]), np.array([0.0, 10.0]), "sat_11", 900.0)
     # the observed view's kernel sums (sat_node/knowledge.py ObservedView._ref: contiguous float64 arrays)
     knowledge_kernels.kernel_exponent(gp, np.ascontiguousarray(gp[:1]), np.array([5.0]), 10.0, 100.0, 1298.4)
+    one = make_plan(p, [0], [0])
+    group_value([p, p], [one, one], array_looks=0)  # a joint group's value on arrays (its compiled sum)
 
 
 def _cgr() -> None:

@@ -38,12 +38,14 @@ from __future__ import annotations
 
 import dataclasses
 import heapq
+import itertools
 import math
 from dataclasses import dataclass
 
 import numpy as np
 
 from sat_node.scheduler.dp import Plan, ScheduleInvariantError, make_plan, solve_dp
+from sat_node.scheduler.joint_kernels import group_value
 from sat_node.scheduler.problem import SchedulingProblem
 from sat_node.value import KnownObservation, prior_state
 
@@ -94,24 +96,9 @@ def group_span_s(problems: list[SchedulingProblem]) -> float:
 def joint_value(problems: list[SchedulingProblem], plans: list[Plan]) -> float:
     """Eq. 1 over every look of every plan in time order (ties: group order), each valued with its
     own satellite's instance: 0 within revisit_zero_s of an earlier look of the group (or of a known
-    recent one), else absval / (known before + group looks before + 1)."""
-    looks = []
-    for i, (p, pl) in enumerate(zip(problems, plans)):
-        for k, j in zip(pl.steps, pl.cols):
-            looks.append((p.t0_s + p.step_s * int(k), i, int(k), int(j)))
-    looks.sort()
-    last: dict[int, float] = {}
-    n: dict[int, int] = {}
-    total = 0.0
-    for t, i, k, j in looks:
-        p = problems[i]
-        g = int(p.gp_ids[j])
-        recent = p.prior_recent[k, j] or (g in last and t - last[g] < p.revisit_zero_s)
-        if p.in_for[k, j] and not recent:
-            total += p.absval[k, j] / (p.prior_count[k, j] + n.get(g, 0) + 1.0)
-        last[g] = t
-        n[g] = n.get(g, 0) + 1
-    return total
+    recent one), else absval / (known before + group looks before + 1). Summed on arrays
+    (sat_node/scheduler/joint_kernels.py ``group_value``: the same float as the loop over the looks)."""
+    return group_value(problems, plans)
 
 
 def _contested(problems, plans) -> dict[int, list[tuple[float, int]]]:
@@ -126,7 +113,7 @@ def _contested(problems, plans) -> dict[int, list[tuple[float, int]]]:
         if len({i for _, i in ls}) < 2:
             continue
         ls.sort()
-        if any(b[1] != a[1] and b[0] - a[0] < r for a, b in zip(ls, ls[1:])):
+        if any(b[1] != a[1] and b[0] - a[0] < r for a, b in itertools.pairwise(ls)):
             out[g] = ls
     return out
 
