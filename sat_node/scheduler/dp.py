@@ -91,10 +91,13 @@ def plan_value(p: SchedulingProblem, steps, cols) -> tuple[float, np.ndarray]:
     return float(vals.sum()), vals
 
 
-def make_plan(p: SchedulingProblem, steps, cols, *, complete=True, steps_done=None, solve_s=0.0) -> Plan:
+def make_plan(p: SchedulingProblem, steps, cols, *, complete=True, steps_done=None, solve_s=0.0,
+              values: tuple[float, np.ndarray] | None = None) -> Plan:
+    """The plan of these looks on ``p``; ``values``: :func:`plan_value` of exactly these looks on
+    ``p`` when the caller has it (computed otherwise)."""
     steps = np.asarray(steps, dtype=np.int64)
     cols = np.asarray(cols, dtype=np.int64)
-    total, vals = plan_value(p, steps, cols)
+    total, vals = plan_value(p, steps, cols) if values is None else values
     return Plan(gp_ids=p.gp_ids[cols], t_s=p.t0_s + p.step_s * steps, steps=steps, cols=cols, values=vals,
                 value=total, complete=complete, steps_done=p.n_steps if steps_done is None else steps_done,
                 solve_s=solve_s)
@@ -144,14 +147,23 @@ _MAX_ANGLES: dict = {}
 
 def _max_angles(slew, step_s: float, w_steps: int) -> np.ndarray:
     """``slew.max_angle_deg`` of 0..w_steps steps, remembered (a satellite's replans share them)."""
+    return _slew_limits(slew, step_s, w_steps)[0]
+
+
+def _slew_limits(slew, step_s: float, w_steps: int) -> tuple[np.ndarray, np.ndarray]:
+    """(:func:`_max_angles`, the kernel's cosine thresholds of them), remembered together."""
     key = (slew, step_s, w_steps)
-    a = _MAX_ANGLES.get(key)
-    if a is None:
+    got = _MAX_ANGLES.get(key)
+    if got is None:
         if len(_MAX_ANGLES) > 64:
             _MAX_ANGLES.clear()
-        a = _MAX_ANGLES[key] = slew.max_angle_deg(step_s * np.arange(w_steps + 1))
+        a = slew.max_angle_deg(step_s * np.arange(w_steps + 1))
+        # tiny safety margin so the compiled test never accepts what time_s would refuse
+        cos_thr = np.where(a < 0, 2.0, np.cos(np.radians(np.maximum(a - 1e-9, 0.0))))
         a.setflags(write=False)
-    return a
+        cos_thr.setflags(write=False)
+        got = _MAX_ANGLES[key] = (a, cos_thr)
+    return got
 
 
 def _states(p: SchedulingProblem):
@@ -237,9 +249,7 @@ def solve_dp(p: SchedulingProblem, *, budget_s: float | None = None, chunk_steps
         return make_plan(p, [], [], solve_s=time.perf_counter() - t_start)
     max_off = float(np.max(off_deg))
     w_steps = slew_window_steps(p, max_off, nad_t)
-    amax = _max_angles(p.slew, p.step_s, w_steps)
-    # tiny safety margin so the compiled test never accepts what time_s would refuse
-    cos_thr = np.where(amax < 0, 2.0, np.cos(np.radians(np.maximum(amax - 1e-9, 0.0))))
+    _amax, cos_thr = _slew_limits(p.slew, p.step_s, w_steps)
     revisit_steps = p.revisit_zero_s / p.step_s
     V = np.full(S, -np.inf)
     bp = np.full(S, -2, dtype=np.int64)
@@ -269,12 +279,15 @@ def solve_dp(p: SchedulingProblem, *, budget_s: float | None = None, chunk_steps
         cols.reverse()
     else:
         best_v = 0.0
+    values = plan_value(p, steps, cols)  # (the same numbers for the same looks: kept while no look is dropped)
     if check:
-        v_dp, _ = plan_value(p, steps, cols)
+        v_dp = values[0]
         if not math.isclose(v_dp, best_v, rel_tol=1e-9, abs_tol=1e-9):
             raise ScheduleInvariantError(f"DP value {best_v} != evaluated plan value {v_dp}")
-    steps, cols = drop_worthless(p, steps, cols)
-    plan = make_plan(p, steps, cols, complete=k >= T, steps_done=k, solve_s=time.perf_counter() - t_start)
+    n_looks = len(steps)
+    steps, cols = drop_worthless(p, steps, cols, values[1])
+    plan = make_plan(p, steps, cols, complete=k >= T, steps_done=k, solve_s=time.perf_counter() - t_start,
+                     values=values if len(steps) == n_looks else None)
     if check:
         bad = plan_violations(p, plan.steps, plan.cols, rule="sequential")
         if bad:
@@ -284,21 +297,24 @@ def solve_dp(p: SchedulingProblem, *, budget_s: float | None = None, chunk_steps
     return plan
 
 
-def drop_worthless(p: SchedulingProblem, steps: list[int], cols: list[int]) -> tuple[list[int], list[int]]:
+def drop_worthless(p: SchedulingProblem, steps: list[int], cols: list[int],
+                   vals: np.ndarray | None = None) -> tuple[list[int], list[int]]:
     """Remove observations worth 0 (repeats the DP passed through) while the plan stays feasible.
 
     Removing a look never lowers the later values (fewer 'times seen', an older 'last seen').
     A zero-value look is kept only when the plan needs it as a slew waypoint (the slew fit is not
-    sub-additive for large angles).
+    sub-additive for large angles). ``vals``: :func:`plan_value`'s per-look values of these looks
+    when the caller has them.
     """
     steps, cols = list(steps), list(cols)
     changed = True
     while changed:
         changed = False
-        _, vals = plan_value(p, steps, cols)
+        if vals is None:
+            _, vals = plan_value(p, steps, cols)
         for i in np.flatnonzero(vals <= 0.0):
             s2, c2 = steps[:i] + steps[i + 1:], cols[:i] + cols[i + 1:]
             if not plan_violations(p, s2, c2, rule="sequential"):
-                steps, cols, changed = s2, c2, True
+                steps, cols, changed, vals = s2, c2, True, None
                 break
     return steps, cols

@@ -546,6 +546,42 @@ def test_compiled_plan_values_equal_evaluate_plan():
     assert zeros > 50 and repeats > 20  # zero-valued looks and repeats are exercised
 
 
+def test_dp_plan_values_kept_from_the_check_equal_fresh_ones(monkeypatch):
+    """solve_dp values its path once and keeps the numbers for the plan while drop_worthless drops
+    nothing (dp.make_plan ``values``); oracle: plan_value of the plan's looks made afresh, and the
+    cached cosine thresholds equal the ones computed from the max angles - bit for bit, on
+    instances where repeats are dropped and where they are not."""
+    import numpy as np
+    from dp_instances import random_instance
+
+    from sat_node.scheduler import dp, solve_dp
+    from sat_node.scheduler.dp import _max_angles, _slew_limits, plan_value
+
+    dropped = kept = 0
+    drop = dp.drop_worthless
+
+    def counted(p, steps, cols, vals=None):
+        nonlocal dropped
+        out = drop(p, steps, cols, vals)
+        dropped += len(out[0]) < len(steps)
+        return out
+
+    monkeypatch.setattr(dp, "drop_worthless", counted)
+    for seed in range(40):
+        p = random_instance(seed, n_gp=3 + (seed * 7) % 60, n_steps=60 + 7 * seed, max_window=10 + 4 * seed,
+                            revisit_zero_s=[5.0, 12.0, 30.0, 900.0][seed % 4], spread_deg=6.0, prior=seed % 2 == 0)
+        for check in (True, False):
+            plan = solve_dp(p, check=check)
+            total, vals = plan_value(p, plan.steps, plan.cols)
+            assert plan.value == total and plan.values.tobytes() == vals.tobytes(), seed
+        kept += len(plan) > 0
+        for w in (1, 3, 9):
+            a = _max_angles(p.slew, p.step_s, w)
+            thr = np.where(a < 0, 2.0, np.cos(np.radians(np.maximum(a - 1e-9, 0.0))))
+            assert _slew_limits(p.slew, p.step_s, w)[1].tobytes() == thr.tobytes()
+    assert kept >= 30 and dropped >= 2  # plans whose looks were dropped (their values made again) too
+
+
 def test_compiled_dp_states_equal_the_numpy_ones():
     """dp_kernels.dp_states (one compiled pass over the grid) gives the states of dp._states
     (SchedulingProblem.v_first and pointing in numpy): the same steps, columns, first-visit values
