@@ -13,8 +13,8 @@ same once for the checkout (scripts/setup.sh starts it in the background while t
 the cache it fills is the one every later run of this checkout loads from, and it prints the time.
 
 :func:`warm_up` runs each kernel through its ordinary caller (``solve_dp``, ``for_mask`` and
-``prior_state`` on a two-step, two-GP instance, the observed view's kernel exponent on the types its
-view passes, a joint group's value on arrays; a CGR route and a one-to-all query on a three-contact plan), so it compiles exactly the
+``prior_state`` on a two-step, two-GP instance, the observed view's kernel exponent and innovation grid on the
+types its view passes, a joint group's value on arrays; a CGR route and a one-to-all query on a three-contact plan), so it compiles exactly the
 argument types a run uses. How we know it is right: tests/unit/test_kernels_warm_up.py (after
 ``warm_up``, a paper run on the local engine adds no signature to any kernel; a second process with
 the same cache finds every kernel there: cache hits, no misses).
@@ -44,7 +44,7 @@ __all__ = ["KERNELS", "dispatchers", "warm_up"]
 # planner's group holds the DP and the field-of-regard test and prior-state runs its instances are built with
 KERNELS = {
     "dp": ((dp_kernels, ("dp_forward", "dp_states", "path_gain", "table_gain", "bit_gain", "plan_values")), (access_kernels, ("for_codes",)),
-           (value_kernels, ("prior_runs",)), (knowledge_kernels, ("kernel_exponent",)),
+           (value_kernels, ("prior_runs",)), (knowledge_kernels, ("kernel_exponent", "innovation_grid")),
            (joint_kernels, ("joint_total",))),
     "cgr": ((cgr, ("_dijkstra", "_first_open", "_node_dominated", "_node_label")),),
 }
@@ -73,6 +73,7 @@ def _dp() -> None:
     prior_state([KnownObservation(5.0, 1, "sat_12")], np.array([0, 1]), np.array([0.0, 10.0]), "sat_11", 900.0)
     # the observed view's kernel sums (sat_node/knowledge.py ObservedView._ref: contiguous float64 arrays)
     knowledge_kernels.kernel_exponent(gp, np.ascontiguousarray(gp[:1]), np.array([5.0]), 10.0, 100.0, 1298.4)
+    knowledge_kernels.innovation_grid(np.ones(2), np.zeros(2), np.zeros(2), np.zeros((1, 2)), np.zeros(2, np.int64), 5.5)
     one = make_plan(p, [0], [0])
     group_value([p, p], [one, one], array_looks=0)  # a joint group's value on arrays (its compiled sum)
 

@@ -67,7 +67,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from sat_node.inference import Inference
-from sat_node.knowledge_kernels import kernel_exponent
+from sat_node.knowledge_kernels import innovation_grid, kernel_exponent
 from sat_node.scheduler.planner import Knowledge, PersistenceView
 from sat_node.value import Belief
 
@@ -225,24 +225,36 @@ class ObservedView:
             n, w = self._ref(uniq)
             n0, w0 = n[inv].reshape(g0.shape), w[inv].reshape(g0.shape)
         a = np.exp(-np.maximum(t0 - self._t, 0.0) / self._p.memory_s)
+        reg0 = self._region[g0]
+        # a row of GPs by a column of times (a planner's instance): the (T, G) combination in one
+        # compiled pass (sat_node/knowledge_kernels.py innovation_grid: the numbers of the general
+        # path below), each region's insight a row of per-time terms its columns read
+        if len(shape) == 2 and g0.shape == (1, shape[1]) and t0.shape == (shape[0], 1):
+            rows = [np.zeros(shape[0])]
+            col_row = np.zeros(shape[1], np.int64)
+            for r, (t_i, omega, delta) in self._insight.items():
+                m0 = reg0[0] == r
+                if m0.any():
+                    col_row[m0] = len(rows)
+                    rows.append(self._insight_term(t0, t_i, omega, delta).ravel())
+            return innovation_grid(np.ascontiguousarray(a.ravel()), np.ascontiguousarray(n0.ravel()),
+                                   np.ascontiguousarray(w0.ravel()), np.stack(rows), col_row, _LN_MAX)
         wt = a * w0
         d = a * n0 / np.maximum(1.0, wt)
         om = np.zeros(shape)
-        reg0 = self._region[g0]
-        # a row of GPs by a column of times (a planner's instance): a region's columns take its row
-        # factor as they are (the same numbers as the masked copy below)
-        by_cols = len(shape) == 2 and g0.shape == (1, shape[1]) and t0.shape == (shape[0], 1)
         for r, (t_i, omega, delta) in self._insight.items():
             m0 = reg0 == r
             if m0.any():
-                age = t0 - t_i
-                f = (omega + delta * np.minimum(age, self._p.memory_s) / 3600.0) * np.exp(-age / self._p.memory_s)
-                if by_cols:
-                    om[:, m0[0]] = f
-                    continue
+                f = self._insight_term(t0, t_i, omega, delta)
                 m = np.broadcast_to(m0, shape)
                 om[m] = np.broadcast_to(f, shape)[m]
         return np.clip(d + (1.0 - np.minimum(1.0, np.broadcast_to(wt, shape))) * om, -_LN_MAX, _LN_MAX)
+
+    def _insight_term(self, t0: np.ndarray, t_i: float, omega: float, delta: float) -> np.ndarray:
+        """A region insight's term at times ``t0``: (omega + delta x age [h], the age capped at the
+        memory) faded with e-folding time memory."""
+        age = t0 - t_i
+        return (omega + delta * np.minimum(age, self._p.memory_s) / 3600.0) * np.exp(-age / self._p.memory_s)
 
     def value_at(self, gp_idx, t_s):
         g0, t0 = np.asarray(gp_idx), np.asarray(t_s, np.float64)

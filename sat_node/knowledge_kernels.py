@@ -24,7 +24,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-__all__ = ["kernel_exponent"]
+__all__ = ["innovation_grid", "kernel_exponent"]
 
 
 @njit(cache=True)
@@ -48,4 +48,29 @@ def kernel_exponent(gp_xyz, obs_xyz, obs_t, t_now, spread2, memory_s):
             dz = gz - obs_xyz[j, 2]
             sq = (dx * dx + dz * dz) + dy * dy
             out[i, j] = -0.5 * sq / spread2 - age[j]
+    return out
+
+
+@njit(cache=True)
+def innovation_grid(a, n0, w0, rows, col_row, ln_max):
+    """(T, G) innovation D of a row of GPs by a column of times (sat_node/knowledge.py
+    ``ObservedView.innovation``): with ``a`` (T,) the fading of the looks' sums at each time,
+    ``n0``, ``w0`` (G,) those sums per GP, ``rows`` (R, T) the region insights' terms per time (row 0
+    all zero: no insight) and ``col_row`` (G,) each GP's row, ``clip(a n0 / max(1, a w0) +
+    (1 - min(1, a w0)) row, -ln_max, ln_max)`` - numpy's operations on the broadcast arrays, element
+    by element in the same order."""
+    T = a.shape[0]
+    G = n0.shape[0]
+    out = np.empty((T, G))
+    for t in range(T):
+        at = a[t]
+        for g in range(G):
+            wt = at * w0[g]
+            d = at * n0[g] / max(1.0, wt)
+            v = d + (1.0 - min(1.0, wt)) * rows[col_row[g], t]
+            if v < -ln_max:
+                v = -ln_max
+            elif v > ln_max:
+                v = ln_max
+            out[t, g] = v
     return out

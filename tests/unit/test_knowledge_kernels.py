@@ -1,8 +1,9 @@
 """The observed-knowledge kernel (sat_node/knowledge_kernels.py) gives numpy's bits.
 
-Oracle: the numpy expression it replaces in ``ObservedView._ref`` (``einsum`` of the (G, N, 3)
-differences, the scalings), run here as first written; and a view whose region sums are made by
-that expression, against the view as it is, on planner-shaped queries.
+Oracle: the numpy expression ``kernel_exponent`` replaces in ``ObservedView._ref`` (``einsum`` of
+the (G, N, 3) differences, the scalings), run here as first written; a view whose region sums are
+made by that expression, against the view as it is, on planner-shaped queries; and for
+``innovation_grid`` the view's general (broadcast numpy) path, asked for the same pairs flat.
 """
 
 from __future__ import annotations
@@ -70,27 +71,29 @@ class _NumpyView(ObservedView):
 
 
 def test_observed_view_with_the_kernel_equals_the_numpy_view():
-    """Three 50-km regions of 2.5-km GPs, 600 looks; asked as a planner asks (a row of GPs by a
-    column of times, whole regions and parts) and flat: the values' bits are the numpy view's."""
+    """Four 50-km regions of 2.5-km GPs, 600 looks in three of them; asked as a planner asks (a row
+    of GPs by a column of times, whole regions and parts: the compiled innovation_grid) and flat
+    (the general numpy path): the values' bits are the numpy view's."""
     rng = np.random.default_rng(4)
     xyz = np.concatenate([square_region_gp_ecef_km(lat, lon, 50.0, 2.5) for lat, lon in
-                          ((23.8, 90.4), (51.5, -0.1), (-6.2, 106.8))])
+                          ((23.8, 90.4), (51.5, -0.1), (-6.2, 106.8), (29.8, -95.4))])
     n_gp = len(xyz)
-    regions = np.repeat([0, 1, 2], n_gp // 3)
+    regions = np.repeat([0, 1, 2, 3], n_gp // 4)  # region 3: no look, no insight
     vals = rng.integers(1, 257, (8, n_gp)).astype(np.int16)
     f = OsseField(values=vals, slot_s=900.0, lat_deg=np.zeros(n_gp), lon_deg=np.linspace(0, 1, n_gp),
-                  region_index=regions, region_names=["a", "b", "c"],
+                  region_index=regions, region_names=["a", "b", "c", "d"],
                   forecast=rng.integers(1, 257, (8, n_gp)).astype(np.int16))
     params = KnowledgeParams(model="observed", spread_km=10.0, memory_s=1298.4)
     ks = KnowledgeState(params, "sat_11")
     for _ in range(600):
-        g, t = int(rng.integers(0, n_gp)), float(rng.uniform(0, 6000))
+        g, t = int(rng.integers(0, 3 * n_gp // 4)), float(rng.uniform(0, 6000))
         ks.learn(Inference("sat_21", g, int(t * 1e9), float(rng.uniform(1, 256)), int(regions[g]),
                            float(rng.normal()), float(rng.normal())))
     view = ks.knowledge(f, regions, xyz, 6000.0, [], None).value
     ref = _NumpyView(f, regions, xyz, view._obs, view._insight, params, 6000.0)
     times = 6000.0 + 9.0 * np.arange(67)
-    for ids in (np.arange(n_gp), np.arange(0, n_gp // 3), np.arange(n_gp // 3 - 20, n_gp // 3 + 30),
+    assert set(view._insight) == {0, 1, 2}
+    for ids in (np.arange(n_gp), np.arange(0, n_gp // 4), np.arange(3 * n_gp // 4 - 20, n_gp),
                 np.sort(rng.choice(n_gp, 150, replace=False)), np.arange(n_gp)):
         got = view.value_at(ids[None, :], times[:, None])
         assert got.tobytes() == ref.value_at(ids[None, :], times[:, None]).tobytes()
