@@ -35,6 +35,7 @@ from sat_node.dtn import cgr
 from sat_node.dtn.cgr import ContactGraph
 from sat_node.scheduler import build_problem, dp_kernels, joint_kernels, solve_dp
 from sat_node.scheduler.dp import make_plan
+from sat_node.scheduler.joint import with_forbidden
 from sat_node.scheduler.joint_kernels import group_value
 from sat_node.value import KnownObservation, prior_state
 
@@ -43,7 +44,8 @@ __all__ = ["KERNELS", "dispatchers", "warm_up"]
 # name -> the kernels it warms ((module, function names), ...), for the stats and the tests; the
 # planner's group holds the DP and the field-of-regard test and prior-state runs its instances are built with
 KERNELS = {
-    "dp": ((dp_kernels, ("dp_forward", "dp_states", "path_gain", "table_gain", "bit_gain", "plan_values")), (access_kernels, ("for_codes",)),
+    "dp": ((dp_kernels, ("dp_forward", "dp_states", "path_gain", "table_gain", "bit_gain", "plan_values",
+                         "states_without")), (access_kernels, ("for_codes",)),
            (value_kernels, ("prior_runs",)), (knowledge_kernels, ("kernel_exponent", "innovation_grid")),
            (joint_kernels, ("joint_total",))),
     "cgr": ((cgr, ("_dijkstra", "_first_open", "_node_dominated", "_node_label")),),
@@ -69,6 +71,7 @@ def _dp() -> None:
     solve_dp(p, check=True)  # path bitsets (the window is within the revisit window)
     solve_dp(p, check=True, bit_words=0)  # path tables (same signature)
     solve_dp(p, check=True, table_cells=0, bit_words=0)  # the branch that walks back-pointers
+    solve_dp(with_forbidden(p, [1]), check=True)  # a joint branch: its states copied from p's (states_without)
     for_mask(sat, gp, 55.0)  # the compiled field-of-regard test (both GPs within its bound)
     prior_state([KnownObservation(5.0, 1, "sat_12")], np.array([0, 1]), np.array([0.0, 10.0]), "sat_11", 900.0)
     # the observed view's kernel sums (sat_node/knowledge.py ObservedView._ref: contiguous float64 arrays)

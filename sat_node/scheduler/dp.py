@@ -186,8 +186,9 @@ def _prepared(p: SchedulingProblem):
     An instance derived from another by making some GP columns worth nothing
     (:func:`sat_node.scheduler.joint.with_forbidden`, ``_cache["forbidden_of"] = (parent, columns)``:
     the joint planner's branches) has exactly the parent's states without those columns, each with
-    the same numbers: they are taken from the parent's by a mask instead of being computed again
-    (tests/unit/test_speed_paths.py compares the two)."""
+    the same numbers: they are copied from the parent's (:func:`dp_kernels.states_without`) instead
+    of being computed again (tests/unit/test_speed_paths.py compares the two). The step offsets
+    are dp_states' own (the same as counting the states' steps)."""
     got = p._cache.get("dp_states")
     if got is not None:
         return got
@@ -197,12 +198,13 @@ def _prepared(p: SchedulingProblem):
         st_k, st_g, st_u, st_vf, st_n1, root_ok, off_deg, nad_t, _ = _prepared(parent)
         gone = np.zeros(p.n_gp, dtype=bool)
         gone[cols] = True
-        keep = np.flatnonzero(~gone[st_g])
-        st_k, st_g, st_u, st_vf, st_n1, root_ok, off_deg = (
-            a.take(keep, axis=0) for a in (st_k, st_g, st_u, st_vf, st_n1, root_ok, off_deg))
+        # the kept states' numbers copied in one compiled pass (dp_kernels.states_without: what take
+        # by the kept indices and bincount + cumsum of their steps give)
+        st_k, st_g, st_u, st_vf, st_n1, root_ok, off_deg, t_off = dp_kernels.states_without(
+            gone, p.n_steps, st_k, st_g, st_u, st_vf, st_n1, root_ok, off_deg)
     else:
-        st_k, st_g, st_u, st_vf, _, zero = dp_kernels.dp_states(p.in_for, p.prior_recent, p.absval, p.prior_count,
-                                                                p.sat_pos_km, p.gp_ecef_km)
+        st_k, st_g, st_u, st_vf, t_off, zero = dp_kernels.dp_states(p.in_for, p.prior_recent, p.absval,
+                                                                    p.prior_count, p.sat_pos_km, p.gp_ecef_km)
         if zero:
             raise ValueError("unit_vectors: zero-length vector (satellite on its target?)")
         st_n1 = (p.prior_count[st_k, st_g] + 1.0).astype(np.float64)
@@ -212,8 +214,6 @@ def _prepared(p: SchedulingProblem):
         nad_t = nadir_unit(p.sat_pos_km)  # per step, then per state (the same numbers, T instead of S rows)
         # np.sum(nad * st_u, axis=1) added in order (sat_node/acs.py dot3, the same numbers)
         off_deg = np.degrees(np.arccos(np.clip(dot3(nad_t[st_k], st_u), -1, 1)))
-    t_off = np.zeros(p.n_steps + 1, dtype=np.int64)
-    np.cumsum(np.bincount(st_k, minlength=p.n_steps), out=t_off[1:])
     got = p._cache["dp_states"] = (np.ascontiguousarray(st_k), np.ascontiguousarray(st_g),
                                    np.ascontiguousarray(st_u), np.ascontiguousarray(st_vf),
                                    np.ascontiguousarray(st_n1), np.ascontiguousarray(root_ok), off_deg, nad_t, t_off)

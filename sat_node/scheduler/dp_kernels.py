@@ -48,7 +48,7 @@ import math
 import numpy as np
 from numba import config, njit
 
-__all__ = ["bit_gain", "dp_forward", "dp_states", "path_gain", "plan_values", "table_gain"]
+__all__ = ["bit_gain", "dp_forward", "dp_states", "path_gain", "plan_values", "states_without", "table_gain"]
 
 
 @njit(cache=True)
@@ -440,3 +440,42 @@ def plan_values(in_for, prior_recent, absval, prior_count, steps, cols, step_s, 
         if in_for[k, j] and not prior_recent[k, j] and not recent:
             vals[i] = absval[k, j] / (prior_count[k, j] + own + 1.0)
     return vals
+
+
+@njit(cache=True)
+def states_without(gone, n_steps, st_k, st_g, st_u, st_vf, st_n1, root_ok, off_deg):
+    """The DP states of a branch that makes the GP columns flagged in ``gone`` worth nothing: the
+    parent's states (in their order) without those columns, every per-state number copied, and the
+    new step offsets - what ``take`` of each array by the kept indices and ``bincount`` + ``cumsum``
+    of the steps give (sat_node/scheduler/dp.py ``_prepared``; tests/unit/test_speed_paths.py)."""
+    S = st_k.shape[0]
+    n = 0
+    for s in range(S):
+        if not gone[st_g[s]]:
+            n += 1
+    k2 = np.empty(n, np.int64)
+    g2 = np.empty(n, np.int64)
+    u2 = np.empty((n, 3))
+    vf2 = np.empty(n)
+    n12 = np.empty(n)
+    ok2 = np.empty(n, np.bool_)
+    off2 = np.empty(n)
+    t_off = np.zeros(n_steps + 1, np.int64)
+    i = 0
+    for s in range(S):
+        if gone[st_g[s]]:
+            continue
+        k2[i] = st_k[s]
+        g2[i] = st_g[s]
+        u2[i, 0] = st_u[s, 0]
+        u2[i, 1] = st_u[s, 1]
+        u2[i, 2] = st_u[s, 2]
+        vf2[i] = st_vf[s]
+        n12[i] = st_n1[s]
+        ok2[i] = root_ok[s]
+        off2[i] = off_deg[s]
+        t_off[st_k[s] + 1] += 1
+        i += 1
+    for k in range(n_steps):
+        t_off[k + 1] += t_off[k]
+    return k2, g2, u2, vf2, n12, ok2, off2, t_off
