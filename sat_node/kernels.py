@@ -12,9 +12,10 @@ kernels from the cache instead of all compiling them at once. ``python -m sat_no
 same once for the checkout (scripts/setup.sh starts it in the background while the rest installs):
 the cache it fills is the one every later run of this checkout loads from, and it prints the time.
 
-:func:`warm_up` runs each kernel through its ordinary caller (``solve_dp``, ``for_mask`` and
-``prior_state`` on a two-step, two-GP instance, the observed view's kernel exponent and innovation grid on the
-types its view passes, a joint group's value on arrays; a CGR route and a one-to-all query on a three-contact plan), so it compiles exactly the
+:func:`warm_up` runs each kernel through its ordinary caller (``solve_dp`` - a joint branch's
+too - ``for_mask`` and ``prior_state`` on a two-step, two-GP instance, the observed view's kernel
+exponent and innovation grid on the types its view passes, a joint group's value on arrays; a CGR
+route and a one-to-all query on a three-contact plan), so it compiles exactly the
 argument types a run uses. How we know it is right: tests/unit/test_kernels_warm_up.py (after
 ``warm_up``, a paper run on the local engine adds no signature to any kernel; a second process with
 the same cache finds every kernel there: cache hits, no misses).
@@ -71,12 +72,13 @@ def _dp() -> None:
     solve_dp(p, check=True)  # path bitsets (the window is within the revisit window)
     solve_dp(p, check=True, bit_words=0)  # path tables (same signature)
     solve_dp(p, check=True, table_cells=0, bit_words=0)  # the branch that walks back-pointers
-    solve_dp(with_forbidden(p, [1]), check=True)  # a joint branch: its states copied from p's (states_without)
+    solve_dp(with_forbidden(p, [1]), check=True)  # a joint branch: states copied from p's (states_without)
     for_mask(sat, gp, 55.0)  # the compiled field-of-regard test (both GPs within its bound)
     prior_state([KnownObservation(5.0, 1, "sat_12")], np.array([0, 1]), np.array([0.0, 10.0]), "sat_11", 900.0)
     # the observed view's kernel sums (sat_node/knowledge.py ObservedView._ref: contiguous float64 arrays)
     knowledge_kernels.kernel_exponent(gp, np.ascontiguousarray(gp[:1]), np.array([5.0]), 10.0, 100.0, 1298.4)
-    knowledge_kernels.innovation_grid(np.ones(2), np.zeros(2), np.zeros(2), np.zeros((1, 2)), np.zeros(2, np.int64), 5.5)
+    knowledge_kernels.innovation_grid(np.ones(2), np.zeros(2), np.zeros(2), np.zeros((1, 2)),
+                                      np.zeros(2, np.int64), 5.5)
     one = make_plan(p, [0], [0])
     group_value([p, p], [one, one], array_looks=0)  # a joint group's value on arrays (its compiled sum)
 
