@@ -11,6 +11,15 @@ recipient-list overhead (sat_node/dtn/routing_blocks.py overhead_bits), read fro
 reaches its arrival time (contract rule 2: nothing is emitted stamped in the future), and the router
 asks to be woken exactly then.
 
+With ``overheard`` (the receivers' forwarding, ``multicast`` or ``unicast``; what ``for_world`` passes),
+a copy its receiver's agent would only count (it names other next hops: sat_node/dtn/overhearing.py
+``only_counted``) is not an envelope of its own: at the step that reaches its arrival it is counted,
+and each receiver gets one ``/sat_YY/dtn/overheard`` (msgs_json CopiesOverheard: how many, stamped
+with the latest of their arrivals) in place of them. The receiver counts that number where it would
+have counted each copy (DtnPort), at the same step, so every counter and event of the run is the
+same; a receiver that would have had any such copy in a step has this one message in it, so an
+event-driven receiver is called at the same steps. Without ``overheard`` every copy is an envelope.
+
 A transmission the truth plan does not carry (the contact ends before its last bit - e.g. an ISL
 cut the agents' predicted plan does not know -, no contact to the next hop, the sender's radio still
 busy) is not delivered to anyone; the sender is told on ``/sat_XX/dtn/status``
@@ -25,7 +34,9 @@ orbit_clock/contact_faults.py), the same the contact-window announcer publishes
 (orbit_clock/contact_announcer.py). After each step the router reports how many copies it still
 holds (``StepResult.in_flight``: accepted, arrival ahead), which both engines show as progress.
 
-Oracle: the system test checks from the bag that every delivery on /sat_YY/dtn/in lies inside a
+Oracle: tests/unit/test_overheard_counts.py runs the same senders through a medium with and
+without ``overheard`` and checks that the receivers end with the same counters and events, and that
+the copies kept as envelopes are, message by message, those the receivers do not only count. The system test checks from the bag that every delivery on /sat_YY/dtn/in lies inside a
 contact from its sender with the link delay (tests/system/test_engines_equal.py).
 """
 
@@ -40,8 +51,9 @@ from msgs_json import schemas as S
 from msgs_json import topics as T
 from msgs_json.envelope import Emit, Envelope, LiveState, StepResult
 from orbit_clock.contact_faults import truth_plan as with_faults
-from orbit_clock.contact_plan import ContactPlan, node_name
+from orbit_clock.contact_plan import ContactPlan, node_name, node_number
 from sat_node.dtn.bpv7 import BundleError, decode_bundle
+from sat_node.dtn.overhearing import FORWARDINGS_COUNTED, only_counted
 from sat_node.dtn.routing_blocks import overhead_bits, peek_next_hops
 
 __all__ = ["RouterLogic", "ROUTER_NAME"]
@@ -52,16 +64,21 @@ _NS = 1_000_000_000
 
 class RouterLogic:
     """The medium between the nodes ``sats``; ``plan``: the truth contact plan; ``bundle_bits``:
-    the size of a bundle on the link (the study's 2000 bits)."""
+    the size of a bundle on the link (the study's 2000 bits); ``overheard``: the receivers'
+    forwarding, to send the copies they only count as counts (module docstring; None: every copy)."""
 
     name = ROUTER_NAME
 
-    def __init__(self, sats, plan: ContactPlan, bundle_bits: int):
+    def __init__(self, sats, plan: ContactPlan, bundle_bits: int, *, overheard: str | None = None):
+        if overheard is not None and overheard not in FORWARDINGS_COUNTED:
+            raise ValueError(f"overheard={overheard!r}: None or one of {', '.join(FORWARDINGS_COUNTED)}")
+        self.overheard = overheard
         self.sats = list(sats)
         self._sat_set = frozenset(self.sats)
         self.bits = int(bundle_bits)
         self.link = LinkModel(plan)
-        self.pending: list[tuple[int, str, int, bytes]] = []  # (arrival_ns, receiver, order, bytes)
+        # (arrival_ns, receiver, order, bytes); bytes None: a copy the receiver only counts (``overheard``)
+        self.pending: list[tuple[int, str, int, bytes | None]] = []
         self._order = itertools.count()
         self.rejected = 0
         self.rejected_by_reason: dict[str, int] = {}
@@ -71,6 +88,9 @@ class RouterLogic:
         self._in_topic = {s: T.dtn_in_topic(s) for s in self.sats}
         self._out_topic = {s: T.dtn_out_topic(s) for s in self.sats}
         self._status_topic = {s: T.dtn_status_topic(s) for s in self.sats}
+        self._overheard_topic = {s: T.dtn_overheard_topic(s) for s in self.sats}
+        self._number = {s: node_number(s) for s in self.sats}
+        self.copies_counted = 0  # copies sent as counts (on /sat_YY/dtn/overheard) instead of envelopes
 
     @classmethod
     def for_world(cls, world, *, extra_delay_s: float = 0.0,
@@ -78,7 +98,8 @@ class RouterLogic:
         """The medium of a scenario's world (bringup/scenario/world.py): its satellites, its ISL plan
         with the run's faults, its bundle size."""
         plan = with_faults(world.isl_plan, cuts=cuts, extra_delay_s=extra_delay_s)
-        return cls(world.sat_names, plan, world.scenario.isl.bundle_bits)
+        isl = world.scenario.isl
+        return cls(world.sat_names, plan, isl.bundle_bits, overheard=isl.forwarding)
 
     def subscriptions(self) -> list[str]:
         return [T.dtn_out_topic(s) for s in self.sats]
@@ -90,9 +111,22 @@ class RouterLogic:
         for env in inbox:
             self._transmit(env)
         emits = []
+        counted: dict[str, list[int]] = {}  # receiver -> [copies only counted, latest arrival]
         while self.pending and self.pending[0][0] <= t_ns:
             arrival, receiver, _, data = heapq.heappop(self.pending)
+            if data is None:
+                c = counted.get(receiver)
+                if c is None:
+                    counted[receiver] = [1, arrival]
+                else:
+                    c[0] += 1
+                    c[1] = arrival  # (popped in arrival order)
+                continue
             emits.append(Emit(self._in_topic[receiver], data, arrival))
+        for receiver, (n, last) in counted.items():
+            msg = S.CopiesOverheard(sat=receiver, t_ns=last, copies=n)
+            emits.append(Emit(self._overheard_topic[receiver], codec.encode(msg), last))
+            self.copies_counted += n
         reported = False
         while self.status_pending and self.status_pending[0][0] <= t_ns:
             at, _, sender, text = heapq.heappop(self.status_pending)
@@ -139,8 +173,16 @@ class RouterLogic:
                 self._tell_failed(env, h, reason, out.end_ns)
             if len(out.failed) == len(hops):  # nobody it was meant for got it: no copy goes out
                 return
+        fw = self.overheard
+        if fw is None:
+            for cp in out.copies:
+                heapq.heappush(self.pending, (cp.arrival_ns, cp.node, next(self._order), env.data))
+            return
+        nhs = tuple(self._number[h] for h in hops)
+        number = self._number
         for cp in out.copies:
-            heapq.heappush(self.pending, (cp.arrival_ns, cp.node, next(self._order), env.data))
+            data = None if only_counted(fw, nhs, number[cp.node]) else env.data
+            heapq.heappush(self.pending, (cp.arrival_ns, cp.node, next(self._order), data))
 
     def _reject(self, reason: str) -> None:
         self.rejected += 1

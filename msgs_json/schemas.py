@@ -28,6 +28,8 @@ topic                  type                          meaning
 /sat_XX/dtn/counters   DtnCounters                   cumulative DTN counters (overheard copies, held)
 /sat_XX/dtn/status     TransmissionFailed            the ISL medium tells the sender a transmission
                                                      did not get through (bundle goes back to queue)
+/sat_XX/dtn/overheard  CopiesOverheard               how many copies for other next hops the medium
+                                                     brought the node since its last such message
 /sat_XX/ops/mode       ModeChange                    the satellite changed mode (NOMINAL, DEGRADED,
                                                      SAFE; sat_node/operations/modes.py)
 /sat_XX/ops/command    CommandEvent                  an operator command received, executed or
@@ -70,6 +72,7 @@ __all__ = [
     "DtnCounters",
     "BundleForwarded",
     "ContactWindow",
+    "CopiesOverheard",
     "CopyDiscarded",
     "GroundDownlink",
     "GroundUplink",
@@ -337,6 +340,17 @@ class DtnCounters(_Msg, kw_only=True, frozen=True):
     t_ns: NsTime
     counters: dict[Annotated[str, Meta(max_length=64)], Count] = {}
 
+class CopiesOverheard(_Msg, kw_only=True, frozen=True):
+    """The ISL medium (dtn_router) tells node ``sat`` that ``copies`` copies of transmissions by other
+    nodes reached it, each naming next hops of which it is not one (/sat_XX/dtn/overheard), stamped
+    ``t_ns`` (the latest of their arrivals). Sent instead of those copies on /sat_XX/dtn/in: the node
+    would only count them (DtnCounters ``discarded.not_next_hop``), so it counts this number."""
+
+    sat: SatName
+    t_ns: NsTime
+    copies: Annotated[int, Meta(ge=1, le=2**63 - 1)]
+
+
 class TransmissionFailed(_Msg, kw_only=True, frozen=True):
     """The ISL medium (dtn_router) tells sender ``sat`` that its transmission of ``bundle_id`` to
     ``next_hop`` started at ``start_ns`` did not get through (/sat_XX/dtn/status), stamped ``t_ns``
@@ -468,6 +482,7 @@ MESSAGE_TYPES: tuple[type[msgspec.Struct], ...] = (
     CopyDiscarded,
     DtnCounters,
     TransmissionFailed,
+    CopiesOverheard,
     ModeChange,
     CommandEvent,
     CommandAck,

@@ -45,6 +45,7 @@ __all__ = [
     "dtn_counters_topic",
     "dtn_in_topic",
     "dtn_out_topic",
+    "dtn_overheard_topic",
     "dtn_status_topic",
     "design_topic",
     "fix_topic",
@@ -121,6 +122,11 @@ def dtn_status_topic(sat: str) -> str:
     return _sat(sat, "dtn/status")
 
 
+def dtn_overheard_topic(sat: str) -> str:
+    """The ISL medium's count of copies for other next hops that reached ``sat`` (CopiesOverheard)."""
+    return _sat(sat, "dtn/overheard")
+
+
 def ops_mode_topic(sat: str) -> str:
     """The satellite's mode changes (ModeChange, sat_node/operations/modes.py)."""
     return _sat(sat, "ops/mode")
@@ -161,6 +167,7 @@ _PER_SAT: dict[str, object] = {
     "dtn/out": bytes,
     "dtn/in": bytes,
     "dtn/status": S.TransmissionFailed,
+    "dtn/overheard": S.CopiesOverheard,
     "ops/mode": S.ModeChange,
     "ops/command": S.CommandEvent,
     "ops/hk": S.Housekeeping,

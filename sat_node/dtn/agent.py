@@ -12,7 +12,8 @@ agents live in one process:
 * :meth:`BundleAgent.overheard` - the cheap first look at a heard copy: one whose next-hop block
   names another node is counted (``counters['discarded.not_next_hop']``) with no event record and
   True is returned; anything else goes to :meth:`receive` (the satellite does this for the ~200k
-  copies of a paper run);
+  copies of a paper run); :meth:`BundleAgent.overheard_count` counts many such copies at once (the
+  medium's count of them, sat_node/dtn/overhearing.py);
 * :meth:`BundleAgent.transmissions_until` - what the one radio sends up to ``t_ns``. The next hop is
   chosen at transmission time, not at enqueue time: whenever the radio is free, held bundles are
   taken in send order (priority 1 first, then creation time; or, with ``priority_delay_s``, the
@@ -423,6 +424,13 @@ class BundleAgent:
         self.last_received = None
         self.counters["discarded.not_next_hop"] += 1
         return True
+
+    def overheard_count(self, copies: int, now_ns: int) -> None:
+        """``copies`` copies for other next hops, counted at once (the medium's CopiesOverheard): the
+        effect of that many :meth:`overheard` calls that return True, the last at ``now_ns``."""
+        self._settle(now_ns)
+        self.last_received = None
+        self.counters["discarded.not_next_hop"] += int(copies)
 
     def receive(self, bundle_bytes: bytes, from_node: str, now_ns: int) -> str:
         """A copy heard on the medium; returns what happened (delivered, queued, discarded.*, dropped.*)."""

@@ -280,6 +280,13 @@ class MulticastAgent:
         self.counters["discarded.not_next_hop"] += 1
         return True
 
+    def overheard_count(self, copies: int, now_ns: int) -> None:
+        """``copies`` copies for other next hops, counted at once (the medium's CopiesOverheard): the
+        effect of that many :meth:`overheard` calls that return True, the last at ``now_ns``."""
+        self._settle_by_time(now_ns)
+        self.last_received = None
+        self.counters["discarded.not_next_hop"] += int(copies)
+
     def receive(self, bundle_bytes: bytes, from_node: str, now_ns: int) -> str:
         """A copy heard on the medium; returns what happened: delivered (this node was a recipient and
         got it now), queued, discarded.* or dropped.*."""

@@ -9,6 +9,10 @@ satellite (sat_node/satellite.py) and the DTN-alone study's traffic nodes
   next-hop block names another node is counted (``overheard``; broadcast medium) and nothing more;
   anything else goes to :meth:`BundleAgent.receive` at the arrival time. :meth:`receive` returns the
   bundle when it was delivered here, so the node can act on its payload;
+* ``/<node>/dtn/overheard`` (msgs_json CopiesOverheard from the medium): that many copies for other
+  nodes, which the medium sent as one count instead of one envelope each (dtn_router/router.py):
+  counted as if each had come on ``/<node>/dtn/in`` (``overheard``, the agent's
+  ``discarded.not_next_hop``);
 * ``/<node>/dtn/status`` (msgs_json TransmissionFailed from the medium, stamped when the attempt
   ended): the transmission goes back to the agent, re-routed without that contact;
 * :meth:`radio`: the transmissions the agent's one radio starts up to the step time, emitted on
@@ -84,6 +88,7 @@ class DtnPort:
         self.out_topic = T.dtn_out_topic(name)
         self.events_topic = T.dtn_events_topic(name)
         self.counters_topic = T.dtn_counters_topic(name)
+        self.overheard_topic = T.dtn_overheard_topic(name)
         self.overheard = 0
         self.tx_failed: dict[str, int] = {}
         self._ev_done = 0
@@ -95,7 +100,7 @@ class DtnPort:
         self._prev_t = -1  # the previous step's time
 
     def subscriptions(self) -> list[str]:
-        return [self.in_topic, self.status_topic]
+        return [self.in_topic, self.status_topic, self.overheard_topic]
 
     # ------------------------------------------------------------------ inputs
     def originate(self, payload: bytes, dests, t_ns: int, *, gp: int = 0) -> list[str]:
@@ -116,13 +121,20 @@ class DtnPort:
         return bids
 
     def is_mine(self, topic: str) -> bool:
-        return topic == self.in_topic or topic == self.status_topic
+        return topic == self.in_topic or topic == self.status_topic or topic == self.overheard_topic
 
     def receive(self, env: Envelope, t_ns: int):
         """One envelope on the port's topics; the bundle when one was delivered to this node, else
         None. Raises ValueError (or KeyError/TypeError) on a bad message: the node counts it."""
         if env.topic == self.status_topic:
             self._on_status(codec.decode(env.topic, env.data), t_ns)
+            return None
+        if env.topic == self.overheard_topic:
+            msg = codec.decode(env.topic, env.data)
+            if msg.sat != self.name:
+                raise ValueError(f"overheard copies of {msg.sat} on {self.name}'s topic")
+            self.agent.overheard_count(msg.copies, env.t_ns)
+            self.overheard += msg.copies
             return None
         if not isinstance(env.data, bytes):
             raise ValueError("bundle topic carries text")

@@ -26,9 +26,10 @@ def _topics(paper_scenario):
         topics = set(p.subscriptions())
         r = p.start(0)
         topics |= {e.topic for e in r.emits}
-        if p.name == "router":  # what it publishes: each satellite's dtn/in and dtn/status
+        if p.name == "router":  # what it publishes: each satellite's dtn/in, dtn/overheard and dtn/status
             from msgs_json import topics as T
             topics |= {T.dtn_in_topic(s) for s in world.sat_names} | {T.dtn_status_topic(s) for s in world.sat_names}
+            topics |= {T.dtn_overheard_topic(s) for s in world.sat_names}
         if p.name in world.sat_names:
             from msgs_json import topics as T
             topics |= {T.dtn_out_topic(p.name), T.schedule_topic(p.name), T.observations_topic(p.name),

@@ -39,6 +39,7 @@ TOPIC_OF = {
     S.CopyDiscarded: T.dtn_events_topic("sat_18"),
     S.DtnCounters: T.dtn_counters_topic("sat_11"),
     S.TransmissionFailed: T.dtn_status_topic("sat_11"),
+    S.CopiesOverheard: T.dtn_overheard_topic("sat_11"),
     S.ModeChange: T.ops_mode_topic("sat_11"),
     S.CommandEvent: T.ops_command_topic("sat_11"),
     S.GroundCommand: T.GROUND_COMMANDS,
