@@ -57,14 +57,17 @@ INF = np.inf
 @numba.njit(cache=True)
 def _dijkstra(start, end, src, dst, rate, owlt, residual, out_ptr, out_idx, out_maxend, excluded,
               node_excluded, source, is_dest, n_dests, t0, bits, backlog_bits, deadline, arr, pred, first_backlog,
-              hop_tol, stamp, qid, found_c, found_h):
+              hop_tol, stamp, qid, found_c, found_h, slot):
     """Label-setting search over (contact, hop count) states with Pareto pruning.
 
     First hop on contact c starts at max(t0 + backlog_bits / rate, start) + first_backlog[c] / rate
     (first_backlog: bits already waiting for that very contact, sent when it opens).
 
-    arr[c, h]: earliest arrival at dst[c] over routes ending with contact c after h hops; pred[c, h]:
-    the contact before c on that route (-1 first hop). A label is kept only if no label of the same
+    arr[slot[c], h]: earliest arrival at dst[c] over routes ending with contact c after h hops;
+    pred[slot[c], h]: the contact before c on that route (-1 first hop). The rows of arr and pred
+    are a pool: a contact gets the next free row when the search first touches it (slot[c]); only
+    contacts with start <= deadline and end > t0 are touched, so the caller sizes the pool by their
+    number (more rows needed than the pool has: ValueError). A label is kept only if no label of the same
     contact with fewer-or-equal hops arrives no later. States pop in (arrival, hops, contact) order,
     so the first one popped at a destination is the SABR choice for it: (found_c, found_h)[node]
     (the caller sets them to -1 at the destinations first; ``is_dest`` marks them, ``n_dests`` counts
@@ -72,8 +75,8 @@ def _dijkstra(start, end, src, dst, rate, owlt, residual, out_ptr, out_idx, out_
     relay towards the others like any node. n_dests = 0: no early stop (one-to-all).
     hop_tol > 0 (one destination only): among routes arriving no later than the earliest arrival +
     hop_tol, the one with fewest hops (then earliest arrival) is chosen; hop_tol = 0 is the plain SABR
-    order. arr/pred rows are valid only where stamp[c] == qid (rows are reset on first touch, so the
-    arrays are reused across queries without clearing them).
+    order. slot[c] and its arr/pred row are valid only where stamp[c] == qid (rows are reset on first
+    touch, so the arrays are reused across queries without clearing them).
     A node's outgoing contacts are scanned from the first that may still be open (out_maxend: the
     running maximum of their end times, in start order) up to the first that starts after the
     deadline (no arrival through it or a later one can meet it).
@@ -86,6 +89,8 @@ def _dijkstra(start, end, src, dst, rate, owlt, residual, out_ptr, out_idx, out_
     prunings among them, and with them its route and arrival, are the same in both
     (tests/unit/test_cgr_random.py test_one_search_for_many_destinations_equals_one_each)."""
     H = arr.shape[1] - 1
+    n_rows = arr.shape[0]
+    used = 0
     heap = [(np.inf, 0, 0)]
     heap.pop()
     # per node and hop count: the earliest arrival of a label made there with exactly that many hops
@@ -113,11 +118,15 @@ def _dijkstra(start, end, src, dst, rate, owlt, residual, out_ptr, out_idx, out_
             continue
         _node_label(nb, pm, dst[c], 1, a)
         if stamp[c] != qid:
+            if used >= n_rows:
+                raise ValueError("CGR label pool too small")
             stamp[c] = qid
-            arr[c, :] = np.inf
-            pred[c, :] = -1
-        arr[c, 1] = a
-        pred[c, 1] = -1
+            slot[c] = used
+            used += 1
+            arr[slot[c], :] = np.inf
+            pred[slot[c], :] = -1
+        arr[slot[c], 1] = a
+        pred[slot[c], 1] = -1
         heapq.heappush(heap, (a, 1, c))
     best_c = -1
     best_h = 0
@@ -130,13 +139,14 @@ def _dijkstra(start, end, src, dst, rate, owlt, residual, out_ptr, out_idx, out_
     node_min_h = np.full(node_excluded.shape[0], H + 1, np.int64)
     while len(heap) > 0:
         a, h, c = heapq.heappop(heap)
-        if a > arr[c, h]:
+        rc = slot[c]
+        if a > arr[rc, h]:
             continue
         if tol and best_c >= 0 and a > best_a + hop_tol:
             break
         dominated = False
         for hh in range(1, h):
-            if arr[c, hh] <= a:
+            if arr[rc, hh] <= a:
                 dominated = True
                 break
         if dominated:
@@ -177,19 +187,24 @@ def _dijkstra(start, end, src, dst, rate, owlt, residual, out_ptr, out_idx, out_
             if na > deadline or _node_dominated(nb, pm, w, h + 1, na):
                 continue
             if stamp[e] != qid:
+                if used >= n_rows:
+                    raise ValueError("CGR label pool too small")
                 stamp[e] = qid
-                arr[e, :] = np.inf
-                pred[e, :] = -1
+                slot[e] = used
+                used += 1
+                arr[slot[e], :] = np.inf
+                pred[slot[e], :] = -1
+            re_ = slot[e]
             dom = False
             for hh in range(1, h + 2):
-                if arr[e, hh] <= na:
+                if arr[re_, hh] <= na:
                     dom = True
                     break
             if dom:
                 continue
             _node_label(nb, pm, w, h + 1, na)
-            arr[e, h + 1] = na
-            pred[e, h + 1] = c
+            arr[re_, h + 1] = na
+            pred[re_, h + 1] = c
             heapq.heappush(heap, (na, h + 1, e))
     if tol and best_c >= 0:
         for v in range(is_dest.shape[0]):
@@ -285,8 +300,14 @@ class ContactGraph:
                 raise ValueError(f"contact graph: max_hops must be >= 1, got {max_hops}")
             H = min(H, int(max_hops))
         self.max_hops = H
-        self._arr = np.full((n, H + 1), INF)
-        self._pred = np.full((n, H + 1), -1, dtype=np.int64)
+        # the label pool (_dijkstra's arr/pred: one row per contact a search touches, slot[c] its
+        # row), grown to the number of contacts the next search may touch: those open after its
+        # start time that start by its deadline (rows are reset on first touch, never cleared)
+        self._slot = np.zeros(n, dtype=np.int64)
+        self._arr = np.empty((0, H + 1))
+        self._pred = np.empty((0, H + 1), dtype=np.int64)
+        self._starts_sorted = np.sort(self.start_s)
+        self._ends_sorted = np.sort(self.end_s)
         self._stamp = np.zeros(n, dtype=np.int64)
         self._qid = 0
         self.searches = 0  # searches run (a route, a routes() call without hop tolerance, one-to-all: one each)
@@ -312,6 +333,7 @@ class ContactGraph:
              first_backlog=None, hop_tol_s=0.0):
         """One search from ``source`` towards the node indices ``dests`` (empty: one-to-all); the
         (found contact, hops) of each destination are left in ``self._found_c`` / ``_found_h``."""
+        self._pool_for(t_s, deadline_s)
         arr, pred, stamp = self._arr, self._pred, self._stamp
         self._qid += 1
         self.searches += 1
@@ -335,11 +357,23 @@ class ContactGraph:
                       self._no_exclusion if excluded is None else excluded, node_ex,
                       self.node_index[source], is_dest, len(dests), float(t_s), float(bits), float(backlog_bits),
                       float(deadline_s), arr, pred, self._no_backlog if first_backlog is None else first_backlog,
-                      float(hop_tol_s), stamp, self._qid, found_c, self._found_h)
+                      float(hop_tol_s), stamp, self._qid, found_c, self._found_h, self._slot)
         finally:
             for d in dests:
                 is_dest[d] = False
         return arr, pred
+
+    def _pool_for(self, t_s: float, deadline_s: float) -> None:
+        """Make the label pool hold a row for every contact a search from ``t_s`` to ``deadline_s``
+        may touch (start <= deadline and end > t_s: the contacts that start by the deadline less
+        those that have ended by t_s, which all started before it)."""
+        need = int(np.searchsorted(self._starts_sorted, deadline_s, side="right")
+                   - np.searchsorted(self._ends_sorted, t_s, side="right"))
+        have = self._arr.shape[0]
+        if need > have:
+            rows = min(len(self.contacts), max(need, 2 * have, 1024))
+            self._arr = np.empty((rows, self.max_hops + 1))
+            self._pred = np.empty((rows, self.max_hops + 1), dtype=np.int64)
 
     def _route_to(self, source, d, t_s, bits, backlog_bits, deadline_s, first_backlog_bits) -> Route | None:
         """The route the last search found to node index ``d`` (None: none by ``deadline_s``)."""
@@ -347,14 +381,14 @@ class ContactGraph:
         if best < 0:
             return None
         hops = int(self._found_h[d])
-        arrival = float(self._arr[best, hops])
+        arrival = float(self._arr[self._slot[best], hops])
         if arrival > deadline_s:
             return None
         path = []
         c, h = best, hops
         while c >= 0:
             path.append(int(c))
-            c, h = self._pred[c, h], h - 1
+            c, h = self._pred[self._slot[c], h], h - 1
         path.reverse()
         fb = 0.0 if first_backlog_bits is None else float(first_backlog_bits[path[0]])
         self._check(path, source, self.node_names[d], t_s, bits, backlog_bits, arrival, fb)
@@ -416,11 +450,11 @@ class ContactGraph:
 
     def earliest_arrivals(self, source: str, t_s: float, bits: float) -> dict[str, float]:
         """One-to-all earliest arrival [s] with full volumes and no backlog (lower bounds)."""
-        arr2, _pred = self._run(source, [], t_s, bits, 0.0, INF, None, None, ())
+        pool, _pred = self._run(source, [], t_s, bits, 0.0, INF, None, None, ())
         reached = np.flatnonzero(self._stamp == self._qid)  # the contacts this search wrote (the others: INF)
         by_node = np.full(len(self.node_names), INF)
         # per node: the earliest over the contacts into it
-        np.minimum.at(by_node, self.dst[reached], arr2[reached].min(axis=1))
+        np.minimum.at(by_node, self.dst[reached], pool[self._slot[reached]].min(axis=1))
         out = {self.node_names[i]: float(by_node[i]) for i in np.nonzero(np.isfinite(by_node))[0]}
         out.pop(source, None)
         return out

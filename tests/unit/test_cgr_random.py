@@ -136,3 +136,35 @@ def test_hop_tolerance_against_brute_force():
             want = min((h, arr) for arr, h in paths if arr <= first + tol)
             bad += r is None or r.hops != want[0] or not np.isclose(r.arrival_s, want[1])
     assert bad == 0
+
+
+def test_label_pool_sized_by_the_search_window_gives_the_full_arrays_routes():
+    """cgr.py's label pool (rows for the contacts a search may touch: open after its start, starting
+    by its deadline) against a graph whose pool has a row for every contact, as the arrays had before
+    (the path it replaces): the same route, arrival and hops on every query, a pool smaller than the
+    plan when the deadlines are short, and earliest_arrivals (one-to-all) the same."""
+    rng = np.random.default_rng(11)
+    routed = 0
+    for seed in range(6):
+        prng = np.random.default_rng(seed)
+        cs = []
+        for _ in range(3000):
+            a, b = prng.choice(len(NODES), 2, replace=False)
+            t0 = float(prng.uniform(0, 3000))
+            cs.append(Contact(t0, t0 + float(prng.uniform(1, 30)), NODES[a], NODES[b],
+                              float(prng.choice([0.5, 1, 2])), float(prng.choice([0.0, 0.25, 1.0]))))
+        plan = ContactPlan(cs)
+        lazy, full = ContactGraph(plan, max_hops=8), ContactGraph(plan, max_hops=8)
+        full._pool_for(-np.inf, np.inf)
+        assert full._arr.shape[0] == len(plan.contacts)
+        for _ in range(200):
+            s, d = rng.choice(NODES, 2, replace=False)
+            t = float(rng.uniform(0, 2900))
+            dl = t + float(rng.uniform(5, 120))
+            a = lazy.route(str(s), str(d), t, 1.0, deadline_s=dl)
+            assert a == full.route(str(s), str(d), t, 1.0, deadline_s=dl)
+            routed += a is not None
+        assert 0 < lazy._arr.shape[0] < len(plan.contacts)
+        src = NODES[seed % len(NODES)]
+        assert lazy.earliest_arrivals(src, 100.0, 1.0) == full.earliest_arrivals(src, 100.0, 1.0)
+    assert routed > 300
