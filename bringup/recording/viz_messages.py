@@ -179,6 +179,30 @@ def _link_ends(sat_names, links) -> list[int]:
     return ends
 
 
+def name_ranks(sat_names: Sequence[str]) -> tuple[np.ndarray, np.ndarray]:
+    """(rank, by_rank) of the names: ``rank[i]`` is name i's place in string order, ``by_rank[k]``
+    the index of the k-th name in that order (what :func:`link_ends_indexed` needs)."""
+    by_rank = np.array(sorted(range(len(sat_names)), key=list(sat_names).__getitem__), dtype=np.int64)
+    rank = np.empty_like(by_rank)
+    rank[by_rank] = np.arange(len(by_rank), dtype=np.int64)
+    return rank, by_rank
+
+
+def link_ends_indexed(rank: np.ndarray, by_rank: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """:func:`_link_ends` of the links (a[k], b[k]) given as satellite indices into names whose
+    :func:`name_ranks` are ``rank``, ``by_rank``: the same list, made on arrays. A link is its two
+    ends in string order (the lower name first, as ``tuple(sorted(pair))``), coded lower rank x n +
+    higher rank; the sorted distinct codes are the sorted distinct pairs (tests/unit/test_viz_fast.py
+    against _link_ends on drawn link lists)."""
+    n = len(rank)
+    ra, rb = rank[np.asarray(a, dtype=np.int64)], rank[np.asarray(b, dtype=np.int64)]
+    codes = np.unique(np.minimum(ra, rb) * n + np.maximum(ra, rb))
+    ends = np.empty(2 * len(codes), dtype=np.int64)
+    ends[0::2] = by_rank[codes // n]
+    ends[1::2] = by_rank[codes % n]
+    return ends
+
+
 def constellation_markers(
     sat_names: Sequence[str],
     r_ecef_km,
@@ -359,14 +383,15 @@ _ORIGIN = (0.0, 0.0, 0.0)
 
 def constellation_markers_cdr(sat_names: Sequence[str], r_ecef_km, t_ns: int, *, gp_ecef_km=None,
                               gp_values=None, links: Sequence[tuple[str, str]] = (), value_max: float = 256.0,
-                              labels: bool = True) -> bytes:
-    """CDR of :func:`constellation_markers` (same arguments, same checks), without message objects."""
+                              labels: bool = True, link_ends: np.ndarray | None = None) -> bytes:
+    """CDR of :func:`constellation_markers` (same arguments, same checks), without message objects.
+    ``link_ends``: the links as :func:`link_ends_indexed` gives them, instead of ``links``."""
     r = np.asarray(r_ecef_km, dtype=float).reshape(-1, 3)
     if len(r) != len(sat_names):
         raise ValueError(f"constellation_markers: {len(sat_names)} names but {len(r)} positions")
     sec, nsec = divmod(int(t_ns), 1_000_000_000)
     M = _Marker
-    ends = _link_ends(sat_names, links)
+    ends = _link_ends(sat_names, links) if link_ends is None else link_ends
     gp = None
     if gp_ecef_km is not None:
         g = np.asarray(gp_ecef_km, dtype=float).reshape(-1, 3)
@@ -382,7 +407,7 @@ def constellation_markers_cdr(sat_names: Sequence[str], r_ecef_km, t_ns: int, *,
     _marker_cdr(b, sec, nsec, b"satellites", 0, M.SPHERE_LIST, _ORIGIN, _SAT_SCALE, _C_WHITE,
                 points=_points_bytes(r), npoints=len(r))
     _marker_cdr(b, sec, nsec, b"isl", 0, M.LINE_LIST, _ORIGIN, _ISL_SCALE, _C_ISL,
-                points=_points_bytes(r[ends]) if ends else b"", npoints=len(ends))
+                points=_points_bytes(r[ends]) if len(ends) else b"", npoints=len(ends))
     if gp is not None:
         g, vals = gp
         cols = b"".join([_color_bytes(v, value_max) for v in vals.tolist()])

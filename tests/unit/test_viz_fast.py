@@ -88,3 +88,43 @@ def test_write_viz_bag_holds_plain_bytes(tmp_path):
                   for r, t_ns, kw in frames for t, ty, m in viz_messages(NAMES, r, t_ns, **kw))
     got = sorted((m.log_time_ns, m.topic, bytes(m.cdr)) for m in BagReader(tmp_path / "bag").messages())
     assert got == want
+
+
+def test_link_ends_on_indices_equal_the_name_pairs():
+    """viz_messages.link_ends_indexed (the feed's path) against _link_ends (the name pairs, the path it
+    replaces) on drawn link lists: both directions, repeats, names whose string order is not their
+    index order; and the marker bytes made from either are the same."""
+    from bringup.recording.viz_messages import _link_ends, link_ends_indexed, name_ranks
+
+    rng = np.random.default_rng(5)
+    names = ["sat_n900", "sat_12", "sat_0002_0001", "sat_11", "sat_n25", "sat_0001_0040", "sat_31"]
+    rank, by_rank = name_ranks(names)
+    for k in range(200):
+        m = int(rng.integers(0, 40))
+        a = rng.integers(0, len(names), m)
+        b = (a + rng.integers(1, len(names), m)) % len(names)
+        want = _link_ends(names, [(names[i], names[j]) for i, j in zip(a.tolist(), b.tolist())])
+        got = link_ends_indexed(rank, by_rank, a, b)
+        assert got.tolist() == want
+        if k < 20:
+            r = rng.normal(size=(len(names), 3)) * 7000.0
+            pairs = [(names[i], names[j]) for i, j in zip(a.tolist(), b.tolist())]
+            assert constellation_markers_cdr(names, r, 5 * 10**9 + k, link_ends=got) == \
+                constellation_markers_cdr(names, r, 5 * 10**9 + k, links=pairs)
+
+
+def test_viz_feed_frames_from_indices_equal_those_from_name_pairs(paper_scenario):
+    """A world's VizFeed (link_ends on arrays) writes the bytes it writes from the name pairs."""
+    from bringup.recording.viz_feed import VizFeed
+    from bringup.scenario.world import World
+
+    world = World.build(paper_scenario.with_overrides(sats=48, planes=4, hours=0.2))
+    fast, pairs = VizFeed(world, period_s=60.0), VizFeed(world, period_s=60.0)
+    assert fast._ab is not None
+    pairs._ab = None
+    links = 0
+    for t in range(0, 720, 60):
+        a, b = fast.frame(t * 10**9, t * 10**9), pairs.frame(t * 10**9, t * 10**9)
+        assert a == b and a
+        links += len(fast.links_at(float(t)))
+    assert links > 100
