@@ -1,7 +1,7 @@
 """The joint group's value on arrays (sat_node/scheduler/joint_kernels.py) equals the loop's.
 
 Oracle: ``joint_value`` of sat_node/scheduler/joint.py as first written (the loop over every look,
-kept here), against both paths of ``group_value`` (arrays and compiled sum; the loop for small
+kept in the module as ``value_loop``, the path for small groups), against both paths of ``group_value`` (arrays and compiled sum; the loop for small
 groups) and ``joint_value`` itself, on random groups (2-4 members, windows starting at the same or
 different times, shared and own GPs, repeats inside and beyond the revisit window, known prior
 looks, tied times) and on the DP plans of two-satellite instances: the value's bits.
@@ -16,28 +16,8 @@ from dp_instances import PAPER_SLEW, gp_ecef, track
 from sat_node.scheduler import solve_dp
 from sat_node.scheduler.dp import make_plan
 from sat_node.scheduler.joint import joint_value
-from sat_node.scheduler.joint_kernels import ARRAY_LOOKS, group_value
+from sat_node.scheduler.joint_kernels import ARRAY_LOOKS, group_value, value_loop
 from sat_node.scheduler.problem import build_problem
-
-
-def _value_as_first_written(problems, plans) -> float:
-    looks = []
-    for i, (p, pl) in enumerate(zip(problems, plans)):
-        for k, j in zip(pl.steps, pl.cols):
-            looks.append((p.t0_s + p.step_s * int(k), i, int(k), int(j)))
-    looks.sort()
-    last: dict[int, float] = {}
-    n: dict[int, int] = {}
-    total = 0.0
-    for t, i, k, j in looks:
-        p = problems[i]
-        g = int(p.gp_ids[j])
-        recent = p.prior_recent[k, j] or (g in last and t - last[g] < p.revisit_zero_s)
-        if p.in_for[k, j] and not recent:
-            total += p.absval[k, j] / (p.prior_count[k, j] + n.get(g, 0) + 1.0)
-        last[g] = t
-        n[g] = n.get(g, 0) + 1
-    return total
 
 
 def _random_group(seed: int):
@@ -73,7 +53,7 @@ def test_value_equals_the_loop_on_random_groups(seed):
 
 
 def _assert_same_value(problems, plans):
-    want = np.float64(_value_as_first_written(problems, plans)).tobytes()
+    want = np.float64(value_loop(problems, plans)).tobytes()
     for got in (joint_value(problems, plans), group_value(problems, plans, array_looks=0),
                 group_value(problems, plans, array_looks=10 ** 9)):
         assert np.float64(got).tobytes() == want
