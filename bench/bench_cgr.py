@@ -213,8 +213,12 @@ def _set(buf_ex, buf_fb, q, on: bool) -> None:
         buf_fb[c] = x if on else 0.0
 
 
-def _replay(graphs, queries, product: bool):
-    """Every query once; returns (CPU s, searches, routes)."""
+def _replay(graphs, queries, product: bool, unbounded=None):
+    """Every query once; returns (CPU s, searches, routes). ``unbounded``: graphs whose searches run
+    to the deadline (``horizon_s`` = inf, the product before the horizon) replayed with the product's
+    code instead of the fb46649 kernel, when the baseline is ``no-horizon``."""
+    if unbounded is not None and not product:
+        graphs, product = unbounded, True
     bufs = {gid: (np.zeros(len(g.contacts), np.bool_), np.zeros(len(g.contacts), np.float64))
             for gid, g in graphs.items()}
     out = []
@@ -237,31 +241,36 @@ def _replay(graphs, queries, product: bool):
     return time.process_time() - t0, searches, out
 
 
-def time_corpus(path: Path, repeat: int, limit: int | None) -> int:
+def time_corpus(path: Path, repeat: int, limit: int | None, against: str = "fb46649") -> int:
     with gzip.open(path, "rb") as f:
         doc = pickle.load(f)
     queries = doc["queries"][:limit] if limit else doc["queries"]
     graphs = {gid: ContactGraph(plan, max_hops=h) for gid, (plan, h) in doc["plans"].items()}
+    unbounded = None
+    if against == "no-horizon":
+        unbounded = {gid: ContactGraph(plan, max_hops=h) for gid, (plan, h) in doc["plans"].items()}
+        for g in unbounded.values():
+            g.horizon_s = float("inf")
     n_dest = sum(len(q["dests"]) for q in queries)
     print(f"{path}: run {' '.join(doc['argv'])}; {len(queries)} queries, {n_dest} destinations, "
           f"{sum(len(g.contacts) for g in graphs.values())} contacts")
     warm = queries[:50]  # compile / load both kernels outside the timing
-    _replay(graphs, warm, False)
+    _replay(graphs, warm, False, unbounded)
     _replay(graphs, warm, True)
     best = {False: float("inf"), True: float("inf")}
     counts = {}
     for _ in range(repeat):
         for product in (False, True):
-            cpu, searches, routes = _replay(graphs, queries, product)
+            cpu, searches, routes = _replay(graphs, queries, product, unbounded)
             best[product] = min(best[product], cpu)
             counts[product] = searches
             bad = sum(r != q["routes"] for r, q in zip(routes, queries))
             if bad:
                 raise SystemExit(f"bench_cgr: {'product' if product else 'baseline'}: {bad} queries give other "
                                  "routes than the run's")
-    print(f"{'':9} {'searches':>9} {'CPU s':>8} {'ms/search':>9}")
-    for product, name in ((False, "baseline"), (True, "product")):
-        print(f"{name:9} {counts[product]:>9} {best[product]:>8.2f} {1000 * best[product] / counts[product]:>9.3f}")
+    print(f"{'':10} {'searches':>9} {'CPU s':>8} {'ms/search':>9}")
+    for product, name in ((False, against), (True, "product")):
+        print(f"{name:10} {counts[product]:>9} {best[product]:>8.2f} {1000 * best[product] / counts[product]:>9.3f}")
     print(f"every query's routes equal the run's in both; product / baseline CPU {best[True] / best[False]:.3f} "
           f"(best of {repeat}, interleaved)")
     return 0
@@ -277,11 +286,14 @@ def main() -> int:
     t.add_argument("capture", type=Path)
     t.add_argument("--repeat", type=int, default=3)
     t.add_argument("--limit", type=int, default=None, help="the first N queries only")
+    t.add_argument("--against", choices=("fb46649", "no-horizon"), default="fb46649",
+                   help="the baseline: the fb46649 kernel, one search per destination; or the product's "
+                        "searches run to the deadline (ContactGraph.horizon_s = inf)")
     args = ap.parse_args()
     if args.cmd == "capture":
         argv = [a for a in args.run_argv if a != "--"]
         return capture(args.out, argv)
-    return time_corpus(args.capture, args.repeat, args.limit)
+    return time_corpus(args.capture, args.repeat, args.limit, args.against)
 
 
 if __name__ == "__main__":

@@ -22,6 +22,28 @@ exclusions (:meth:`ContactGraph.routes`: a multicast bundle's recipients at one 
 route for each as its own search: the search runs to the latest of their deadlines and stops once
 every destination has been reached (the argument is in :func:`_dijkstra`'s docstring).
 
+Two savings that provably leave every answer as it was (tests/unit/test_cgr_random.py
+test_horizon_and_block_skip_give_the_plain_searchs_routes compares them with the plain search on
+random plans; bench/bench_cgr.py with the routes of a whole run):
+
+* The horizon (:meth:`ContactGraph._run`). A search with destinations first runs with its deadline
+  cut to t + ``horizon_s`` (32 s), and again with a horizon 16 times as far each time it runs out of
+  labels before reaching its destinations, up to the deadline itself. A search whose limit is T pops,
+  up to arrival T, exactly the labels the search to the deadline pops, in the same order, with the
+  same predecessors: the labels one has and the other has not all arrive after T (a contact that
+  starts after T gives an arrival after T: every hop takes bits / rate > 0), and a label can only
+  prune (or shadow, in a contact's row) one arriving no earlier than itself. So when the cut search
+  stops on its own rule (every destination found, or a pop past the first arrival + hop tolerance)
+  at a pop arriving by T, the search to the deadline stops at the same pop with the same routes; when
+  it runs out of labels it proves nothing, and the next horizon is searched. The queries this saves
+  are the common ones: the agents' deadlines are the bundles' lifetimes (up to an hour ahead) while
+  routes over the ISL mesh arrive within seconds, and a search to the deadline scans every contact a
+  node will open until then.
+* The scan skips closed contacts by blocks. A node's outgoing contacts are in start order; a scan
+  at time t skips any aligned block of 16 of them whose latest end is <= t (all closed: the plain
+  scan passes over each of them), so only what may still be open is read - a node of a 6 h plan has
+  thousands of contacts, most of them over by the time it is searched from.
+
 Not done: Yen's k-shortest route lists (we recompute per bundle, which is cheap enough: see
 bench/bench_dtn.py), route reuse across instants (a route found at t is not kept for a bundle at
 t' > t: the queues and contacts it depends on change), anticipatory fragmentation.
@@ -52,10 +74,15 @@ from orbit_clock.contact_plan import ContactPlan
 __all__ = ["ContactGraph", "Route", "NO_ROUTE"]
 
 INF = np.inf
+HORIZON_S = 32.0  # ContactGraph.horizon_s's default: a first search to 32 s after the query time
+HORIZON_GROWTH = 16.0  # each further search looks this many times as far
+_BLOCK_SHIFT = 4  # a scan skips blocks of 2 ** _BLOCK_SHIFT closed contacts at a time (ContactGraph.out_blockmax)
+_BLOCK = 1 << _BLOCK_SHIFT
+_BLOCK_MASK = _BLOCK - 1
 
 
 @numba.njit(cache=True)
-def _dijkstra(start, end, src, dst, rate, owlt, residual, out_ptr, out_idx, out_maxend, excluded,
+def _dijkstra(start, end, src, dst, rate, owlt, residual, out_ptr, out_idx, out_maxend, out_blockmax, excluded,
               node_excluded, source, is_dest, n_dests, t0, bits, backlog_bits, deadline, arr, pred, first_backlog,
               hop_tol, stamp, qid, found_c, found_h, slot):
     """Label-setting search over (contact, hop count) states with Pareto pruning.
@@ -87,7 +114,11 @@ def _dijkstra(start, end, src, dst, rate, owlt, residual, out_ptr, out_idx, out_
     the labels past a destination's own deadline, and the labels made by expanding the destination
     itself (each hop adds a transmission time > 0) - so the labels popped up to that first pop, the
     prunings among them, and with them its route and arrival, are the same in both
-    (tests/unit/test_cgr_random.py test_one_search_for_many_destinations_equals_one_each)."""
+    (tests/unit/test_cgr_random.py test_one_search_for_many_destinations_equals_one_each).
+
+    Returns True when the search stopped on its own rule - every destination found, or (hop
+    tolerance) a pop past the first arrival + tolerance - and False when it ran out of labels (the
+    caller's horizon argument, :meth:`ContactGraph._run`, needs to know which)."""
     H = arr.shape[1] - 1
     n_rows = arr.shape[0]
     used = 0
@@ -101,8 +132,14 @@ def _dijkstra(start, end, src, dst, rate, owlt, residual, out_ptr, out_idx, out_
     n_nodes = node_excluded.shape[0]
     nb = np.full((n_nodes, H + 1), np.inf)
     pm = np.full((n_nodes, H + 1), np.inf)
-    for k in range(_first_open(out_maxend, out_ptr[source], out_ptr[source + 1], t0), out_ptr[source + 1]):
+    k = _first_open(out_maxend, out_ptr[source], out_ptr[source + 1], t0)
+    hi = out_ptr[source + 1]
+    while k < hi:
+        if k & _BLOCK_MASK == 0 and out_blockmax[k >> _BLOCK_SHIFT] <= t0:
+            k += _BLOCK  # every contact of this block has closed
+            continue
         c = out_idx[k]
+        k += 1
         if start[c] > deadline:
             break
         if excluded[c] or node_excluded[dst[c]] or dst[c] == source or end[c] <= t0:
@@ -132,6 +169,7 @@ def _dijkstra(start, end, src, dst, rate, owlt, residual, out_ptr, out_idx, out_
     best_h = 0
     best_a = np.inf
     tol = hop_tol > 0.0
+    stopped = False
     left = n_dests
     # fewest hops of a label already expanded at each node: states pop in (arrival, hops) order, so
     # one expanded there with <= h hops arrived no later, and it can take every contact this one
@@ -143,6 +181,7 @@ def _dijkstra(start, end, src, dst, rate, owlt, residual, out_ptr, out_idx, out_
         if a > arr[rc, h]:
             continue
         if tol and best_c >= 0 and a > best_a + hop_tol:
+            stopped = True
             break
         dominated = False
         for hh in range(1, h):
@@ -164,7 +203,7 @@ def _dijkstra(start, end, src, dst, rate, owlt, residual, out_ptr, out_idx, out_
                 found_h[v] = h
                 left -= 1
                 if left == 0:
-                    break
+                    return True
         if node_min_h[v] <= h:
             continue
         node_min_h[v] = h
@@ -172,8 +211,14 @@ def _dijkstra(start, end, src, dst, rate, owlt, residual, out_ptr, out_idx, out_
             continue  # within the tolerance only a route with fewer hops could still win
         if h >= H:
             continue
-        for k in range(_first_open(out_maxend, out_ptr[v], out_ptr[v + 1], a), out_ptr[v + 1]):
+        k = _first_open(out_maxend, out_ptr[v], out_ptr[v + 1], a)
+        hi = out_ptr[v + 1]
+        while k < hi:
+            if k & _BLOCK_MASK == 0 and out_blockmax[k >> _BLOCK_SHIFT] <= a:
+                k += _BLOCK  # every contact of this block has closed
+                continue
             e = out_idx[k]
+            k += 1
             if start[e] > deadline:
                 break
             w = dst[e]
@@ -211,6 +256,7 @@ def _dijkstra(start, end, src, dst, rate, owlt, residual, out_ptr, out_idx, out_
             if is_dest[v]:
                 found_c[v] = best_c
                 found_h[v] = best_h
+    return stopped
 
 
 @numba.njit(cache=True)
@@ -290,6 +336,11 @@ class ContactGraph:
             lo, hi = self.out_ptr[i], self.out_ptr[i + 1]
             if hi > lo:
                 self.out_maxend[lo:hi] = np.maximum.accumulate(self.end_s[self.out_idx[lo:hi]])
+        # per block of _BLOCK positions of out_idx (aligned on the array, not on the nodes): the latest
+        # end of its contacts; a scan at time t skips a whole block whose latest end is <= t
+        pad = (-n) % _BLOCK
+        ends_by_pos = np.concatenate([self.end_s[self.out_idx], np.full(pad, -INF)])
+        self.out_blockmax = ends_by_pos.reshape(-1, _BLOCK).max(axis=1) if n else np.empty(0)
         self._no_exclusion = np.zeros(n, dtype=np.bool_)
         self._no_node_exclusion = np.zeros(len(self.node_names), dtype=np.bool_)
         self._node_masks: dict[tuple, np.ndarray] = {}  # excluded node names -> mask (never written)
@@ -310,6 +361,10 @@ class ContactGraph:
         self._ends_sorted = np.sort(self.end_s)
         self._stamp = np.zeros(n, dtype=np.int64)
         self._qid = 0
+        self.horizon_s = HORIZON_S  # first search horizon after the query time [s] (inf: none)
+        self.horizon_retries = 0  # searches re-run with a wider horizon
+        # no label arrives later than this (a contact's end + its light time): a horizon past it is none
+        self._latest_arrival = float((self.end_s + self.owlt_s).max()) if n else -INF
         self.searches = 0  # searches run (a route, a routes() call without hop tolerance, one-to-all: one each)
         # per node: a destination of the running search, and the (contact, hops) found there
         self._is_dest = np.zeros(len(self.node_names), dtype=np.bool_)
@@ -333,9 +388,6 @@ class ContactGraph:
              first_backlog=None, hop_tol_s=0.0):
         """One search from ``source`` towards the node indices ``dests`` (empty: one-to-all); the
         (found contact, hops) of each destination are left in ``self._found_c`` / ``_found_h``."""
-        self._pool_for(t_s, deadline_s)
-        arr, pred, stamp = self._arr, self._pred, self._stamp
-        self._qid += 1
         self.searches += 1
         node_ex = self._no_node_exclusion
         if excluded_nodes:
@@ -348,20 +400,36 @@ class ContactGraph:
                         node_ex[self.node_index[x]] = True
                 self._node_masks[key] = node_ex
         is_dest, found_c = self._is_dest, self._found_c
-        for d in dests:  # a few indices: item by item beats fancy indexing with a list
-            is_dest[d] = True
-            found_c[d] = -1
+        t_s, deadline_s = float(t_s), float(deadline_s)
+        # the horizon (class docstring): searches to t_s + w, w growing by HORIZON_GROWTH, until one
+        # stops on its own rule or reaches the deadline
+        w = self.horizon_s if dests else INF
         try:
-            _dijkstra(self.start_s, self.end_s, self.src, self.dst, self.rate_bps, self.owlt_s,
-                      self.volume_bits if residual is None else residual, self.out_ptr, self.out_idx, self.out_maxend,
-                      self._no_exclusion if excluded is None else excluded, node_ex,
-                      self.node_index[source], is_dest, len(dests), float(t_s), float(bits), float(backlog_bits),
-                      float(deadline_s), arr, pred, self._no_backlog if first_backlog is None else first_backlog,
-                      float(hop_tol_s), stamp, self._qid, found_c, self._found_h, self._slot)
+            for d in dests:  # a few indices: item by item beats fancy indexing with a list
+                is_dest[d] = True
+            while True:
+                limit = t_s + w
+                if not (limit < deadline_s and limit < self._latest_arrival):
+                    limit = deadline_s
+                self._pool_for(t_s, limit)
+                self._qid += 1
+                for d in dests:
+                    found_c[d] = -1
+                done = _dijkstra(self.start_s, self.end_s, self.src, self.dst, self.rate_bps, self.owlt_s,
+                                 self.volume_bits if residual is None else residual, self.out_ptr, self.out_idx,
+                                 self.out_maxend, self.out_blockmax, self._no_exclusion if excluded is None else excluded, node_ex,
+                                 self.node_index[source], is_dest, len(dests), t_s, float(bits),
+                                 float(backlog_bits), limit, self._arr, self._pred,
+                                 self._no_backlog if first_backlog is None else first_backlog,
+                                 float(hop_tol_s), self._stamp, self._qid, found_c, self._found_h, self._slot)
+                if done or limit == deadline_s:
+                    break
+                self.horizon_retries += 1
+                w *= HORIZON_GROWTH
         finally:
             for d in dests:
                 is_dest[d] = False
-        return arr, pred
+        return self._arr, self._pred
 
     def _pool_for(self, t_s: float, deadline_s: float) -> None:
         """Make the label pool hold a row for every contact a search from ``t_s`` to ``deadline_s``
