@@ -84,7 +84,8 @@ _BLOCK_MASK = _BLOCK - 1
 @numba.njit(cache=True)
 def _dijkstra(start, end, src, dst, rate, owlt, residual, out_ptr, out_idx, out_maxend, out_blockmax, excluded,
               node_excluded, source, is_dest, n_dests, t0, bits, backlog_bits, deadline, arr, pred, first_backlog,
-              hop_tol, stamp, qid, found_c, found_h, slot):
+              hop_tol, stamp, qid, found_c, found_h, slot, o_start, o_end, o_dst, o_rate, o_owlt, o_vol, has_excl,
+              has_resid):
     """Label-setting search over (contact, hop count) states with Pareto pruning.
 
     First hop on contact c starts at max(t0 + backlog_bits / rate, start) + first_backlog[c] / rate
@@ -106,7 +107,9 @@ def _dijkstra(start, end, src, dst, rate, owlt, residual, out_ptr, out_idx, out_
     touch, so the arrays are reused across queries without clearing them).
     A node's outgoing contacts are scanned from the first that may still be open (out_maxend: the
     running maximum of their end times, in start order) up to the first that starts after the
-    deadline (no arrival through it or a later one can meet it).
+    deadline (no arrival through it or a later one can meet it). o_start .. o_vol: start, end, dst, rate,
+    owlt and full volume by position in out_idx (o_x[k] = x[out_idx[k]]); has_excl / has_resid: False
+    when ``excluded`` is all False / ``residual`` is the full volumes (then not read in the scans).
 
     Several destinations in one search give each the route its own search would (``deadline`` the
     latest of theirs; the caller drops a route arriving after its destination's own deadline): every
@@ -217,18 +220,21 @@ def _dijkstra(start, end, src, dst, rate, owlt, residual, out_ptr, out_idx, out_
             if k & _BLOCK_MASK == 0 and out_blockmax[k >> _BLOCK_SHIFT] <= a:
                 k += _BLOCK  # every contact of this block has closed
                 continue
-            e = out_idx[k]
+            # the contact's fields from the copies in out_idx order (o_*: read in sequence, where
+            # the arrays by contact index are read at random); the same values, so the same sums
+            kk = k
             k += 1
-            if start[e] > deadline:
+            if o_start[kk] > deadline:
                 break
-            w = dst[e]
-            if excluded[e] or w == source or node_excluded[w] or end[e] <= a:
+            e = out_idx[kk]
+            w = o_dst[kk]
+            if (has_excl and excluded[e]) or w == source or node_excluded[w] or o_end[kk] <= a:
                 continue
-            ts = max(a, start[e])
-            te = ts + bits / rate[e]
-            if te > end[e] or residual[e] < bits:
+            ts = max(a, o_start[kk])
+            te = ts + bits / o_rate[kk]
+            if te > o_end[kk] or (residual[e] if has_resid else o_vol[kk]) < bits:
                 continue
-            na = te + owlt[e]
+            na = te + o_owlt[kk]
             if na > deadline or _node_dominated(nb, pm, w, h + 1, na):
                 continue
             if stamp[e] != qid:
@@ -341,6 +347,10 @@ class ContactGraph:
         pad = (-n) % _BLOCK
         ends_by_pos = np.concatenate([self.end_s[self.out_idx], np.full(pad, -INF)])
         self.out_blockmax = ends_by_pos.reshape(-1, _BLOCK).max(axis=1) if n else np.empty(0)
+        # the scans' copies of the contacts' fields in out_idx order (_dijkstra's o_*)
+        oi = self.out_idx
+        self._o_start, self._o_end, self._o_dst = self.start_s[oi], self.end_s[oi], self.dst[oi]
+        self._o_rate, self._o_owlt, self._o_vol = self.rate_bps[oi], self.owlt_s[oi], self.volume_bits[oi]
         self._no_exclusion = np.zeros(n, dtype=np.bool_)
         self._no_node_exclusion = np.zeros(len(self.node_names), dtype=np.bool_)
         self._node_masks: dict[tuple, np.ndarray] = {}  # excluded node names -> mask (never written)
@@ -421,7 +431,9 @@ class ContactGraph:
                                  self.node_index[source], is_dest, len(dests), t_s, float(bits),
                                  float(backlog_bits), limit, self._arr, self._pred,
                                  self._no_backlog if first_backlog is None else first_backlog,
-                                 float(hop_tol_s), self._stamp, self._qid, found_c, self._found_h, self._slot)
+                                 float(hop_tol_s), self._stamp, self._qid, found_c, self._found_h, self._slot,
+                                 self._o_start, self._o_end, self._o_dst, self._o_rate, self._o_owlt, self._o_vol,
+                                 excluded is not None, residual is not None)
                 if done or limit == deadline_s:
                     break
                 self.horizon_retries += 1
