@@ -54,6 +54,11 @@ def test_residual_volume_excluded_nodes_and_deadline():
     excl[[i for i, c in enumerate(g.contacts) if c.src == "sat_11" and c.dst != "sat_14"]] = True
     r = g.route("sat_11", "sat_14", 0.0, 2, excluded=excl)
     assert _names(g, r) == [("sat_11", "sat_14")] and r.arrival_s == pytest.approx(53.0)
+    # an excluded contact past the first hop (the relay scan's own reading of the mask) as the
+    # residual volume above: the route via sat_12
+    relay = np.zeros(len(g.contacts), dtype=bool)
+    relay[[i for i, c in enumerate(g.contacts) if (c.src, c.dst) == ("sat_13", "sat_14")]] = True
+    assert g.route("sat_11", "sat_14", 0.0, 2, excluded=relay).arrival_s == pytest.approx(23.0)
 
 
 def test_later_start_time_and_contact_too_short():
