@@ -76,6 +76,7 @@ __all__ = ["ContactGraph", "Route", "NO_ROUTE"]
 INF = np.inf
 HORIZON_S = 32.0  # ContactGraph.horizon_s's default: a first search to 32 s after the query time
 HORIZON_GROWTH = 16.0  # each further search looks this many times as far
+RAN_OUT, STOPPED, POOL_FULL = 0, 1, 2  # how _dijkstra ended
 _BLOCK_SHIFT = 4  # a scan skips blocks of 2 ** _BLOCK_SHIFT closed contacts at a time (ContactGraph.out_blockmax)
 _BLOCK = 1 << _BLOCK_SHIFT
 _BLOCK_MASK = _BLOCK - 1
@@ -94,8 +95,8 @@ def _dijkstra(start, end, src, dst, rate, owlt, residual, out_ptr, out_idx, out_
     arr[slot[c], h]: earliest arrival at dst[c] over routes ending with contact c after h hops;
     pred[slot[c], h]: the contact before c on that route (-1 first hop). The rows of arr and pred
     are a pool: a contact gets the next free row when the search first touches it (slot[c]); only
-    contacts with start <= deadline and end > t0 are touched, so the caller sizes the pool by their
-    number (more rows needed than the pool has: ValueError). A label is kept only if no label of the same
+    contacts with start <= deadline and end > t0 are touched; a search that needs more rows than the
+    pool has returns POOL_FULL at once (the caller grows the pool and searches again). A label is kept only if no label of the same
     contact with fewer-or-equal hops arrives no later. States pop in (arrival, hops, contact) order,
     so the first one popped at a destination is the SABR choice for it: (found_c, found_h)[node]
     (the caller sets them to -1 at the destinations first; ``is_dest`` marks them, ``n_dests`` counts
@@ -119,9 +120,9 @@ def _dijkstra(start, end, src, dst, rate, owlt, residual, out_ptr, out_idx, out_
     prunings among them, and with them its route and arrival, are the same in both
     (tests/unit/test_cgr_random.py test_one_search_for_many_destinations_equals_one_each).
 
-    Returns True when the search stopped on its own rule - every destination found, or (hop
-    tolerance) a pop past the first arrival + tolerance - and False when it ran out of labels (the
-    caller's horizon argument, :meth:`ContactGraph._run`, needs to know which)."""
+    Returns STOPPED when the search stopped on its own rule - every destination found, or (hop
+    tolerance) a pop past the first arrival + tolerance - and RAN_OUT when it ran out of labels (the
+    caller's horizon argument, :meth:`ContactGraph._run`, needs to know which); POOL_FULL above."""
     H = arr.shape[1] - 1
     n_rows = arr.shape[0]
     used = 0
@@ -159,7 +160,7 @@ def _dijkstra(start, end, src, dst, rate, owlt, residual, out_ptr, out_idx, out_
         _node_label(nb, pm, dst[c], 1, a)
         if stamp[c] != qid:
             if used >= n_rows:
-                raise ValueError("CGR label pool too small")
+                return POOL_FULL
             stamp[c] = qid
             slot[c] = used
             used += 1
@@ -206,7 +207,7 @@ def _dijkstra(start, end, src, dst, rate, owlt, residual, out_ptr, out_idx, out_
                 found_h[v] = h
                 left -= 1
                 if left == 0:
-                    return True
+                    return STOPPED
         if node_min_h[v] <= h:
             continue
         node_min_h[v] = h
@@ -239,7 +240,7 @@ def _dijkstra(start, end, src, dst, rate, owlt, residual, out_ptr, out_idx, out_
                 continue
             if stamp[e] != qid:
                 if used >= n_rows:
-                    raise ValueError("CGR label pool too small")
+                    return POOL_FULL
                 stamp[e] = qid
                 slot[e] = used
                 used += 1
@@ -262,7 +263,7 @@ def _dijkstra(start, end, src, dst, rate, owlt, residual, out_ptr, out_idx, out_
             if is_dest[v]:
                 found_c[v] = best_c
                 found_h[v] = best_h
-    return stopped
+    return STOPPED if stopped else RAN_OUT
 
 
 @numba.njit(cache=True)
@@ -362,11 +363,11 @@ class ContactGraph:
             H = min(H, int(max_hops))
         self.max_hops = H
         # the label pool (_dijkstra's arr/pred: one row per contact a search touches, slot[c] its
-        # row), grown to the number of contacts the next search may touch: those open after its
-        # start time that start by its deadline (rows are reset on first touch, never cleared)
+        # row), doubled when a search runs out of rows (it is then run again); rows are reset on
+        # first touch, never cleared
         self._slot = np.zeros(n, dtype=np.int64)
-        self._arr = np.empty((0, H + 1))
-        self._pred = np.empty((0, H + 1), dtype=np.int64)
+        self._arr = np.empty((min(n, 1024), H + 1))
+        self._pred = np.empty((min(n, 1024), H + 1), dtype=np.int64)
         self._starts_sorted = np.sort(self.start_s)
         self._ends_sorted = np.sort(self.end_s)
         self._stamp = np.zeros(n, dtype=np.int64)
@@ -421,7 +422,6 @@ class ContactGraph:
                 limit = t_s + w
                 if not (limit < deadline_s and limit < self._latest_arrival):
                     limit = deadline_s
-                self._pool_for(t_s, limit)
                 self._qid += 1
                 for d in dests:
                     found_c[d] = -1
@@ -434,7 +434,10 @@ class ContactGraph:
                                  float(hop_tol_s), self._stamp, self._qid, found_c, self._found_h, self._slot,
                                  self._o_start, self._o_end, self._o_dst, self._o_rate, self._o_owlt, self._o_vol,
                                  excluded is not None, residual is not None)
-                if done or limit == deadline_s:
+                if done == POOL_FULL:
+                    self._grow_pool()  # and the same search again
+                    continue
+                if done == STOPPED or limit == deadline_s:
                     break
                 self.horizon_retries += 1
                 w *= HORIZON_GROWTH
@@ -443,10 +446,21 @@ class ContactGraph:
                 is_dest[d] = False
         return self._arr, self._pred
 
+    def _grow_pool(self) -> None:
+        """Double the label pool (a search ran out of rows; never past one row per contact, which
+        every search fits)."""
+        have = self._arr.shape[0]
+        if have >= len(self.contacts):
+            raise RuntimeError(f"CGR label pool of {have} rows full with {len(self.contacts)} contacts")
+        rows = min(len(self.contacts), max(2 * have, 1024))
+        self._arr = np.empty((rows, self.max_hops + 1))
+        self._pred = np.empty((rows, self.max_hops + 1), dtype=np.int64)
+
     def _pool_for(self, t_s: float, deadline_s: float) -> None:
         """Make the label pool hold a row for every contact a search from ``t_s`` to ``deadline_s``
         may touch (start <= deadline and end > t_s: the contacts that start by the deadline less
-        those that have ended by t_s, which all started before it)."""
+        those that have ended by t_s, which all started before it): a bound of what a search may
+        need (the searches themselves grow the pool only when it is full: _grow_pool)."""
         need = int(np.searchsorted(self._starts_sorted, deadline_s, side="right")
                    - np.searchsorted(self._ends_sorted, t_s, side="right"))
         have = self._arr.shape[0]
