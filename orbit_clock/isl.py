@@ -37,12 +37,21 @@ shorter range alone, and every contact runs at the lower rate of its two ends.
 
 from __future__ import annotations
 
+from itertools import pairwise
+
 import numpy as np
 
 from orbit_clock.contact_plan import Contact, ContactPlan
 from orbit_clock.frames import C_KM_S, WGS84_A_KM, WGS84_B_KM
 from orbit_clock.propagation import Constellation, build_constellation
-from orbit_clock.windows import mean_range_km, refine_runs, time_grid, true_runs, windows_from_margin
+from orbit_clock.windows import (
+    mean_range_km,
+    refine_runs,
+    refine_runs_split,
+    time_grid,
+    true_runs,
+    windows_from_margin,
+)
 
 __all__ = [
     "isl_contact_plan",
@@ -74,7 +83,7 @@ def los_clear(p1_km, p2_km, grazing_height_km: float = 80.0) -> np.ndarray:
 
 def isl_windows(constellation: Constellation, t0_s: float, t1_s: float, *, grazing_height_km: float = 80.0,
                 max_range_km=6000.0, step_s: float = 10.0, tol_s: float = 1e-3, refine: bool = True,
-                prune: bool = True):
+                prune: bool = True, workers: int = 1):
     """Undirected ISL windows: (i, j, start_s, end_s) arrays with i < j satellite indices, ordered by
     pair (i, then j), then time. ``max_range_km``: one range [km] or one per satellite (a pair's is
     the shorter of its two).
@@ -82,7 +91,9 @@ def isl_windows(constellation: Constellation, t0_s: float, t1_s: float, *, grazi
     ``refine=False`` gives the bare grid (edges at the samples): the brute-force reference.
     ``prune`` (with ``refine``): sample only the pairs and times that can be within ``max_range_km``
     (:func:`_candidate_segments`); the same windows as ``prune=False``, which samples every pair at
-    every grid time (tests/unit/test_speed_paths.py compares the two).
+    every grid time (tests/unit/test_speed_paths.py compares the two). ``workers`` > 1: the pruned
+    search's edges are bisected in that many processes side by side
+    (orbit_clock.windows.refine_runs_split: the same numbers).
     """
     n = len(constellation)
     I, J = np.triu_indices(n, k=1)
@@ -109,7 +120,10 @@ def isl_windows(constellation: Constellation, t0_s: float, t1_s: float, *, grazi
         segs = _candidate_segments(constellation, t, r, longest)
         if segs is not None:
             si, ks, ke = _runs_in_segments(r, I, J, *segs, grazing_height_km, pair_rng)
-            st, en = refine_runs(t, si, ks, ke, margin_at, tol_s)
+            if workers > 1 and si.size >= _SPLIT_MIN_RUNS:
+                st, en = refine_runs_split(t, si, ks, ke, margin_at, tol_s, workers)
+            else:
+                st, en = refine_runs(t, si, ks, ke, margin_at, tol_s)
             return I[si], J[si], st, en
     margin = np.empty((I.size, t.size))
     chunk = max(1, 4_000_000 // max(1, I.size))
@@ -135,6 +149,10 @@ def _margin(a: np.ndarray, b: np.ndarray, grazing_height_km: float, max_range_km
 
 # ISL windows per block of the mean-range computation (isl_contact_plan)
 _MEAN_BLOCK = 50_000
+
+# Runs below which the edges are bisected in one process whatever ``workers`` says (a fork costs
+# more than a few thousand edges)
+_SPLIT_MIN_RUNS = 20_000
 
 # Grid samples per pruning block: the pair distance is looked up at every _BLOCK-th sample
 _BLOCK = 6
@@ -201,8 +219,11 @@ def _runs_in_segments(r: np.ndarray, I: np.ndarray, J: np.ndarray, pair: np.ndar
 
 
 def isl_contact_plan(scenario, constellation: Constellation | None = None, *, step_s: float = 10.0,
-                     tol_s: float = 1e-3) -> ContactPlan:
-    """Directed ISL contacts (both ways) over the scenario horizon; see the module docstring."""
+                     tol_s: float = 1e-3, workers: int = 1) -> ContactPlan:
+    """Directed ISL contacts (both ways) over the scenario horizon; see the module docstring.
+    ``workers`` > 1: the edges' bisection and the mean ranges (SGP4 at scattered points, point by
+    point) run in that many processes side by side, the same numbers as one
+    (tests/unit/test_isl_split.py)."""
     c = constellation or build_constellation(scenario)
     isl = scenario.isl
     per = getattr(scenario, "sat_params", None)  # one radio per satellite (module docstring)
@@ -210,18 +231,33 @@ def isl_contact_plan(scenario, constellation: Constellation | None = None, *, st
     ranges = np.array([p.isl_max_range_km for p in per]) if per else np.full(len(c), float(isl.max_range_km))
     uniform = bool(len(c)) and (ranges == ranges[0]).all()
     i, j, st, en = isl_windows(c, 0.0, float(scenario.scenario.horizon_s), grazing_height_km=isl.grazing_height_km,
-                               max_range_km=float(ranges[0]) if uniform else ranges, step_s=step_s, tol_s=tol_s)
+                               max_range_km=float(ranges[0]) if uniform else ranges, step_s=step_s, tol_s=tol_s,
+                               workers=workers)
     keep = en > st
     i, j, st, en = i[keep], j[keep], st[keep], en[keep]
     n = 21  # range samples per window, ends included
     # in blocks of windows (each window's mean is its own: the same numbers), so that the sample
     # arrays stay small (2.3 M windows at 1000 satellites x 6 h: 4.7e7 positions at once otherwise)
-    light_s = np.empty(st.size)
-    for k0 in range(0, st.size, _MEAN_BLOCK):
-        b = slice(k0, k0 + _MEAN_BLOCK)
-        ib, jb = i[b], j[b]
-        light_s[b] = mean_range_km(lambda t, ib=ib: c.positions_ecef_km_at(np.repeat(ib, n), t),
-                                   lambda t, jb=jb: c.positions_ecef_km_at(np.repeat(jb, n), t), st[b], en[b], n) / C_KM_S
+    def light_times(blocks: range) -> np.ndarray:
+        out = []
+        for k0 in blocks:
+            b = slice(k0, k0 + _MEAN_BLOCK)
+            ib, jb = i[b], j[b]
+            out.append(mean_range_km(lambda t, ib=ib: c.positions_ecef_km_at(np.repeat(ib, n), t),
+                                     lambda t, jb=jb: c.positions_ecef_km_at(np.repeat(jb, n), t),
+                                     st[b], en[b], n) / C_KM_S)
+        return np.concatenate(out) if out else np.empty(0)
+
+    # the same blocks in one process or cut into consecutive runs of blocks, one per process
+    blocks = range(0, st.size, _MEAN_BLOCK)
+    if workers > 1 and len(blocks) > 1:
+        from orbit_clock.fork_split import run_parts
+
+        cuts = np.linspace(0, len(blocks), min(workers, len(blocks)) + 1).round().astype(int)
+        light_s = np.concatenate(run_parts(light_times, [blocks[a:b] for a, b in pairwise(cuts)],
+                                           workers=workers))
+    else:
+        light_s = light_times(blocks)
     contacts = []
     for a, b, s0, s1, lt in zip(i, j, st, en, light_s):
         na, nb = c.names[a], c.names[b]

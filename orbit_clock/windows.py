@@ -25,10 +25,11 @@ margin whose roots are known, and the mean range against a closed form.
 from __future__ import annotations
 
 from collections.abc import Callable
+from itertools import pairwise
 
 import numpy as np
 
-__all__ = ["mean_range_km", "refine_runs", "time_grid", "true_runs", "windows_from_margin"]
+__all__ = ["mean_range_km", "refine_runs", "refine_runs_split", "time_grid", "true_runs", "windows_from_margin"]
 
 
 def time_grid(t0_s: float, t1_s: float, step_s: float) -> np.ndarray:
@@ -70,20 +71,61 @@ def refine_runs(t_s: np.ndarray, si: np.ndarray, ks: np.ndarray, ke: np.ndarray,
     n_t = t_s.size
     start = t_s[ks].astype(float)
     end = t_s[ke - 1].astype(float)
-
-    def bisect(idx, lo, hi, lo_inside: bool):
-        while idx.size and np.max(hi - lo) > tol_s:
-            mid = 0.5 * (lo + hi)
-            ins = margin_at(idx, mid) > 0
-            move_lo = ins if lo_inside else ~ins
-            lo = np.where(move_lo, mid, lo)
-            hi = np.where(move_lo, hi, mid)
-        return 0.5 * (lo + hi)
-
     m = ks > 0
-    start[m] = bisect(si[m], t_s[ks[m] - 1], t_s[ks[m]], lo_inside=False)
+    lo, hi, _ = _bisect(si[m], t_s[ks[m] - 1], t_s[ks[m]], False, margin_at, tol_s)
+    start[m] = 0.5 * (lo + hi)
     m = ke < n_t
-    end[m] = bisect(si[m], t_s[ke[m] - 1], t_s[ke[m]], lo_inside=True)
+    lo, hi, _ = _bisect(si[m], t_s[ke[m] - 1], t_s[ke[m]], True, margin_at, tol_s)
+    end[m] = 0.5 * (lo + hi)
+    return start, end
+
+
+def _bisect(idx, lo, hi, lo_inside: bool, margin_at, tol_s: float, min_steps: int = 0):
+    """Bisect every bracket [lo, hi] together until the widest is at most ``tol_s`` and at least
+    ``min_steps`` steps were made: (lo, hi, steps). A bracket's steps depend on it alone (``margin_at``
+    is evaluated point by point), so brackets bisected apart and each group then taken on to the
+    largest step count of all end as the brackets bisected together."""
+    steps = 0
+    while idx.size and (np.max(hi - lo) > tol_s or steps < min_steps):
+        mid = 0.5 * (lo + hi)
+        ins = margin_at(idx, mid) > 0
+        move_lo = ins if lo_inside else ~ins
+        lo = np.where(move_lo, mid, lo)
+        hi = np.where(move_lo, hi, mid)
+        steps += 1
+    return lo, hi, steps
+
+
+def refine_runs_split(t_s: np.ndarray, si: np.ndarray, ks: np.ndarray, ke: np.ndarray,
+                      margin_at: Callable[[np.ndarray, np.ndarray], np.ndarray], tol_s: float = 1e-3,
+                      workers: int = 2):
+    """:func:`refine_runs` with the runs cut into ``workers`` consecutive parts bisected side by side
+    in forked processes (orbit_clock/fork_split.py): the same numbers bit for bit. A part whose
+    widest bracket reached ``tol_s`` in fewer steps than another part's is taken on to the larger
+    count here, as one bisection of all the runs would have done (:func:`_bisect`)."""
+    from orbit_clock.fork_split import run_parts
+
+    n_t = t_s.size
+    cuts = np.linspace(0, si.size, max(1, workers) + 1).round().astype(np.int64)
+    parts = [slice(int(a), int(b)) for a, b in pairwise(cuts)]
+
+    def edges(sl: slice):
+        s_i, s_ks, s_ke = si[sl], ks[sl], ke[sl]
+        m0, m1 = s_ks > 0, s_ke < n_t
+        return (_bisect(s_i[m0], t_s[s_ks[m0] - 1], t_s[s_ks[m0]], False, margin_at, tol_s),
+                _bisect(s_i[m1], t_s[s_ke[m1] - 1], t_s[s_ke[m1]], True, margin_at, tol_s))
+
+    res = run_parts(edges, parts, workers=workers)
+    start = t_s[ks].astype(float)
+    end = t_s[ke - 1].astype(float)
+    for which, out, lo_inside in ((0, start, False), (1, end, True)):
+        most = max(r[which][2] for r in res)
+        for sl, r in zip(parts, res):
+            lo, hi, steps = r[which]
+            m = (ks[sl] > 0) if which == 0 else (ke[sl] < n_t)
+            if steps < most:  # the other parts' brackets were still wider: the same steps go on here
+                lo, hi, _ = _bisect(si[sl][m], lo, hi, lo_inside, margin_at, tol_s, most - steps)
+            out[sl][m] = 0.5 * (lo + hi)
     return start, end
 
 

@@ -38,6 +38,7 @@ from orbit_clock import (
 )
 from orbit_clock.access import RegionPrefilter
 from orbit_clock.contact_plan import ContactPlan
+from orbit_clock.fork_split import available_workers
 from orbit_clock.propagation import Constellation
 from sat_node.acs import SlewModel
 from sat_node.dtn.cgr import ContactGraph
@@ -153,7 +154,9 @@ class World:
         say(f"access windows ({n} satellites x {len(sc.regions.list)} regions)")
         acc = access_windows(ctx.constellation, ctx.gps, 0.0, horizon_s, for_deg_per_sat(sc))
         say(f"ISL contact plan ({n * (n - 1) // 2} satellite pairs)")
-        isl = isl_contact_plan(sc, ctx.constellation)
+        # (its SGP4 work on every core this process may use: the same plan as on one,
+        # orbit_clock/fork_split.py)
+        isl = isl_contact_plan(sc, ctx.constellation, workers=available_workers())
         say(f"ground contact plan ({len(isl)} ISL contacts found)")
         gnd = ground_contact_plan(sc, ctx.constellation) if sc.ground.stations else None
         if gnd is None:
