@@ -55,6 +55,24 @@ class LinkOutcome:
 _LONG_S = 3600.0
 
 
+def _view(open_now: list[Contact]) -> tuple[dict[str, Contact], list[tuple[int, str, float]] | None]:
+    """What :meth:`LinkModel.transmit` reads from a sender's open contacts: per receiver the contact
+    that stays open longest (the first of equals, as ``max`` gives), and - when no receiver has two
+    open contacts - the copies' template: (light time [ns], receiver, end [ns, float]) sorted, so
+    that the copies of a transmission ending at ``end_ns`` are those whose end is not before it, in
+    (arrival, node) order already (arrival = end_ns + light time for all); None otherwise (transmit
+    then takes each receiver's first contact in the plan's order that covers the transmission).
+    tests/unit/test_speed_paths.py compares transmit with the contact-by-contact scan."""
+    best: dict[str, Contact] = {}
+    for c in open_now:
+        b = best.get(c.dst)
+        if b is None or c.end_s > b.end_s:
+            best[c.dst] = c
+    if len(best) < len(open_now):
+        return best, None
+    return best, sorted((round(c.range_light_s * _NS), c.dst, c.end_s * _NS) for c in open_now)
+
+
 class LinkModel:
     def __init__(self, truth: ContactPlan):
         self.truth = truth
@@ -77,6 +95,9 @@ class LinkModel:
         # contacts to start after it): a radio sends many bundles between two changes
         self._open_memo: dict[str, tuple[float, float, list[Contact]]] = {}
         self._starts = {s: sorted(c.start_s for c in cs) for s, cs in self._by_src.items()}
+        # per sender, what transmit derives from the open set of the memo above (made once per set:
+        # the set is shared until the memo moves on): see _view
+        self._view_memo: dict[str, tuple] = {}
         self._busy_until_ns: dict[str, int] = {}
         self.counters = {"tx": 0, "ok": 0, "no_contact": 0, "contact_ended": 0, "radio_busy": 0, "copies": 0}
         self.air_ns: dict[str, int] = {}  # sender -> time on air [ns] (every transmission that went out)
@@ -117,11 +138,11 @@ class LinkModel:
             return LinkOutcome(False, start_ns, [], "radio_busy", {h: "radio_busy" for h in hops})
         t_s = start_ns / _NS
         open_now = self._open_at(sender, t_s)
-        links = {}
-        for h in hops:
-            mine = [c for c in open_now if c.dst == h]
-            if mine:
-                links[h] = max(mine, key=lambda c: c.end_s)
+        view = self._view_memo.get(sender)
+        if view is None or view[0] is not open_now:
+            view = self._view_memo[sender] = (open_now, *_view(open_now))
+        _open, best, heard = view
+        links = {h: best[h] for h in hops if h in best}
         if not links:
             self.counters["no_contact"] += 1
             return LinkOutcome(False, start_ns, [], "no_contact", {h: "no_contact" for h in hops})
@@ -133,14 +154,17 @@ class LinkModel:
         self.bits_sent[sender] = self.bits_sent.get(sender, 0) + int(bits)
         failed = {h: ("no_contact" if h not in links else "contact_ended") for h in hops
                   if h not in links or end_ns > links[h].end_s * _NS}
-        copies = []
-        seen = set()
-        for c in open_now:
-            if c.dst in seen or c.end_s * _NS < end_ns:
-                continue
-            seen.add(c.dst)
-            copies.append(Copy(c.dst, end_ns + int(round(c.range_light_s * _NS))))
-        copies.sort(key=lambda x: (x.arrival_ns, x.node))
+        if heard is not None:  # (one open contact per receiver: the copies in (light time, node) order)
+            copies = [Copy(node, end_ns + light) for light, node, until in heard if until >= end_ns]
+        else:
+            copies = []
+            seen = set()
+            for c in open_now:
+                if c.dst in seen or c.end_s * _NS < end_ns:
+                    continue
+                seen.add(c.dst)
+                copies.append(Copy(c.dst, end_ns + int(round(c.range_light_s * _NS))))
+            copies.sort(key=lambda x: (x.arrival_ns, x.node))
         self.counters["copies"] += len(copies)
         if failed:
             for reason in failed.values():

@@ -451,6 +451,94 @@ def test_open_contacts_window_equals_full_scan():
         assert hits > 100
 
 
+def test_transmit_from_the_open_set_view_equals_the_contact_scan():
+    """dtn_router/link.py: transmit reading each receiver's longest open contact and the sorted copy
+    template (_view, made once per open set) gives every outcome of the contact-by-contact scan it
+    replaced (kept below as the oracle): on drawn plans with one contact per receiver, with two
+    overlapping contacts to one receiver (the scan path), equal end times, equal light times
+    (ties broken by node), contacts ending mid-transmission, multicast next hops, a busy radio."""
+    from dtn_router.link import _NS, Copy, LinkModel, LinkOutcome
+    from orbit_clock.contact_plan import Contact, ContactPlan
+
+    class Scan(LinkModel):
+        def transmit(self, sender, next_hop, start_ns, bits):
+            self.counters["tx"] += 1
+            hops = (next_hop,) if isinstance(next_hop, str) else tuple(next_hop)
+            if start_ns < self._busy_until_ns.get(sender, -1):
+                self.counters["radio_busy"] += 1
+                return LinkOutcome(False, start_ns, [], "radio_busy", {h: "radio_busy" for h in hops})
+            open_now = self._open_at(sender, start_ns / _NS)
+            links = {}
+            for h in hops:
+                mine = [c for c in open_now if c.dst == h]
+                if mine:
+                    links[h] = max(mine, key=lambda c: c.end_s)
+            if not links:
+                self.counters["no_contact"] += 1
+                return LinkOutcome(False, start_ns, [], "no_contact", {h: "no_contact" for h in hops})
+            rate = min(c.rate_bps for c in links.values())
+            end_ns = start_ns + int(-(-bits * _NS // int(rate))) if float(rate).is_integer() \
+                else start_ns + int(bits / rate * _NS + 0.999999)
+            self._busy_until_ns[sender] = end_ns
+            self.air_ns[sender] = self.air_ns.get(sender, 0) + end_ns - start_ns
+            self.bits_sent[sender] = self.bits_sent.get(sender, 0) + int(bits)
+            failed = {h: ("no_contact" if h not in links else "contact_ended") for h in hops
+                      if h not in links or end_ns > links[h].end_s * _NS}
+            copies, seen = [], set()
+            for c in open_now:
+                if c.dst in seen or c.end_s * _NS < end_ns:
+                    continue
+                seen.add(c.dst)
+                copies.append(Copy(c.dst, end_ns + round(c.range_light_s * _NS)))
+            copies.sort(key=lambda x: (x.arrival_ns, x.node))
+            self.counters["copies"] += len(copies)
+            if failed:
+                for reason in failed.values():
+                    self.counters[reason] += 1
+                copies = [x for x in copies if x.node not in failed]
+                return LinkOutcome(False, end_ns, copies, next(iter(failed.values())), failed)
+            self.counters["ok"] += 1
+            return LinkOutcome(True, end_ns, copies, "")
+
+    nodes = [f"sat_{k}" for k in range(11, 23)]
+    for seed, doubles in ((1, False), (2, True), (3, True)):
+        rng = random.Random(seed)
+        cs = []
+        for a in nodes:
+            for b in nodes:
+                if a == b:
+                    continue
+                s = 0.0
+                while s < 2000:
+                    s += rng.choice([0.0, 1.0, rng.uniform(0, 30)])
+                    e = s + rng.choice([0.2, 5.0, 60.0, 300.0, rng.uniform(0, 900)])
+                    cs.append(Contact(round(s, 3), round(e, 3), a, b, rng.choice([1e4, 2.5e3, 1234.5]),
+                                      rng.choice([0.01, 0.02, rng.uniform(0, 0.02)])))
+                    if doubles and rng.random() < 0.2:  # an overlapping second contact to the same receiver
+                        cs.append(Contact(round(s + 0.1, 3), round(e + rng.choice([0.0, 3.0, -0.05]), 3), a, b,
+                                          1e4, 0.015))
+                    s = e
+        new, old = LinkModel(ContactPlan(cs)), Scan(ContactPlan(cs))
+        t = {n: 0 for n in nodes}
+        n_copies = n_scan_path = 0
+        for _ in range(4000):
+            sender = rng.choice(nodes)
+            t[sender] += rng.choice([0, 10**8, 10**9, 2 * 10**9, 5 * 10**9, 3 * 10**10])
+            hops = rng.choice([rng.choice(nodes), tuple(rng.sample(nodes, 3)), "sat_99"])
+            bits = rng.choice([2000, 2000, 2000, 40000])
+            if rng.random() < 0.2:  # a transmission ending exactly as a contact of its sender closes
+                c = rng.choice([c for c in cs if c.src == sender and c.rate_bps == 1e4])
+                bits, t[sender] = 2000, max(t[sender], round(c.end_s * _NS) - 2 * 10**8)
+                hops = c.dst
+            a, b = new.transmit(sender, hops, t[sender], bits), old.transmit(sender, hops, t[sender], bits)
+            assert a == b
+            n_copies += len(a.copies)
+            n_scan_path += new._view_memo[sender][2] is None if sender in new._view_memo else 0
+        assert new.counters == old.counters and new.air_ns == old.air_ns and new.bits_sent == old.bits_sent
+        assert n_copies > 1000 and min(new.counters[k] for k in ("ok", "no_contact", "contact_ended", "radio_busy")) > 0
+        assert (n_scan_path > 100) == doubles
+
+
 def test_memoised_qos_parse_equals_rosbags_parse(tmp_path):
     _write(tmp_path / "bag", False)
     with BagReader(tmp_path / "bag") as r:
