@@ -29,6 +29,7 @@ __all__ = ["ANNOUNCER_NAME", "ContactAnnouncer", "window_text"]
 ANNOUNCER_NAME = "contacts"
 _NS = 1_000_000_000
 _ENC = msgspec.json.Encoder().encode  # a number's text as codec.encode writes it
+_new = tuple.__new__  # Emit(topic, data, t_ns) from its fields at once (two per contact)
 
 
 def window_text(event: str, kind: str, src: str, dst: str, start_ns: int, end_ns: int, rate_bps: float,
@@ -128,10 +129,10 @@ class ContactAnnouncer:
             if j < len(opens_l):
                 k = opens_l[j]
                 text = tail[k] = self._tail_of(k)
-                append(Emit(topic, f'{{"v":{S.SCHEMA_VERSION},"event":"open"' + text, times_l[j]))
+                append(_new(Emit, (topic, f'{{"v":{S.SCHEMA_VERSION},"event":"open"' + text, times_l[j])))
             else:
                 k = closes_l[j - len(opens_l)]
                 text = tail.pop(k, None) or self._tail_of(k)
-                append(Emit(topic, f'{{"v":{S.SCHEMA_VERSION},"event":"close"' + text, times_l[j]))
+                append(_new(Emit, (topic, f'{{"v":{S.SCHEMA_VERSION},"event":"close"' + text, times_l[j])))
         self.announced += len(emits)
         return emits

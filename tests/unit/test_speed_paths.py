@@ -931,3 +931,44 @@ def test_isl_mean_range_in_blocks_equals_one_block(paper_scenario, monkeypatch):
     blocks = isl_contact_plan(sc, c)
     assert len(whole) > 1000
     assert blocks.contacts == whole.contacts
+
+
+def test_named_tuples_made_from_their_fields_equal_constructed_ones(tmp_path):
+    """bringup/engine/local.py (Envelope), orbit_clock/contact_announcer.py (Emit), dtn_router/link.py
+    (Copy) make their named tuples with tuple.__new__: the same type, fields and equality as the
+    class called with the fields; and what the engine hands on is of the type the bag writer reads."""
+    from bringup.engine.local import run_local
+    from dtn_router.link import Copy, LinkModel
+    from msgs_json.envelope import Emit, Envelope, StepResult
+    from orbit_clock.contact_announcer import ContactAnnouncer
+    from orbit_clock.contact_plan import Contact, ContactPlan
+
+    for cls, fields in ((Envelope, (5, "sat_11", 3, "/t", b"\x00x")), (Emit, ("/t", "text", 7)), (Copy, ("sat_12", 9))):
+        made = tuple.__new__(cls, fields)
+        assert type(made) is cls and made == cls(*fields) and made._asdict() == cls(*fields)._asdict()
+    plan = ContactPlan([Contact(0.0, 50.0, "sat_11", "sat_12", 1e4, 0.01),
+                        Contact(0.0, 50.0, "sat_11", "sat_13", 1e4, 0.02)])
+    out = LinkModel(plan).transmit("sat_11", "sat_12", 10**9, 2000)
+    assert out.ok and [type(c) for c in out.copies] == [Copy, Copy]
+    assert out.copies == [Copy("sat_12", 10**9 + 2 * 10**8 + 10**7), Copy("sat_13", 10**9 + 2 * 10**8 + 2 * 10**7)]
+
+    class Talker:
+        name = "talker"
+
+        def subscriptions(self):
+            return []
+
+        def start(self, t0_ns):
+            return StepResult([Emit("/x", "a", t0_ns)], 10)
+
+        def step(self, t_ns, inbox):
+            return StepResult([Emit("/x", b"b", t_ns)], None)
+
+        def finish(self, t_ns):
+            return []
+
+    res = run_local([Talker(), ContactAnnouncer(plan)], horizon_ns=60 * 10**9, max_step_ns=10**10)
+    assert res.envelopes and all(type(e) is Envelope for e in res.envelopes)
+    assert res.envelopes[0] == Envelope(0, "contacts", 0, "/orbit/contacts", res.envelopes[0].data)
+    assert [e for e in res.envelopes if e.source == "talker"][:2] == [Envelope(0, "talker", 0, "/x", "a"),
+                                                                       Envelope(0, "talker", 1, "/x", b"b")]
