@@ -112,7 +112,7 @@ class RunResult:
 
 _KEY = attrgetter("t_ns", "source", "seq")
 # a named tuple made from its fields at once: what ``Envelope(...)`` does without its Python-level
-# __new__ (~1.1 M envelopes per 1000-satellite half hour; tests/unit/test_local_engine.py checks equality)
+# __new__ (~1.1 M envelopes per 1000-satellite half hour; tests/unit/test_speed_paths.py checks equality)
 _new = tuple.__new__
 
 
