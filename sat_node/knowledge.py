@@ -62,12 +62,13 @@ and changes the plans under ``region-truth`` and ``oracle``) and tests/system/te
 from __future__ import annotations
 
 import math
+import threading
 from dataclasses import dataclass
 
 import numpy as np
 
 from sat_node.inference import Inference
-from sat_node.knowledge_kernels import innovation_grid, kernel_exponent
+from sat_node.knowledge_kernels import gathered_exponent, innovation_grid, kernel_exponent, place_exponent
 from sat_node.scheduler.planner import Knowledge, PersistenceView
 from sat_node.value import Belief
 
@@ -103,6 +104,18 @@ def check_model(name: str) -> str:
 #: 144-238 min (ground_station/osse_stats.py); what the observed model assumes of it
 SLOW_FIELD_TRANSIENCY_MIN = 180.0
 _LN_MAX = math.log(256.0)
+
+
+_scratch = threading.local()
+
+
+def _buffer(rows: int, cols: int) -> np.ndarray:
+    """A (rows, cols) float64 scratch array of this thread, kept between calls (the kernel matrix of
+    :meth:`ObservedView._ref`: a fresh array of tens of MB costs its page faults at every plan)."""
+    buf = getattr(_scratch, "buf", None)
+    if buf is None or buf.size < rows * cols:
+        buf = _scratch.buf = np.empty(max(rows * cols, 1))
+    return buf[:rows * cols].reshape(rows, cols)
 
 
 @dataclass(frozen=True)
@@ -188,24 +201,38 @@ class ObservedView:
                 looks = self._region_looks(int(r))
                 if looks is None:
                     continue
-                xyz, t_s, d = looks
-                # the kernel's exponent in one compiled pass (sat_node/knowledge_kernels.py: the bits of
-                # -0.5 |dx|^2 / spread^2 - (t - t_o) / memory as numpy made them); exp, @, sum numpy's
-                k = np.exp(kernel_exponent(np.ascontiguousarray(self._xyz[gps[sel]]), xyz, t_s, self._t,
-                                           self._p.spread_km ** 2, self._p.memory_s))
+                xyz, t_s, d, places, place_of = looks
+                gxyz = np.ascontiguousarray(self._xyz[gps[sel]])
+                if places is None:
+                    # the kernel's exponent in one compiled pass (sat_node/knowledge_kernels.py: the bits of
+                    # -0.5 |dx|^2 / spread^2 - (t - t_o) / memory as numpy made them); exp, @, sum numpy's
+                    k = np.exp(kernel_exponent(gxyz, xyz, t_s, self._t, self._p.spread_km ** 2, self._p.memory_s))
+                else:  # the same bits, the distance term once per place looked at, in a kept buffer
+                    k = gathered_exponent(place_exponent(gxyz, places, self._p.spread_km ** 2), place_of, t_s,
+                                          self._t, self._p.memory_s, _buffer(len(sel), len(t_s)))
+                    np.exp(k, out=k)
                 got = self._ref_cache[key] = (k @ d, k.sum(axis=1))
             n[sel], w[sel] = got
         return n, w
 
     def _region_looks(self, r: int):
-        """(xyz (N, 3), t_s (N,), d (N,)) of the known looks in region ``r``, contiguous, kept for
-        the view (None: none there)."""
+        """(xyz (N, 3), t_s (N,), d (N,), places (U, 3), place_of (N,)) of the known looks in region
+        ``r``, contiguous, kept for the view (None: none there): ``places`` the distinct GPs looked at
+        and ``place_of`` each look's, so that ``xyz == places[place_of]`` (places None if the looks'
+        positions are not their GPs')."""
         if r not in self._looks:
             o = self._obs
             mo = o["region"] == r
-            self._looks[r] = (None if not mo.any() else
-                              (np.ascontiguousarray(o["xyz"][mo], np.float64),
-                               np.ascontiguousarray(o["t_s"][mo], np.float64), o["d"][mo]))
+            if not mo.any():
+                self._looks[r] = None
+            else:
+                xyz = np.ascontiguousarray(o["xyz"][mo], np.float64)
+                _ids, first, place_of = np.unique(o["gp"][mo], return_index=True, return_inverse=True)
+                places = np.ascontiguousarray(xyz[first])
+                if places[place_of].tobytes() != xyz.tobytes():
+                    places = place_of = None
+                self._looks[r] = (xyz, np.ascontiguousarray(o["t_s"][mo], np.float64), o["d"][mo], places,
+                                  None if place_of is None else np.ascontiguousarray(place_of, np.int64))
         return self._looks[r]
 
     def innovation(self, gp_idx, t_s) -> np.ndarray:

@@ -17,6 +17,12 @@ test against ``einsum`` itself). How we know it is right: tests/unit/test_knowle
 compares the kernel's bits with the numpy expression's on random and real (paper GP) geometry,
 and the views built with it with the numpy path (test_knowledge.py's scalar formula and
 region-reuse tests keep holding).
+
+Looks are made at GPs, so a region's looks sit at far fewer places than there are looks (a region's
+GPs, seen again and again): :func:`place_exponent` makes the distance term once per (GP, place) and
+:func:`gathered_exponent` takes it for each look and subtracts the look's age - the same two
+operations on the same operands as :func:`kernel_exponent`, so the same bits (the test compares
+them with :func:`kernel_exponent` and the numpy expression).
 """
 
 from __future__ import annotations
@@ -24,7 +30,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-__all__ = ["innovation_grid", "kernel_exponent"]
+__all__ = ["gathered_exponent", "innovation_grid", "kernel_exponent", "place_exponent"]
 
 
 @njit(cache=True)
@@ -48,6 +54,44 @@ def kernel_exponent(gp_xyz, obs_xyz, obs_t, t_now, spread2, memory_s):
             dz = gz - obs_xyz[j, 2]
             sq = (dx * dx + dz * dz) + dy * dy
             out[i, j] = -0.5 * sq / spread2 - age[j]
+    return out
+
+
+@njit(cache=True)
+def place_exponent(gp_xyz, place_xyz, spread2):
+    """(G, U) distance term ``-0.5 |dx|^2 / spread2`` of :func:`kernel_exponent` between GPs
+    ``gp_xyz`` (G, 3) and the places ``place_xyz`` (U, 3) looks were made at [km]."""
+    G = gp_xyz.shape[0]
+    U = place_xyz.shape[0]
+    out = np.empty((G, U))
+    for i in range(G):
+        gx = gp_xyz[i, 0]
+        gy = gp_xyz[i, 1]
+        gz = gp_xyz[i, 2]
+        for j in range(U):
+            dx = gx - place_xyz[j, 0]
+            dy = gy - place_xyz[j, 1]
+            dz = gz - place_xyz[j, 2]
+            sq = (dx * dx + dz * dz) + dy * dy
+            out[i, j] = -0.5 * sq / spread2
+    return out
+
+
+@njit(cache=True)
+def gathered_exponent(place_term, place_of, obs_t, t_now, memory_s, out):
+    """(G, N) :func:`kernel_exponent` from :func:`place_exponent`'s (G, U) ``place_term``: look j
+    made at place ``place_of[j]`` at ``obs_t[j]`` [s]: ``place_term[:, place_of[j]] - (t_now - t_j) /
+    memory_s``; written into ``out`` (G, N) (a buffer the caller keeps: a fresh array of this size
+    costs its page faults again at every call), which it returns."""
+    G = place_term.shape[0]
+    N = place_of.shape[0]
+    age = np.empty(N)
+    for j in range(N):
+        age[j] = (t_now - obs_t[j]) / memory_s
+    for i in range(G):
+        row = place_term[i]
+        for j in range(N):
+            out[i, j] = row[place_of[j]] - age[j]
     return out
 
 
