@@ -292,6 +292,10 @@ class ObservedView:
         return self._field.slot_of(t_s)
 
 
+def _empty_columns(n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    return np.zeros(n, np.int64), np.zeros(n, np.float64), np.zeros(n, np.float64), np.zeros(n, np.int64)
+
+
 class KnowledgeState:
     """What one planner (``me``) knows of the field: every inference it learned, the newest
     information time per region, the newest region insight per region. Small and picklable (the
@@ -303,13 +307,32 @@ class KnowledgeState:
         self.region_info_s: dict[int, float] = {}
         self.insight: dict[int, tuple[float, float, float]] = {}
         self._keys: set[tuple[str, int, int]] = set()
-        self._gp: list[int] = []
-        self._t: list[float] = []
-        self._v: list[float] = []
-        self._region: list[int] = []
+        # every inference known, in the order learned: (GP, time [s], inferred value, region) columns,
+        # numpy arrays filled up to _n (grown by doubling): a plan reads them as arrays, without
+        # converting a list of every look known at every plan
+        self._n = 0
+        self._cols = _empty_columns(0)
 
     def __len__(self) -> int:
-        return len(self._gp)
+        return self._n
+
+    def __getstate__(self) -> dict:
+        state = dict(self.__dict__)
+        state["_cols"] = tuple(c[:self._n].copy() for c in self._cols)  # the checkpoint holds no spare room
+        return state
+
+    def _append(self, gp: int, t_s: float, value: float, region: int) -> None:
+        n = self._n
+        if n == len(self._cols[0]):
+            self._cols = tuple(np.concatenate([c, e]) for c, e in zip(self._cols, _empty_columns(max(64, n))))
+        gp_a, t_a, v_a, r_a = self._cols
+        gp_a[n], t_a[n], v_a[n], r_a[n] = gp, t_s, value, region
+        self._n = n + 1
+
+    def _columns(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """(GP int64, time [s] float64, value float64, region int64) of every inference known: views."""
+        n = self._n
+        return tuple(c[:n] for c in self._cols)
 
     def learn(self, inf: Inference) -> bool:
         """Take one inference in (own look, delivered bundle, downlink); False if already known."""
@@ -318,10 +341,7 @@ class KnowledgeState:
             return False
         self._keys.add(key)
         t = inf.t_ns / 1e9
-        self._gp.append(int(inf.gp))
-        self._t.append(t)
-        self._v.append(float(inf.value))
-        self._region.append(int(inf.region))
+        self._append(int(inf.gp), t, float(inf.value), int(inf.region))
         r = int(inf.region)
         if t > self.region_info_s.get(r, -math.inf):
             self.region_info_s[r] = t
@@ -335,13 +355,9 @@ class KnowledgeState:
         an observation it processes from a downlink: its inference, with the region insight that
         includes it (to share), learned."""
         t_s = t_ns / 1e9
-        self._gp.append(int(gp))
-        self._t.append(t_s)
-        self._v.append(float(inferred))
-        self._region.append(int(region))
+        self._append(int(gp), t_s, float(inferred), int(region))
         omega, delta = self.region_insight(field, int(region), t_s)
-        for lst in (self._gp, self._t, self._v, self._region):
-            lst.pop()
+        self._n -= 1
         inf = Inference(src=src or self.me, gp=int(gp), t_ns=int(t_ns), value=float(inferred), region=int(region),
                         omega=omega, delta=delta)
         self.learn(inf)
@@ -357,13 +373,13 @@ class KnowledgeState:
         """(omega, delta) of ``region`` at ``t_s`` from every inference known (sat_node/inference.py):
         omega = the age-weighted mean of ln(inferred / forecast) there, delta = its change since the
         newest insight held before [1/h] (0 without one within the memory)."""
-        t_all = np.asarray(self._t, np.float64)
-        sel = np.flatnonzero((np.asarray(self._region, np.int64) == region) & (t_all <= t_s))
+        gp_all, t_all, v_all, r_all = self._columns()
+        sel = np.flatnonzero((r_all == region) & (t_all <= t_s))
         if len(sel) == 0:
             return 0.0, 0.0
-        gp = np.asarray(self._gp, np.int64)[sel]
+        gp = gp_all[sel]
         t = t_all[sel]
-        v = np.asarray(self._v, np.float64)[sel]
+        v = v_all[sel]
         d = np.log(np.maximum(v, 1.0) / field.forecast_at(gp, t).astype(np.float64))
         w = np.exp(-(t_s - t) / self.params.memory_s)
         omega = float(np.clip((w @ d) / w.sum(), -_LN_MAX, _LN_MAX))
@@ -385,11 +401,10 @@ class KnowledgeState:
             for r, t in self.region_info_s.items():
                 info[region_index == r] = min(t, t_now_s)
             return Knowledge(RegionPersistenceView(field, info, t_now_s), known, belief)
-        gp = np.asarray(self._gp, np.int64)
-        t = np.asarray(self._t, np.float64)
+        gp, t, v, _r = self._columns()
         keep = (t <= t_now_s) & (t_now_s - t < 7.0 * self.params.memory_s)  # older ones weigh < 1e-3
         gp, t = gp[keep], t[keep]
-        v = np.asarray(self._v, np.float64)[keep]
+        v = v[keep]
         d = np.log(np.maximum(v, 1.0) / field.forecast_at(gp, t).astype(np.float64)) if len(gp) else np.zeros(0)
         obs = {"gp": gp, "t_s": t, "d": d, "region": np.asarray(region_index)[gp] if len(gp) else np.zeros(0, int),
                "xyz": gp_ecef_km[gp] if len(gp) else np.zeros((0, 3))}
