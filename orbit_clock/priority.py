@@ -9,7 +9,9 @@ Ties break by satellite name so the order is deterministic.
 
 How we know it is right (tests/unit/test_orbit_isl.py): a hand-built set of windows with the
 expected order, and on the paper scenario the brute-force check "every satellite's first window
-start after t" sorted.
+start after t" sorted. :func:`priority_order` sorts the region table's arrays (by time, then the
+name's rank) instead of a dict of every satellite: tests/unit/test_priority_order.py compares it with
+the dict sort of :func:`next_access_s` (as first written) on random windows and sources.
 """
 
 from __future__ import annotations
@@ -63,12 +65,38 @@ def _region_table(windows: AccessWindows, r: int):
     return tab
 
 
+def _name_ranks(windows: AccessWindows, r: int) -> tuple[np.ndarray, dict[str, int]]:
+    """Per row of :func:`_region_table`'s region ``r``: its satellite name's rank in string order;
+    and name -> row."""
+    cache = windows.__dict__.setdefault("_next_access_ranks", {})
+    got = cache.get(r)
+    if got is None:
+        names = _region_table(windows, r)[0]
+        rank = np.empty(len(names), np.int64)
+        rank[sorted(range(len(names)), key=names.__getitem__)] = np.arange(len(names))
+        got = cache[r] = (rank, {n: i for i, n in enumerate(names)})
+    return got
+
+
 def priority_order(windows: AccessWindows, region, t_s: float, *, source: str | None = None,
                    max_priority: int | None = 15) -> list[tuple[str, int]]:
-    """[(sat_name, priority)] with priority 1 = next on scene over ``region`` after t_s [s]."""
-    nxt = next_access_s(windows, region, t_s)
-    nxt.pop(source, None)
-    order = sorted(nxt.items(), key=lambda kv: (kv[1], kv[0]))
+    """[(sat_name, priority)] with priority 1 = next on scene over ``region`` after t_s [s].
+
+    :func:`next_access_s`'s times sorted by (time, name), on the region table's arrays (a query per
+    observation, each over every satellite of the constellation)."""
+    r = windows.region_id(region)
+    names, ends, min_start = _region_table(windows, r)
+    if len(names) == 0:
+        return []
+    k = np.sum(ends <= t_s, axis=1)
+    first = min_start[np.arange(len(names)), k]
+    rank, row_of = _name_ranks(windows, r)
+    ok = np.isfinite(first)
+    if source in row_of:
+        ok[row_of[source]] = False
+    rows = np.flatnonzero(ok)
+    when = np.maximum(first[rows], float(t_s))  # next_access_s's max(first, t_s)
+    rows = rows[np.lexsort((rank[rows], when))]
     if max_priority is not None:
-        order = order[:max_priority]
-    return [(name, k + 1) for k, (name, _) in enumerate(order)]
+        rows = rows[:max_priority]
+    return [(names[i], k + 1) for k, i in enumerate(rows.tolist())]
