@@ -319,6 +319,7 @@ class KnowledgeState:
     def __getstate__(self) -> dict:
         state = dict(self.__dict__)
         state["_cols"] = tuple(c[:self._n].copy() for c in self._cols)  # the checkpoint holds no spare room
+        state.pop("_d_cache", None)  # (the field's, made again from the columns)
         return state
 
     def _append(self, gp: int, t_s: float, value: float, region: int) -> None:
@@ -328,6 +329,27 @@ class KnowledgeState:
         gp_a, t_a, v_a, r_a = self._cols
         gp_a[n], t_a[n], v_a[n], r_a[n] = gp, t_s, value, region
         self._n = n + 1
+
+    def _innovations(self, field) -> np.ndarray:
+        """Per inference known, its innovation ``ln(max(v, 1) / forecast)`` in ``field``: computed once
+        per inference (a look's never changes), for the ones learned since the last call, kept for
+        the same field. The same elementwise operations as on all of them at once (numpy's log is
+        elementwise: tests/unit/test_knowledge_columns.py compares batches of every size)."""
+        n = self._n
+        got = getattr(self, "_d_cache", None)
+        if got is None or got[0] is not field:
+            got = (field, np.zeros(0), 0)
+        _f, d, m = got
+        if m < n:
+            gp, t, v, _r = (c[m:n] for c in self._cols)
+            new = np.log(np.maximum(v, 1.0) / field.forecast_at(gp, t).astype(np.float64))
+            if len(d) < n:
+                d = np.concatenate([d[:m], new, np.zeros(len(self._cols[0]) - n)])
+            else:
+                d[m:n] = new
+            got = (field, d, n)
+        self._d_cache = got
+        return d[:n]
 
     def _columns(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """(GP int64, time [s] float64, value float64, region int64) of every inference known: views."""
@@ -401,11 +423,10 @@ class KnowledgeState:
             for r, t in self.region_info_s.items():
                 info[region_index == r] = min(t, t_now_s)
             return Knowledge(RegionPersistenceView(field, info, t_now_s), known, belief)
-        gp, t, v, _r = self._columns()
+        gp, t, _v, _r = self._columns()
         keep = (t <= t_now_s) & (t_now_s - t < 7.0 * self.params.memory_s)  # older ones weigh < 1e-3
+        d = self._innovations(field)[keep] if len(gp) else np.zeros(0)
         gp, t = gp[keep], t[keep]
-        v = v[keep]
-        d = np.log(np.maximum(v, 1.0) / field.forecast_at(gp, t).astype(np.float64)) if len(gp) else np.zeros(0)
         obs = {"gp": gp, "t_s": t, "d": d, "region": np.asarray(region_index)[gp] if len(gp) else np.zeros(0, int),
                "xyz": gp_ecef_km[gp] if len(gp) else np.zeros((0, 3))}
         insight = {r: x for r, x in self.insight.items() if x[0] <= t_now_s}

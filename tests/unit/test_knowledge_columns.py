@@ -139,3 +139,35 @@ def test_columns_give_the_lists_numbers():
     a = back.observe(f, g, int(22600e9), 77.0, int(regions[g]))
     b = new.observe(f, g, int(22600e9), 77.0, int(regions[g]))
     assert (a.omega, a.delta) == (b.omega, b.delta) and len(back) == len(new)
+
+
+def test_innovations_in_batches_of_every_size_equal_one_batch():
+    """The innovations are made for the inferences learned since the last plan: batches of 1 to 40
+    and the rest, against all at once (the old view's one batch), bit for bit - numpy's log and
+    the division are elementwise whatever the batch - and every view's looks equal the oracle's."""
+    rng = np.random.default_rng(31)
+    n_gp, n = 500, 60000
+    f = OsseField(values=rng.integers(1, 257, (30, n_gp)).astype(np.int16), slot_s=900.0, lat_deg=np.zeros(n_gp),
+                  lon_deg=np.linspace(0, 1, n_gp), region_index=np.zeros(n_gp, int), region_names=["a"],
+                  forecast=rng.integers(1, 257, (30, n_gp)).astype(np.int16))
+    ks = KnowledgeState(KnowledgeParams(model="observed"), "sat_11")
+    gp = rng.integers(0, n_gp, n)
+    t = rng.uniform(0.0, 26000.0, n)
+    v = np.exp(rng.uniform(-1.0, 6.0, n))  # below 1 too: max(v, 1)
+    i = 0
+    batches = 0
+    while i < n:
+        k = int(rng.integers(1, 41)) if batches % 50 else n // 40
+        for j in range(i, min(n, i + k)):
+            ks.learn(Inference("sat_2", int(gp[j]), int(t[j] * 1e9), float(v[j]), 0, 0.0, 0.0))
+        i += k
+        batches += 1
+        ks._innovations(f)
+    g, tt, vv, _r = ks._columns()
+    want = np.log(np.maximum(vv, 1.0) / f.forecast_at(g, tt).astype(np.float64))
+    assert batches > 1000 and len(ks) == n
+    assert ks._innovations(f).tobytes() == want.tobytes()
+    other = OsseField(values=f.values, slot_s=900.0, lat_deg=f.lat_deg, lon_deg=f.lon_deg, region_index=f.region_index,
+                      region_names=["a"], forecast=f.forecast[::-1].copy())
+    assert ks._innovations(other).tobytes() != want.tobytes()  # another field: made again for it
+    assert ks._innovations(f).tobytes() == want.tobytes()
