@@ -299,7 +299,11 @@ def _empty_columns(n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarr
 class KnowledgeState:
     """What one planner (``me``) knows of the field: every inference it learned, the newest
     information time per region, the newest region insight per region. Small and picklable (the
-    satellite's checkpoint holds it); the field, GPs and belief are passed in when planning."""
+    satellite's checkpoint holds it); the field, GPs and belief are passed in when planning.
+
+    The inferences are numpy columns (a plan reads them without converting a list) and each one's
+    innovation is made once, when a plan first needs it; tests/unit/test_knowledge_columns.py keeps
+    the list-based state as first written and checks the same insights, views and values."""
 
     def __init__(self, params: KnowledgeParams, me: str):
         self.params = params
