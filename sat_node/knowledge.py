@@ -227,8 +227,15 @@ class ObservedView:
                 self._looks[r] = None
             else:
                 xyz = np.ascontiguousarray(o["xyz"][mo], np.float64)
-                _ids, first, place_of = np.unique(o["gp"][mo], return_index=True, return_inverse=True)
-                places = np.ascontiguousarray(xyz[first])
+                # the distinct GPs looked at (in id order; any order gives the same numbers), one look
+                # of each, and each look's place: in one pass over the looks (GP ids are small)
+                g = np.asarray(o["gp"][mo], np.int64)
+                present = np.zeros(int(g.max()) + 1, bool)
+                present[g] = True
+                one = np.empty(len(present), np.int64)
+                one[g] = np.arange(len(g))
+                place_of = np.cumsum(present)[g] - 1
+                places = np.ascontiguousarray(xyz[one[np.flatnonzero(present)]])
                 if places[place_of].tobytes() != xyz.tobytes():
                     places = place_of = None
                 self._looks[r] = (xyz, np.ascontiguousarray(o["t_s"][mo], np.float64), o["d"][mo], places,
