@@ -4,9 +4,12 @@ Usage::
 
     .venv/bin/python bench/bench_replan.py [--known 0,3000,10000,30000] [--plans-per-sat 12] [--json]
 
-Late in a large run every planner knows tens of thousands of looks (1000 satellites x 6 h: 63 875
-observations, nearly all delivered to every satellite), and each plan's observed view sums over the
-known looks of the regions it plans over (sat_node/knowledge.py ``ObservedView``). This benchmark
+Each plan's observed view sums over the known looks of the regions it plans over
+(sat_node/knowledge.py ``ObservedView``), so its cost grows with the looks the planner knows. How
+many that is depends on the run: a satellite of the distributed paper scenario knows its own looks
+and those sent to it (each observation goes to the 15 satellites next over its region: 1000
+satellites x 1 h, 10 118 observations, 147 255 bundles delivered - ~160 looks per satellite), the
+ground segment (centralized) every look downlinked to it. This benchmark
 builds the paper scenario's world once (its 24 satellites' orbits, GPs, OSSE field and planner: a
 plan alone costs the same in a larger constellation), gives one planner ``--known`` N synthetic
 looks - at the paper regions' GPs (a few hundred per region, looked at again and again), made over
