@@ -217,7 +217,7 @@ class BundleEvent(NamedTuple):
     deadline_ns: int = 0  # the (bundle, recipient) pair's deadline (created: creation + its TTL); 0 unknown
 
 
-@dataclass
+@dataclass(slots=True)
 class _Held:
     bundle: Bundle
     priority: int
@@ -231,6 +231,7 @@ class _Held:
     bits: int = 0
     group: object = None
     route_memo: tuple | None = None  # (t_ns, parked version, len(excluded), Route | None)
+    bid: str = ""  # the bundle's id (bundle.bundle_id: its source, creation time and sequence never change here)
 
 
 class _Group:
@@ -396,10 +397,11 @@ class BundleAgent:
         set_routing(b, [(node_number(dest), int(priority), b.lifetime_ms)], None)
         b.hop_count = (self.config.hop_limit, 0)
         add_bib(b, self.config.key, ipn(self.number, 0))
-        h = _Held(b, int(priority), dest, self._created_ns(b) + int(ttl_s * _NS), self._created_ns(b), now_ns)
-        self._emit(now_ns, "created", h, b.bundle_id)
+        bid = b.bundle_id
+        h = _Held(b, int(priority), dest, self._created_ns(b) + int(ttl_s * _NS), self._created_ns(b), now_ns, bid=bid)
+        self._emit(now_ns, "created", h, bid)
         self._accept(h, now_ns)
-        return b.bundle_id
+        return bid
 
     def overheard(self, bundle_bytes: bytes, now_ns: int) -> bool:
         """True (and counted in ``counters['discarded.not_next_hop']``, with no BundleEvent) when
@@ -468,23 +470,23 @@ class BundleAgent:
             self._emit(now_ns, "dropped", None, b.bundle_id, reason="integrity")
             return "dropped.integrity"
         created = self._created_ns(b)
-        h = _Held(b, priority, dest, created + b.lifetime_ms * 1_000_000, created, now_ns)
         bid = b.bundle_id
+        h = _Held(b, priority, dest, created + b.lifetime_ms * 1_000_000, created, now_ns, bid=bid)
         if bid in self._held or bid in self._in_flight or bid in self._seen:
             # a copy of one we hold, or of one delivered here: discard. A bundle that comes back to a
             # relay that already forwarded it is accepted again (hop limit bounds any loop).
             self._emit(now_ns, "discarded", h, bid, reason="duplicate")
             return "discarded.duplicate"
         if now_ns >= h.expiry_ns:
-            self._emit(now_ns, "dropped", h, b.bundle_id, reason="ttl")
+            self._emit(now_ns, "dropped", h, bid, reason="ttl")
             return "dropped.ttl"
         if b.dest[0] == self.number:
             self._seen.add(bid)
-            self._emit(now_ns, "delivered", h, b.bundle_id)
+            self._emit(now_ns, "delivered", h, bid)
             return "delivered"
         limit, count = b.hop_count or (self.config.hop_limit, 0)
         if count + 1 > limit:
-            self._emit(now_ns, "dropped", h, b.bundle_id, reason="hop_limit")
+            self._emit(now_ns, "dropped", h, bid, reason="hop_limit")
             return "dropped.hop_limit"
         if foreign:  # admitted by this node's policy: it signs it as the security source (RFC 9172 3.5), so
             # the nodes after it - which take a recipients block only with the BIB - accept it
@@ -496,7 +498,7 @@ class BundleAgent:
         return self._accept(h, now_ns)
 
     def _accept(self, h: _Held, now_ns: int) -> str:
-        bid = h.bundle.bundle_id
+        bid = h.bid
         h.bits = self.config.bundle_bits or 8 * len(encode_bundle(h.bundle))
         self._held[bid] = h
         if self.store is not None:
@@ -506,7 +508,7 @@ class BundleAgent:
 
     def _enqueue(self, h: _Held, now_ns: int) -> str:
         """Check that a route exists (else drop ``no_route`` now) and put the bundle in its group."""
-        bid = h.bundle.bundle_id
+        bid = h.bid
         h.ready_ns = now_ns
         t = max(now_ns, self.radio_free_ns)
         r = self._route(h, t)
@@ -670,7 +672,7 @@ class BundleAgent:
                 h = self._head(g)
                 if h is None:
                     break
-                bid = h.bundle.bundle_id
+                bid = h.bid
                 if s >= h.expiry_ns:
                     self._forget(bid)
                     self._emit(s, "dropped", h, bid, reason="ttl")
@@ -689,7 +691,7 @@ class BundleAgent:
         return None
 
     def _send(self, h: _Held, c: int, s: int) -> Transmission | None:
-        bid = h.bundle.bundle_id
+        bid = h.bid
         h.bundle.previous_node = ipn(self.number, 0)
         dnum = node_number(h.dest)
         b = h.bundle
@@ -834,7 +836,7 @@ class BundleAgent:
                 self.store.delete(sb.bundle_id)
                 continue
             created = self._created_ns(b)
-            h = _Held(b, sb.priority, sb.dest, sb.expiry_ns, created, sb.received_ns)
+            h = _Held(b, sb.priority, sb.dest, sb.expiry_ns, created, sb.received_ns, bid=b.bundle_id)
             if b.previous_node is not None and b.previous_node[0] != self.number:
                 h.excluded_node = self._name_of(b.previous_node[0], None)
             h.bits = self.config.bundle_bits or 8 * len(sb.data)

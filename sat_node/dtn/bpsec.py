@@ -25,7 +25,8 @@ import io
 
 import cbor2
 
-from .bpv7 import BIB_BLOCK, PAYLOAD_BLOCK, Bundle, BundleError, CanonicalBlock, encode_primary, _eid_cbor, _eid_from
+from .bpv7 import BIB_BLOCK, PAYLOAD_BLOCK, Bundle, BundleError, CanonicalBlock, _eid_bytes, _eid_from, encode_primary
+from .cbor_enc import dumps as _dumps
 
 __all__ = ["IntegrityError", "add_bib", "verify_bib", "ippt", "BIB_HMAC_SHA2", "SHA_VARIANTS"]
 
@@ -47,12 +48,12 @@ def _target(b: Bundle, number: int) -> tuple[int, int, int, bytes]:
 
 
 # CBOR encodings of the small unsigned ints the IPPT is made of (0..255, the same bytes as cbor2.dumps)
-_UINT = {i: cbor2.dumps(i) for i in range(256)}
+_UINT = {i: _dumps(i) for i in range(256)}
 
 
 def _u(x) -> bytes:
     e = _UINT.get(x) if type(x) is int else None
-    return e if e is not None else cbor2.dumps(x)
+    return e if e is not None else _dumps(x)
 
 
 def ippt(b: Bundle, target_number: int, scope: int, bib_header: tuple[int, int, int]) -> bytes:
@@ -65,7 +66,7 @@ def ippt(b: Bundle, target_number: int, scope: int, bib_header: tuple[int, int, 
         out += [_u(ttype), _u(tnum), _u(tflags)]
     if scope & 4:
         out += [_u(x) for x in bib_header]
-    out.append(cbor2.dumps(tdata))
+    out.append(_dumps(tdata))
     return b"".join(out)
 
 
@@ -90,11 +91,13 @@ def add_bib(b: Bundle, key: bytes, security_source: tuple[int, int], *, sha_vari
     for t in targets:
         mac = hmac.digest(key, ippt(b, t, scope, header), SHA_VARIANTS[sha_variant])
         results.append([[1, mac]])
-    seq = [list(targets), BIB_HMAC_SHA2, 1 if params else 0, _eid_cbor(security_source)]
+    # the abstract security block: a CBOR sequence, each item encoded on its own (the source EID's
+    # encoding made once per EID: _eid_bytes is _dumps(_eid_cbor(eid)))
+    seq = [_dumps(list(targets)), _dumps(BIB_HMAC_SHA2), _dumps(1 if params else 0), _eid_bytes(security_source)]
     if params:
-        seq.append(params)
-    seq.append(results)
-    data = b"".join(cbor2.dumps(x) for x in seq)
+        seq.append(_dumps(params))
+    seq.append(_dumps(results))
+    data = b"".join(seq)
     blk = CanonicalBlock(BIB_BLOCK, block_number, flags, 0, data)
     b.blocks.insert(0, blk)
     _remember_made(b, blk, key, targets, params, security_source, results, scope, sha_variant)
@@ -111,12 +114,12 @@ def _remember_made(b: Bundle, blk: CanonicalBlock, key: bytes, targets, params, 
             or not (type(source) is tuple and len(source) == 2 and all(type(x) is int and x >= 0 for x in source)) \
             or not all(type(x) is int for p in params for x in p):
         return
-    if len(_ASB) >= 4096:
+    if len(_ASB) >= _MEMO_MAX:
         _ASB.clear()
     _ASB[blk.data] = (list(targets), BIB_HMAC_SHA2, source, {p[0]: p[1] for p in params}, results)
     for t in targets:
         memo = _verified_key(b, blk, key, t, scope, variant)
-        if len(_VERIFIED) >= 8192:
+        if len(_VERIFIED) >= _MEMO_MAX:
             _VERIFIED.clear()
         _VERIFIED.add(memo)
 
@@ -126,6 +129,10 @@ def _verified_key(b: Bundle, blk: CanonicalBlock, key: bytes, t: int, scope: int
     return (key, blk.data, blk.number, blk.flags, scope, variant, t, encode_primary(b) if scope & 1 else b"",
             _target(b, t))
 
+
+# entries kept in each memo below before it is emptied: more than the bundles a run has in transit at
+# once (each entry holds the bytes of a bundle's BIB, primary block and payload: ~0.5 kB)
+_MEMO_MAX = 1 << 16
 
 # BIB block-type-specific data -> its parse (a pure function of the bytes; a bundle's BIB is the same at
 # every hop, so a process parses it once). Only successful parses are kept; nobody mutates them.
@@ -137,7 +144,7 @@ def _parse_asb(data: bytes):
     if got is None:
         got = _parse_asb_plain(data)
         if type(data) is bytes:
-            if len(_ASB) >= 4096:
+            if len(_ASB) >= _MEMO_MAX:
                 _ASB.clear()
             _ASB[data] = got
     return got
@@ -189,7 +196,7 @@ def verify_bib(b: Bundle, key: bytes, *, required_targets: tuple[int, ...] = (1,
                 if not hmac.compare_digest(want, macs[0]):
                     raise IntegrityError(f"BIB: HMAC mismatch on block {t}")
                 if memo is not None:
-                    if len(_VERIFIED) >= 8192:
+                    if len(_VERIFIED) >= _MEMO_MAX:
                         _VERIFIED.clear()
                     _VERIFIED.add(memo)
             covered.add(t)

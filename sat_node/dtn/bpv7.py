@@ -42,6 +42,8 @@ from typing import NamedTuple
 
 import cbor2
 
+from .cbor_enc import dumps as _dumps
+
 __all__ = [
     "Bundle", "CanonicalBlock", "encode_primary", "BundleError", "decode_bundle", "encode_bundle", "crc16_x25", "crc32c",
     "PAYLOAD_BLOCK", "PREVIOUS_NODE_BLOCK", "BUNDLE_AGE_BLOCK", "HOP_COUNT_BLOCK", "Imc", "IMC_SCHEME",
@@ -126,6 +128,7 @@ def crc32c(data: bytes) -> int:
 
 
 _CRC_LEN = {CRC_NONE: 0, CRC_16: 2, CRC_32C: 4}
+_ZERO_CRC = {2: b"\x42\0\0", 4: b"\x44\0\0\0\0"}  # the CRC field, zeroed, as a CBOR byte string
 
 
 def _crc_bytes(crc_type: int, encoded_with_zero_crc: bytes) -> bytes:
@@ -136,9 +139,9 @@ def _crc_bytes(crc_type: int, encoded_with_zero_crc: bytes) -> bytes:
 
 def _encode_with_crc(items: list, crc_type: int) -> bytes:
     if crc_type == CRC_NONE:
-        return cbor2.dumps(items)
+        return _dumps(items)
     n = _CRC_LEN[crc_type]
-    raw = cbor2.dumps(items + [bytes(n)])
+    raw = _dumps(items + [bytes(n)])
     return raw[:-n] + _crc_bytes(crc_type, raw)
 
 
@@ -270,7 +273,7 @@ class CanonicalBlock:
                 key = (t, n, f, d)
                 raw = _BLOCK_RAW.get(key)
                 if raw is None:
-                    raw = cbor2.dumps([t, n, f, c, d])
+                    raw = _dumps([t, n, f, c, d])
                     if len(_BLOCK_RAW) >= 8192:
                         _BLOCK_RAW.clear()
                     _BLOCK_RAW[key] = raw
@@ -294,6 +297,27 @@ def _block(btype: int, num: int, flags: int, crc_type: int, data: bytes) -> Cano
     blk = _new_block(CanonicalBlock)
     blk.__dict__.update(type=btype, number=num, flags=flags, crc_type=crc_type, data=data, _raw=None)
     return blk
+
+
+def _shared_block(btype: int, num: int, flags: int, crc_type: int, data: bytes) -> CanonicalBlock:
+    """``CanonicalBlock(btype, num, flags, crc_type, data)``: for plain int fields and bytes data one
+    instance per distinct block, shared by the bundles that carry it (a block is immutable; its
+    encoding is then made once). The extension blocks a node writes at each hop (previous node, hop
+    count, next hops) take a few hundred distinct values in a run."""
+    if type(btype) is int and type(num) is int and type(flags) is int and type(crc_type) is int \
+            and type(data) is bytes and len(data) <= 64:
+        key = (btype, num, flags, crc_type, data)
+        blk = _SHARED_BLOCKS.get(key)
+        if blk is None:
+            blk = _block(btype, num, flags, crc_type, data)
+            if len(_SHARED_BLOCKS) >= 8192:
+                _SHARED_BLOCKS.clear()
+            _SHARED_BLOCKS[key] = blk
+        return blk
+    return CanonicalBlock(btype, num, flags, crc_type, data)
+
+
+_SHARED_BLOCKS: dict = {}
 
 
 @dataclass
@@ -341,13 +365,16 @@ class Bundle:
     def set_block(self, btype: int, data: bytes, flags: int = 0, crc_type: int = CRC_NONE) -> None:
         for i, b in enumerate(self.blocks):
             if b.type == btype:
-                self.blocks[i] = _block(b.type, b.number, flags, crc_type, data)  # = replace(b, ...)
+                if b.data == data and type(b.data) is type(data) and b.flags == flags and type(b.flags) is type(flags) \
+                        and b.crc_type == crc_type and type(b.crc_type) is type(crc_type):
+                    return  # the same block already (kept: its encoding is made)
+                self.blocks[i] = _shared_block(b.type, b.number, flags, crc_type, data)  # = replace(b, ...)
                 return
         used = {b.number for b in self.blocks} | {1}
         num = 2
         while num in used:
             num += 1
-        self.blocks.append(CanonicalBlock(btype, num, flags, crc_type, data))
+        self.blocks.append(_shared_block(btype, num, flags, crc_type, data))
 
     @property
     def previous_node(self) -> tuple[int, int] | None:
@@ -391,7 +418,7 @@ class Bundle:
 
     @age_ms.setter
     def age_ms(self, ms: int) -> None:
-        self.set_block(BUNDLE_AGE_BLOCK, cbor2.dumps(int(ms)))
+        self.set_block(BUNDLE_AGE_BLOCK, _dumps(int(ms)))
 
     def copy(self) -> "Bundle":
         return replace(self, blocks=list(self.blocks))
@@ -414,12 +441,12 @@ def _pair_bytes(pair, cbor_of, made: dict, parsed: dict) -> bytes:
         if type(a) is int and type(b) is int and a >= 0 and b >= 0:
             data = made.get(pair)
             if data is None:
-                data = cbor2.dumps(cbor_of(pair))
+                data = _dumps(cbor_of(pair))
                 if len(made) < 4096:
                     made[pair] = data
                     parsed[data] = pair
             return data
-    return cbor2.dumps(cbor_of(pair))
+    return _dumps(cbor_of(pair))
 
 
 def _eid_bytes(eid) -> bytes:
@@ -456,11 +483,20 @@ def encode_primary(b: Bundle) -> bytes:
 
 
 def _encode_primary(b: Bundle) -> bytes:
-    prim = [7, b.flags, b.crc_type, _eid_cbor(b.dest), _eid_cbor(b.src), _eid_cbor(b.report_to or b.src),
-            [b.creation_ms, b.seq], b.lifetime_ms]
-    if b.fragment is not None:
-        prim += [b.fragment[0], b.fragment[1]]
-    raw = _encode_with_crc(prim, b.crc_type)
+    if b.fragment is None and b.crc_type in (CRC_16, CRC_32C):
+        # the 9-item array written item by item (a definite array's encoding is its head and its
+        # items' encodings, RFC 8949 3.2.1): the EIDs' encodings are made once per EID
+        n = _CRC_LEN[b.crc_type]
+        raw = b"".join((b"\x89\x07", _dumps(b.flags), _dumps(b.crc_type), _eid_bytes(b.dest), _eid_bytes(b.src),
+                        _eid_bytes(b.report_to or b.src), b"\x82", _dumps(b.creation_ms), _dumps(b.seq),
+                        _dumps(b.lifetime_ms), _ZERO_CRC[n]))
+        raw = raw[:-n] + _crc_bytes(b.crc_type, raw)
+    else:
+        prim = [7, b.flags, b.crc_type, _eid_cbor(b.dest), _eid_cbor(b.src), _eid_cbor(b.report_to or b.src),
+                [b.creation_ms, b.seq], b.lifetime_ms]
+        if b.fragment is not None:
+            prim += [b.fragment[0], b.fragment[1]]
+        raw = _encode_with_crc(prim, b.crc_type)
     if b.fragment is None and b.crc_type in (CRC_16, CRC_32C):
         rpt = b.report_to or b.src
         _remember_primary((b.flags, b.crc_type, _ipn_key(b.dest), _ipn_key(b.src), _ipn_key(rpt), b.creation_ms,
@@ -514,7 +550,7 @@ def _split_blocks(data: bytes) -> list[tuple[object, bytes]]:
             pieces = []
             pos = 1
             for x in (items[:1] if no_crc else items):
-                enc = cbor2.dumps(x)
+                enc = _dumps(x)
                 if data[pos:pos + len(enc)] != enc:
                     raise ValueError("not shortest form")
                 pieces.append(enc)
@@ -707,7 +743,7 @@ def _decode_fast(data: bytes) -> Bundle | None:
     key = (flags, crc_type, dest, src, rpt, cms, seq, life, crc)
     raw = _PRIM_RAW.get(key)
     if raw is None:
-        raw = cbor2.dumps(prim)
+        raw = _dumps(prim)
         if not _CHECK[crc_type](raw):
             return None
         _remember_primary(key, raw)

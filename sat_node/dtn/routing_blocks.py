@@ -45,6 +45,7 @@ from __future__ import annotations
 import cbor2
 
 from .bpv7 import Bundle, BundleError, Imc
+from .cbor_enc import dumps as _dumps
 
 __all__ = ["IMC_BLOCK", "RECIPIENTS_BLOCK", "NEXT_HOPS_BLOCK", "ION_ASSIGNED_BLOCK_TYPES", "OBSERVATION_GROUP",
            "Recipient", "set_routing", "recipients_of", "next_hops_of", "peek_next_hops", "overhead_bits", "overhead_bits_of",
@@ -94,7 +95,7 @@ def encode_recipients(recipients) -> bytes:
     flat = []
     for node, prio, life in sorted(recipients):
         flat += [int(node), int(prio), int(life)]
-    out = cbor2.dumps(flat)
+    out = _dumps(flat)
     if got is None:
         _memo(_ENC_RCPT, recipients, out)
     return out
@@ -134,7 +135,7 @@ def encode_next_hops(split: dict[int, tuple[int, ...]]) -> bytes:
     flat: list = []
     for nh in sorted(split):
         flat += [int(nh), sorted(int(r) for r in split[nh])]
-    out = cbor2.dumps(flat)
+    out = _dumps(flat)
     if got is None:
         _memo(_ENC_SPLIT, key, out)
     return out
@@ -161,7 +162,7 @@ def parse_next_hops(data: bytes) -> tuple[tuple[int, tuple[int, ...]], ...]:
 
 
 def encode_imc(nodes) -> bytes:
-    return cbor2.dumps(sorted(int(n) for n in nodes))
+    return _dumps(sorted(int(n) for n in nodes))
 
 
 def parse_imc(data: bytes) -> tuple[int, ...]:
