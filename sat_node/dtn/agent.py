@@ -321,6 +321,9 @@ class BundleAgent:
         self._backlog_buf = np.zeros(n_contacts, dtype=np.float64)  # all 0 between queries (_route)
         self._excluded_buf = np.zeros(n_contacts, dtype=np.bool_)  # all False between queries
         self.radio_free_ns = 0
+        # (the radio's next decision time,) as transmissions_until left it; None once anything that
+        # moves it may have happened (a group queued, left or forgotten): next_event_ns then computes it
+        self._decision_after: tuple | None = None
         sd = self.config.settle_delay_s
         self._settle_ns = None if sd is None else int(round(sd * 1e9))
         self._settle_at = _NEVER  # when the oldest transmission in flight is settled (O(1) check per copy heard)
@@ -493,8 +496,9 @@ class BundleAgent:
             add_bib(b, c.key, ipn(self.number, 0))
             self.rx_counts["rx.foreign_signed"] += 1
         b.hop_count = (limit, count + 1)
-        if b.previous_node is not None:
-            h.excluded_node = self._name_of(b.previous_node[0], None)
+        prev = b.previous_node
+        if prev is not None:
+            h.excluded_node = self._name_of(prev[0], None)
         return self._accept(h, now_ns)
 
     def _accept(self, h: _Held, now_ns: int) -> str:
@@ -508,6 +512,7 @@ class BundleAgent:
 
     def _enqueue(self, h: _Held, now_ns: int) -> str:
         """Check that a route exists (else drop ``no_route`` now) and put the bundle in its group."""
+        self._decision_after = None
         bid = h.bid
         h.ready_ns = now_ns
         t = max(now_ns, self.radio_free_ns)
@@ -593,6 +598,7 @@ class BundleAgent:
         self._version += 1
 
     def _park(self, g: _Group, c: int, until_ns: int) -> None:
+        self._decision_after = None
         g.parked_c = c
         g.ready_ns = until_ns
         for *_k, bid in g.heap:
@@ -603,6 +609,7 @@ class BundleAgent:
             self._park_add(c, p, bits)
 
     def _unpark(self, g: _Group) -> None:
+        self._decision_after = None
         if g.parked_c < 0:
             return
         byp = self._parked[g.parked_c]
@@ -615,6 +622,7 @@ class BundleAgent:
         self._version += 1
 
     def _leave_group(self, h: _Held) -> None:
+        self._decision_after = None
         g = h.group
         if g is None:
             return
@@ -631,6 +639,7 @@ class BundleAgent:
             del self._groups[g.key]
 
     def _forget(self, bid: str) -> None:
+        self._decision_after = None
         h = self._held.pop(bid, None)
         if h is not None:
             self._leave_group(h)
@@ -727,6 +736,7 @@ class BundleAgent:
         when the radio is free (at transmission time), not when the bundle was queued."""
         out: list[Transmission] = []
         self._settle(t_ns)
+        self._decision_after = None
         while True:
             s = self._next_decision_ns()
             if s is None or s > t_ns:
@@ -734,6 +744,7 @@ class BundleAgent:
             tx = self._decide(s)
             if tx is not None:
                 out.append(tx)
+        self._decision_after = (s,)  # what the loop's last look found: nothing changed since
         return out
 
     def _settle(self, now_ns: int) -> None:
@@ -787,6 +798,7 @@ class BundleAgent:
         item = self._in_flight.pop(tx.bundle_id, None)
         if item is None:
             return
+        self._decision_after = None
         self._reset_settle_at()
         _tx, h = item
         self.counters["tx_failed"] += 1
@@ -815,7 +827,8 @@ class BundleAgent:
         """Earliest time this agent needs to act (a transmission decision or an expiry), or None;
         with a persistent store also the end of a transmission (its bundle leaves the store then)."""
         cands = []
-        nxt = self._next_decision_ns()
+        memo = self._decision_after
+        nxt = memo[0] if memo is not None else self._next_decision_ns()
         if nxt is not None:
             cands.append(nxt)
         while self._expiry_heap and self._expiry_heap[0][1] not in self._held:

@@ -511,19 +511,30 @@ def _ipn_key(eid) -> tuple[int, int]:
     return DTN_NONE if eid is None or eid == DTN_NONE else (eid[0], eid[1])
 
 
+# (payload flags, CRC type, payload) -> the payload block's encoding
+_PAYLOAD_RAW: dict = {}
+
+
 def encode_bundle(b: Bundle) -> bytes:
     """RFC 9171 bundle bytes: indefinite array of primary, extension blocks, payload; CRCs filled."""
     if b.creation_ms == 0 and b.block(BUNDLE_AGE_BLOCK) is None:
         raise BundleError("a bundle without a creation time needs a bundle-age block (RFC 9171 4.2.6)")
     parts = [b"\x9f", encode_primary(b)]
     parts += [blk.encode() for blk in b.blocks]
-    key = ("payload", b.payload_flags, b.payload_crc_type, b.payload)
-    raw = b._enc.get(key)
-    if raw is None:
-        raw = CanonicalBlock(PAYLOAD_BLOCK, 1, b.payload_flags, b.payload_crc_type, b.payload).encode()
-        if len(b._enc) > 8:
-            b._enc.clear()
-        b._enc[key] = raw
+    flags, crc, payload = b.payload_flags, b.payload_crc_type, b.payload
+    if type(flags) is int and type(crc) is int and type(payload) is bytes:
+        # the payload block of a bundle is the same at every hop (made once per process, not per
+        # Bundle object: each hop's node has its own); plain fields only (True == 1 as a key)
+        key = (flags, crc, payload)
+        raw = _PAYLOAD_RAW.get(key)
+        if raw is None:  # (what CanonicalBlock.encode writes, without filling its memo of small blocks)
+            items = [PAYLOAD_BLOCK, 1, flags, crc, payload]
+            raw = _dumps(items) if crc == 0 else _encode_with_crc(items, crc)
+            if len(_PAYLOAD_RAW) >= 1 << 16:
+                _PAYLOAD_RAW.clear()
+            _PAYLOAD_RAW[key] = raw
+    else:
+        raw = CanonicalBlock(PAYLOAD_BLOCK, 1, flags, crc, payload).encode()
     parts.append(raw)
     parts.append(b"\xff")
     return b"".join(parts)
@@ -589,7 +600,7 @@ def decode_bundle(data: bytes) -> Bundle:
         if sent is not None:  # bytes this process encoded and remembered (remember_sent)
             fields, blocks = sent
             b = _new_bundle(Bundle)
-            b.__dict__.update(fields, blocks=list(blocks), _enc={})
+            b.__dict__.update(fields, blocks=list(blocks), _enc={_SENT_FIELDS: fields})
             return b
         b = _decode_fast(data)
         if b is not None:
@@ -628,15 +639,14 @@ def remember_sent(data: bytes, b: Bundle) -> None:
     bytes returns what parsing them would, without parsing. Bundles not of the common shape (a
     fragment, block CRCs, a non-ipn EID, a creation time of 0, a known extension block twice or
     unparsable) are not noted (their bytes are parsed)."""
-    if type(data) is not bytes or b.fragment is not None or type(b.flags) is not int or b.flags < 0 or b.flags & 1 \
-            or b.crc_type not in (CRC_16, CRC_32C) or b.payload_crc_type != CRC_NONE \
-            or type(b.payload) is not bytes or type(b.payload_flags) is not int or b.payload_flags < 0 \
-            or type(b.creation_ms) is not int or b.creation_ms <= 0 or type(b.seq) is not int or b.seq < 0 \
-            or type(b.lifetime_ms) is not int or b.lifetime_ms < 0:
+    if type(data) is not bytes:
         return
-    dest, src, rpt = _decoded_eid(b.dest), _decoded_eid(b.src), _decoded_eid(b.report_to or b.src)
-    if dest is None or src is None or rpt is None:
-        return
+    d = b.__dict__
+    fields = d["_enc"].get(_SENT_FIELDS)  # ``b`` came from noted bytes: the fields noted with them, if
+    if fields is None or not all(d[k] is v for k, v in fields.items()):  # every one is still that object
+        fields = _sent_fields(b)
+        if fields is None:
+            return
     numbers = {1}
     known = set()
     for blk in b.blocks:
@@ -652,10 +662,27 @@ def remember_sent(data: bytes, b: Bundle) -> None:
             known.add(t)
     if len(_SENT) >= 4096:
         _SENT.clear()
-    _SENT[data] = ({"dest": dest, "src": src, "creation_ms": b.creation_ms, "seq": b.seq,
-                    "lifetime_ms": b.lifetime_ms, "payload": b.payload, "report_to": rpt, "flags": b.flags,
-                    "crc_type": b.crc_type, "fragment": None, "payload_crc_type": CRC_NONE,
-                    "payload_flags": b.payload_flags, "primary_raw": encode_primary(b)}, tuple(b.blocks))
+    _SENT[data] = (fields, tuple(b.blocks))
+
+
+_SENT_FIELDS = "_sent_fields"  # the Bundle._enc key of the fields a decoded Bundle was made from (_SENT)
+
+
+def _sent_fields(b: Bundle) -> dict | None:
+    """The fields ``decode_bundle(encode_bundle(b))`` has besides its blocks, for the common shape
+    (:func:`remember_sent`); None for any other."""
+    if b.fragment is not None or type(b.flags) is not int or b.flags < 0 or b.flags & 1 \
+            or b.crc_type not in (CRC_16, CRC_32C) or b.payload_crc_type != CRC_NONE \
+            or type(b.payload) is not bytes or type(b.payload_flags) is not int or b.payload_flags < 0 \
+            or type(b.creation_ms) is not int or b.creation_ms <= 0 or type(b.seq) is not int or b.seq < 0 \
+            or type(b.lifetime_ms) is not int or b.lifetime_ms < 0:
+        return None
+    dest, src, rpt = _decoded_eid(b.dest), _decoded_eid(b.src), _decoded_eid(b.report_to or b.src)
+    if dest is None or src is None or rpt is None:
+        return None
+    return {"dest": dest, "src": src, "creation_ms": b.creation_ms, "seq": b.seq, "lifetime_ms": b.lifetime_ms,
+            "payload": b.payload, "report_to": rpt, "flags": b.flags, "crc_type": b.crc_type, "fragment": None,
+            "payload_crc_type": CRC_NONE, "payload_flags": b.payload_flags, "primary_raw": encode_primary(b)}
 
 
 # (block type, block-type-specific data) of known extension blocks whose data parsed (a handful of

@@ -147,9 +147,12 @@ class DtnPort:
         if outcome == "discarded.not_next_hop":
             # overheard on the broadcast medium: counted (DtnCounters), not one event per copy
             self.overheard += 1
-            for ev in agent.events[n_ev:]:
-                self._ev_info[id(ev)] = None
+            if self.events:
+                for ev in agent.events[n_ev:]:
+                    self._ev_info[id(ev)] = None
             return None
+        if not self.events:  # no event messages to write: what the bundle said is not needed
+            return agent.last_received if outcome == "delivered" else None
         if outcome == "delivered" or outcome.startswith("discarded"):
             b = agent.last_received  # what receive() decoded from env.data (not altered)
             if b is None:
@@ -185,9 +188,11 @@ class DtnPort:
         emits: list[Emit] = []
         out_topic = self.out_topic
         step = self._steps
+        next_hop = self._next_hop if self.events else None  # (read only by the event messages)
         for tx in agent.transmissions_until(t_ns):
             emits.append(Emit(out_topic, tx.bundle_bytes, tx.start_ns))
-            self._next_hop[(tx.bundle_id, tx.start_ns)] = tx.next_hop
+            if next_hop is not None:
+                next_hop[(tx.bundle_id, tx.start_ns)] = tx.next_hop
             self._sent.append((step, tx))
         self._steps = step + 1
         self._prev_t = t_ns
