@@ -14,7 +14,8 @@ How we know it is right: RFC 9173 appendix A.1 (key 1a2b...1a2b, HMAC 512, scope
 generate a 32-byte payload"): same IPPT bytes and the same 64-byte MAC as the RFC
 (tests/unit/test_bpsec.py); a flipped payload bit, a wrong key and a truncated BIB all fail, also
 after the same BIB bytes were parsed once and cached, and what add_bib leaves in those caches equals
-the parse and a fresh check (tests/unit/test_speed_paths.py).
+the parse and a fresh check (tests/unit/test_speed_paths.py); the BIB add_bib writes equals one
+made with cbor2 and hmac alone from RFC 9172 3.6 / RFC 9173 3.7 (tests/unit/test_wire_same_bytes.py).
 """
 
 from __future__ import annotations
