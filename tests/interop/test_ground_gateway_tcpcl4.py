@@ -55,7 +55,7 @@ def test_downlinks_into_the_tcpcl4_agent_and_its_bundles_to_the_satellites(bus, 
         t0 = time.time()
         _o, err = finish(start_run(out, f"tcpcl4://127.0.0.1:{port}?node=9"))
         wall = time.time() - t0
-        a_out, a_err = agent.communicate(timeout=60)  # the gateway ended the session at the run's end
+        a_out, _a_err = agent.communicate(timeout=60)  # the gateway ended the session at the run's end
     finally:
         if agent.poll() is None:
             agent.kill()
@@ -64,7 +64,8 @@ def test_downlinks_into_the_tcpcl4_agent_and_its_bundles_to_the_satellites(bus, 
     g = gj["gateway"]
     got = [f.read_bytes() for f in sorted(rx.glob("*.bin"))]
     down = downlinked(out)
-    assert len(got) == len(down) == g["counters"]["sent"] == g["counters"]["acknowledged"] > 10
+    # how many downlinks there are depends on the hour's geometry (--epoch now), so at least one
+    assert len(got) == len(down) == g["counters"]["sent"] == g["counters"]["acknowledged"] >= 1
     assert [sha256(b) for b in got] == [s["sha256"] for s in g["sent"]]  # byte-identical, in order
     assert sorted((decode_bundle(b).bundle_id, decode_bundle(b).payload) for b in got) == \
         sorted((decode_bundle(b).bundle_id, decode_bundle(b).payload) for b in down)
