@@ -38,22 +38,14 @@ def kernel_exponent(gp_xyz, obs_xyz, obs_t, t_now, spread2, memory_s):
     """(G, N) exponent of the Gaussian kernel between GPs ``gp_xyz`` (G, 3) [km] and looks
     ``obs_xyz`` (N, 3) [km] made at ``obs_t`` (N,) [s], at ``t_now`` [s]: ``-0.5 |dx|^2 / spread2
     - (t_now - t_o) / memory_s`` (module docstring: numpy's operations and order)."""
-    G = gp_xyz.shape[0]
     N = obs_xyz.shape[0]
     age = np.empty(N)
     for j in range(N):
         age[j] = (t_now - obs_t[j]) / memory_s
-    out = np.empty((G, N))
-    for i in range(G):
-        gx = gp_xyz[i, 0]
-        gy = gp_xyz[i, 1]
-        gz = gp_xyz[i, 2]
+    out = place_exponent(gp_xyz, obs_xyz, spread2)  # the distance term, then the age: the same bits
+    for i in range(out.shape[0]):
         for j in range(N):
-            dx = gx - obs_xyz[j, 0]
-            dy = gy - obs_xyz[j, 1]
-            dz = gz - obs_xyz[j, 2]
-            sq = (dx * dx + dz * dz) + dy * dy
-            out[i, j] = -0.5 * sq / spread2 - age[j]
+            out[i, j] = out[i, j] - age[j]
     return out
 
 

@@ -57,6 +57,10 @@ def test_kernel_exponent_has_the_numpy_expressions_bits():
 class _NumpyView(ObservedView):
     """The view with its region sums made by the numpy expression (``_ref`` as first written)."""
 
+    def _exponent(self, gp_xyz, o, mo):
+        return _exponent_as_first_written(gp_xyz, o["xyz"][mo], o["t_s"][mo], self._t,
+                                          self._p.spread_km, self._p.memory_s)
+
     def _ref(self, gps):
         n = np.zeros(len(gps))
         w = np.zeros(len(gps))
@@ -68,8 +72,7 @@ class _NumpyView(ObservedView):
             mo = o["region"] == r
             if not mo.any():
                 continue
-            k = np.exp(_exponent_as_first_written(self._xyz[gps[sel]], o["xyz"][mo], o["t_s"][mo], self._t,
-                                                  self._p.spread_km, self._p.memory_s))
+            k = np.exp(self._exponent(self._xyz[gps[sel]], o, mo))
             n[sel], w[sel] = k @ o["d"][mo], k.sum(axis=1)
         return n, w
 
@@ -132,27 +135,14 @@ def test_gathered_exponent_has_the_kernels_bits():
     assert cases == 60
 
 
-class _KernelView(ObservedView):
+class _KernelView(_NumpyView):
     """The view with its region sums made as before the places: kernel_exponent over every look, a
     fresh np.exp, then numpy's product and row sums."""
 
-    def _ref(self, gps):
-        n = np.zeros(len(gps))
-        w = np.zeros(len(gps))
-        o = self._obs
-        if len(o["gp"]) == 0:
-            return n, w
-        for r in np.unique(self._region[gps]):
-            sel = np.flatnonzero(self._region[gps] == r)
-            mo = o["region"] == r
-            if not mo.any():
-                continue
-            k = np.exp(kernel_exponent(np.ascontiguousarray(self._xyz[gps[sel]]),
-                                       np.ascontiguousarray(o["xyz"][mo], np.float64),
-                                       np.ascontiguousarray(o["t_s"][mo], np.float64), self._t,
-                                       self._p.spread_km ** 2, self._p.memory_s))
-            n[sel], w[sel] = k @ o["d"][mo], k.sum(axis=1)
-        return n, w
+    def _exponent(self, gp_xyz, o, mo):
+        return kernel_exponent(np.ascontiguousarray(gp_xyz), np.ascontiguousarray(o["xyz"][mo], np.float64),
+                               np.ascontiguousarray(o["t_s"][mo], np.float64), self._t,
+                               self._p.spread_km ** 2, self._p.memory_s)
 
 
 def test_observed_view_by_places_equals_the_view_before_them():
